@@ -1,0 +1,119 @@
+//! The detector API: options, keypoints, and the backend trait that the CPU and GPU implement.
+
+use serde::Serialize;
+
+use crate::cpu::CpuBackend;
+use crate::error::Result;
+use crate::map::{MapImage, OccupancyMap, Thresholds};
+use crate::rules::{RuleSet, RuleTable};
+use crate::states::ClassTable;
+
+/// A corner: pixel coordinates (origin top-left, x right, y down), the rule that fired and the code.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize)]
+pub struct Keypoint {
+    /// Row, counted down from the top. First so that the derived order is (y, x).
+    pub y: u32,
+    /// Column, counted right from the left edge.
+    pub x: u32,
+    /// The rule that accepted the neighbourhood: 4, 5 or 6 occupied neighbours.
+    pub rule: u8,
+    /// The 8-neighbour code (bit order in [`crate::rules`]).
+    pub code: u8,
+}
+
+/// How to detect.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct DetectOptions {
+    /// Which reading of the paper's rules.
+    pub rules: RuleSet,
+    /// Count unknown neighbours as occupied (by default they count as not occupied).
+    pub unknown_as_occupied: bool,
+}
+
+/// The keypoints found in one map.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Detection {
+    /// Map width in pixels.
+    pub width: u32,
+    /// Map height in pixels.
+    pub height: u32,
+    /// Keypoints sorted by (y, x).
+    pub keypoints: Vec<Keypoint>,
+}
+
+/// Something that runs the classification and corner kernels: the CPU reference, or a GPU.
+///
+/// Implementations keep whatever set-up they need (devices, pipelines, buffers) between calls.
+pub trait Backend {
+    /// A short name for messages and benchmark records.
+    fn name(&self) -> String;
+
+    /// Classifies `image` with `classes`, then returns every free pixel whose neighbour code `rules`
+    /// accepts, sorted by (y, x).
+    fn detect(
+        &mut self,
+        image: &MapImage,
+        classes: &ClassTable,
+        rules: &RuleTable,
+        unknown_as_occupied: bool,
+    ) -> Result<Vec<Keypoint>>;
+}
+
+/// Detects corners in maps; keep one and reuse it so backend set-up is paid once.
+pub struct Detector {
+    options: DetectOptions,
+    rules: RuleTable,
+    backend: Box<dyn Backend>,
+}
+
+impl Detector {
+    /// A detector on the CPU reference backend.
+    pub fn new(options: DetectOptions) -> Self {
+        Self::with_backend(options, Box::new(CpuBackend))
+    }
+
+    /// A detector on the given backend.
+    pub fn with_backend(options: DetectOptions, backend: Box<dyn Backend>) -> Self {
+        Detector {
+            options,
+            rules: RuleTable::new(options.rules),
+            backend,
+        }
+    }
+
+    /// The options this detector was built with.
+    pub fn options(&self) -> DetectOptions {
+        self.options
+    }
+
+    /// The derived rule table.
+    pub fn rule_table(&self) -> &RuleTable {
+        &self.rules
+    }
+
+    /// The backend's name.
+    pub fn backend_name(&self) -> String {
+        self.backend.name()
+    }
+
+    /// Detects corners in a loaded map, with the map's own thresholds.
+    pub fn detect(&mut self, map: &OccupancyMap) -> Result<Detection> {
+        self.detect_image(&map.image, &map.thresholds)
+    }
+
+    /// Detects corners in an image, reading its pixels with `thresholds`.
+    pub fn detect_image(&mut self, image: &MapImage, thresholds: &Thresholds) -> Result<Detection> {
+        let classes = ClassTable::new(thresholds);
+        let keypoints = self.backend.detect(
+            image,
+            &classes,
+            &self.rules,
+            self.options.unknown_as_occupied,
+        )?;
+        Ok(Detection {
+            width: image.width(),
+            height: image.height(),
+            keypoints,
+        })
+    }
+}

@@ -1,0 +1,37 @@
+//! # ogm-corners
+//!
+//! Corner detection in robot occupancy grid maps with the method of "A New Corner Detector Approach for
+//! Occupancy Grid Map Merging": a free cell is a corner when its 8 neighbours match one of three rules,
+//! compiled into a 256-entry table indexed by the neighbour bit pattern.
+//!
+//! ```
+//! use ogm_corners::{DetectOptions, Detector, MapImage, OccupancyMap};
+//!
+//! // A free room (254) with a wall (0) around it: its four inner corners are keypoints.
+//! let mut img = MapImage::filled(8, 8, 254).unwrap();
+//! for i in 0..8 {
+//!     for (x, y) in [(i, 0), (i, 7), (0, i), (7, i)] {
+//!         img.pixels_mut()[y * 8 + x] = 0;
+//!     }
+//! }
+//! let mut detector = Detector::new(DetectOptions::default());
+//! let found = detector.detect(&OccupancyMap::from_image(img)).unwrap();
+//! let corners: Vec<(u32, u32)> = found.keypoints.iter().map(|k| (k.x, k.y)).collect();
+//! assert_eq!(corners, vec![(1, 1), (6, 1), (1, 6), (6, 6)]);
+//! ```
+
+pub mod cpu;
+pub mod detector;
+pub mod error;
+pub mod map;
+pub mod output;
+pub mod overlay;
+pub mod rules;
+pub mod states;
+pub mod synth;
+
+pub use detector::{Backend, DetectOptions, Detection, Detector, Keypoint};
+pub use error::{Error, Result};
+pub use map::{GeoRef, MapImage, OccupancyMap, Thresholds};
+pub use rules::{RuleSet, RuleTable};
+pub use states::{CellState, ClassTable};

@@ -1,0 +1,116 @@
+//! Keypoint lists as CSV or JSON.
+
+use std::io::Write;
+
+use serde::Serialize;
+
+use crate::detector::{DetectOptions, Detection};
+use crate::map::OccupancyMap;
+
+/// Output formats of `detect`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Format {
+    /// A header line `x,y,rule,code[,world_x,world_y]`, then one keypoint a line.
+    Csv,
+    /// One object with the map's size and the keypoint list.
+    Json,
+}
+
+/// Writes the keypoints of `det` (found in `map`) in `format`.
+pub fn write_keypoints(
+    out: &mut dyn Write,
+    format: Format,
+    map: &OccupancyMap,
+    det: &Detection,
+    options: &DetectOptions,
+    backend: &str,
+) -> std::io::Result<()> {
+    match format {
+        Format::Csv => write_csv(out, map, det),
+        Format::Json => write_json(out, map, det, options, backend),
+    }
+}
+
+/// CSV: `x,y,rule,code`, plus `world_x,world_y` in metres when the map has a yaml.
+pub fn write_csv(out: &mut dyn Write, map: &OccupancyMap, det: &Detection) -> std::io::Result<()> {
+    match &map.georef {
+        Some(_) => writeln!(out, "x,y,rule,code,world_x,world_y")?,
+        None => writeln!(out, "x,y,rule,code")?,
+    }
+    for k in &det.keypoints {
+        write!(out, "{},{},{},{}", k.x, k.y, k.rule, k.code)?;
+        if let Some(g) = &map.georef {
+            let (wx, wy) = g.pixel_to_world(k.x, k.y, det.height);
+            write!(out, ",{wx:.6},{wy:.6}")?;
+        }
+        writeln!(out)?;
+    }
+    Ok(())
+}
+
+#[derive(Serialize)]
+struct JsonKeypoint {
+    x: u32,
+    y: u32,
+    rule: u8,
+    code: u8,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    world: Option<[f64; 2]>,
+}
+
+#[derive(Serialize)]
+struct JsonDetection<'a> {
+    map: Option<String>,
+    width: u32,
+    height: u32,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    resolution: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    origin: Option<[Option<f64>; 3]>,
+    rules: &'a str,
+    unknown_as_occupied: bool,
+    backend: &'a str,
+    count: usize,
+    keypoints: Vec<JsonKeypoint>,
+}
+
+/// JSON: `{"map", "width", "height", ["resolution", "origin",] "rules", "unknown_as_occupied", "backend",
+/// "count", "keypoints": [{"x", "y", "rule", "code", ["world": [x, y]]}]}`.
+pub fn write_json(
+    out: &mut dyn Write,
+    map: &OccupancyMap,
+    det: &Detection,
+    options: &DetectOptions,
+    backend: &str,
+) -> std::io::Result<()> {
+    let doc = JsonDetection {
+        map: map.source().map(|p| p.display().to_string()),
+        width: det.width,
+        height: det.height,
+        resolution: map.georef.map(|g| g.resolution),
+        // JSON has no NaN: a non-finite yaw is written as null.
+        origin: map
+            .georef
+            .map(|g| g.origin.map(|v| v.is_finite().then_some(v))),
+        rules: options.rules.name(),
+        unknown_as_occupied: options.unknown_as_occupied,
+        backend,
+        count: det.keypoints.len(),
+        keypoints: det
+            .keypoints
+            .iter()
+            .map(|k| JsonKeypoint {
+                x: k.x,
+                y: k.y,
+                rule: k.rule,
+                code: k.code,
+                world: map.georef.map(|g| {
+                    let (wx, wy) = g.pixel_to_world(k.x, k.y, det.height);
+                    [wx, wy]
+                }),
+            })
+            .collect(),
+    };
+    serde_json::to_writer_pretty(&mut *out, &doc)?;
+    writeln!(out)
+}

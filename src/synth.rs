@@ -1,0 +1,268 @@
+//! Synthetic maps: a seeded office generator for the demo, tests and benchmarks, and a small PRNG.
+//!
+//! The project ships no real maps; everything it needs to show or measure is generated here.
+
+use crate::error::{Error, Result};
+use crate::map::MapImage;
+
+/// ROS `map_server` value of a free cell.
+pub const FREE: u8 = 254;
+/// ROS `map_server` value of an unknown cell.
+pub const UNKNOWN: u8 = 205;
+/// ROS `map_server` value of an occupied cell.
+pub const OCCUPIED: u8 = 0;
+
+/// SplitMix64: small, fast and stable across versions, so a seed always gives the same map.
+#[derive(Clone, Debug)]
+pub struct Rng(u64);
+
+impl Rng {
+    /// A generator from a seed.
+    pub fn new(seed: u64) -> Self {
+        Rng(seed ^ 0x5DEE_CE66_D1CE_4E5B)
+    }
+
+    /// The next 64 random bits.
+    pub fn next_u64(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+
+    /// A value in `lo..hi` (`lo` when the range is empty).
+    pub fn range(&mut self, lo: u32, hi: u32) -> u32 {
+        if hi <= lo {
+            return lo;
+        }
+        lo + (((self.next_u64() >> 32) * u64::from(hi - lo)) >> 32) as u32
+    }
+
+    /// True with probability `p`.
+    pub fn chance(&mut self, p: f64) -> bool {
+        ((self.next_u64() >> 11) as f64) < p * (1u64 << 53) as f64
+    }
+}
+
+/// Smallest side the office generator accepts.
+pub const MIN_OFFICE_SIDE: u32 = 32;
+
+/// A half-open rectangle [x0, x1) x [y0, y1).
+#[derive(Clone, Copy, Debug)]
+struct Rect {
+    x0: u32,
+    y0: u32,
+    x1: u32,
+    y1: u32,
+}
+
+impl Rect {
+    fn w(&self) -> u32 {
+        self.x1.saturating_sub(self.x0)
+    }
+    fn h(&self) -> u32 {
+        self.y1.saturating_sub(self.y0)
+    }
+}
+
+struct Canvas {
+    w: u32,
+    px: Vec<u8>,
+}
+
+impl Canvas {
+    fn fill(&mut self, r: Rect, v: u8) {
+        for y in r.y0..r.y1 {
+            let row = (y * self.w) as usize;
+            self.px[row + r.x0 as usize..row + r.x1 as usize].fill(v);
+        }
+    }
+}
+
+/// Room sizes in pixels (about 1.2 m to 9 m at 0.05 m/px).
+const MIN_ROOM: u32 = 24;
+
+/// A synthetic office floor as a SLAM map would show it: rooms from recursive splits, corridors, doors,
+/// walls 1-3 px thick, furniture, a few unexplored rooms, sensor speckle and ragged walls, and unknown space
+/// outside the building. The same (size, seed) always gives the same map.
+pub fn office_map(width: u32, height: u32, seed: u64) -> Result<MapImage> {
+    if width < MIN_OFFICE_SIDE || height < MIN_OFFICE_SIDE {
+        return Err(Error::invalid(format!(
+            "synthetic office map of {width}x{height} is too small: each side needs at least {MIN_OFFICE_SIDE} px"
+        )));
+    }
+    let n = width as u64 * height as u64;
+    if n > crate::map::MAX_IMAGE_BYTES {
+        return Err(Error::invalid(format!(
+            "synthetic map of {width}x{height} exceeds {} pixels",
+            crate::map::MAX_IMAGE_BYTES
+        )));
+    }
+    let mut rng = Rng::new(seed);
+    let mut c = Canvas {
+        w: width,
+        px: vec![UNKNOWN; n as usize],
+    };
+    let margin = (width.min(height) / 20).max(4);
+    let building = Rect {
+        x0: margin,
+        y0: margin,
+        x1: width - margin,
+        y1: height - margin,
+    };
+    c.fill(building, FREE);
+    let t = rng.range(2, 4);
+    for r in [
+        Rect {
+            y1: building.y0 + t,
+            ..building
+        },
+        Rect {
+            y0: building.y1 - t,
+            ..building
+        },
+        Rect {
+            x1: building.x0 + t,
+            ..building
+        },
+        Rect {
+            x0: building.x1 - t,
+            ..building
+        },
+    ] {
+        c.fill(r, OCCUPIED);
+    }
+    let inner = Rect {
+        x0: building.x0 + t,
+        y0: building.y0 + t,
+        x1: building.x1 - t,
+        y1: building.y1 - t,
+    };
+    let mut rooms = Vec::new();
+    split(&mut c, &mut rng, inner, 0, &mut rooms);
+    for room in rooms {
+        furnish(&mut c, &mut rng, room);
+    }
+    add_noise(&mut c, &mut rng, width, height);
+    MapImage::new(width, height, c.px)
+}
+
+/// Splits `r` with a wall (or, near the top of the tree, a corridor between two walls) and recurses;
+/// collects the leaves as rooms.
+fn split(c: &mut Canvas, rng: &mut Rng, r: Rect, depth: u32, rooms: &mut Vec<Rect>) {
+    let vertical = r.w() >= r.h(); // a vertical wall splits the longer side
+    let long = r.w().max(r.h());
+    let max_room = rng.range(70, 180);
+    if long < 2 * MIN_ROOM + 6 || (r.w() <= max_room && r.h() <= max_room) {
+        rooms.push(r);
+        return;
+    }
+    let (lo, hi) = if vertical { (r.x0, r.x1) } else { (r.y0, r.y1) };
+    let band = |a: u32, b: u32| {
+        if vertical {
+            Rect { x0: a, x1: b, ..r }
+        } else {
+            Rect { y0: a, y1: b, ..r }
+        }
+    };
+    let corridor = depth <= 1 && long > 4 * MIN_ROOM + 40 && rng.chance(0.6);
+    if corridor {
+        let cw = rng.range(8, 15);
+        let (t1, t2) = (rng.range(1, 4), rng.range(1, 4));
+        let pos = rng.range(lo + MIN_ROOM + t1, hi - MIN_ROOM - cw - t2);
+        wall_with_doors(c, rng, band(pos - t1, pos), vertical);
+        wall_with_doors(c, rng, band(pos + cw, pos + cw + t2), vertical);
+        split(c, rng, band(lo, pos - t1), depth + 1, rooms);
+        split(c, rng, band(pos + cw + t2, hi), depth + 1, rooms);
+    } else {
+        let t = rng.range(1, 4);
+        let pos = rng.range(lo + MIN_ROOM, hi - MIN_ROOM - t);
+        wall_with_doors(c, rng, band(pos, pos + t), vertical);
+        split(c, rng, band(lo, pos), depth + 1, rooms);
+        split(c, rng, band(pos + t, hi), depth + 1, rooms);
+    }
+}
+
+/// Fills `wall` as occupied, then opens one or two doors along it.
+fn wall_with_doors(c: &mut Canvas, rng: &mut Rng, wall: Rect, vertical: bool) {
+    c.fill(wall, OCCUPIED);
+    let (lo, hi) = if vertical {
+        (wall.y0, wall.y1)
+    } else {
+        (wall.x0, wall.x1)
+    };
+    let doors = if hi - lo > 120 { 2 } else { 1 };
+    for _ in 0..doors {
+        let dw = rng.range(6, 12);
+        if hi - lo < dw + 8 {
+            return;
+        }
+        let at = rng.range(lo + 4, hi - 4 - dw);
+        let door = if vertical {
+            Rect {
+                y0: at,
+                y1: at + dw,
+                ..wall
+            }
+        } else {
+            Rect {
+                x0: at,
+                x1: at + dw,
+                ..wall
+            }
+        };
+        c.fill(door, FREE);
+    }
+}
+
+/// Furniture in a room, or leaves it unexplored (unknown inside its walls).
+fn furnish(c: &mut Canvas, rng: &mut Rng, room: Rect) {
+    if rng.chance(0.1) {
+        c.fill(room, UNKNOWN);
+        return;
+    }
+    for _ in 0..rng.range(0, 4) {
+        let (fw, fh) = (rng.range(3, 13), rng.range(3, 13));
+        if room.w() < fw + 10 || room.h() < fh + 10 {
+            continue;
+        }
+        let x0 = rng.range(room.x0 + 5, room.x1 - 5 - fw);
+        let y0 = rng.range(room.y0 + 5, room.y1 - 5 - fh);
+        c.fill(
+            Rect {
+                x0,
+                y0,
+                x1: x0 + fw,
+                y1: y0 + fh,
+            },
+            OCCUPIED,
+        );
+    }
+}
+
+/// Sensor speckle in free space, bumps and gaps along walls.
+fn add_noise(c: &mut Canvas, rng: &mut Rng, w: u32, h: u32) {
+    let before = c.px.clone();
+    let at = |x: u32, y: u32| before[(y * w + x) as usize];
+    for y in 1..h - 1 {
+        for x in 1..w - 1 {
+            let i = (y * w + x) as usize;
+            let v = before[i];
+            let near = |s: u8| {
+                at(x - 1, y) == s || at(x + 1, y) == s || at(x, y - 1) == s || at(x, y + 1) == s
+            };
+            if v == FREE {
+                if near(OCCUPIED) && rng.chance(0.03) {
+                    c.px[i] = OCCUPIED; // a bump on a wall
+                } else if rng.chance(0.001) {
+                    c.px[i] = OCCUPIED; // a spurious return
+                } else if rng.chance(0.001) {
+                    c.px[i] = UNKNOWN; // a cell no beam crossed
+                }
+            } else if v == OCCUPIED && near(FREE) && rng.chance(0.01) {
+                c.px[i] = FREE; // a missed return in a wall
+            }
+        }
+    }
+}

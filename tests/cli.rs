@@ -1,0 +1,267 @@
+//! The command-line tool: outputs, exit statuses and error messages.
+
+use std::fs;
+use std::path::PathBuf;
+use std::process::{Command, Output};
+
+fn bin() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_ogm-corners"))
+}
+
+fn run(args: &[&str]) -> Output {
+    bin().args(args).output().unwrap()
+}
+
+fn tmpdir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("ogm-cli-{}-{name}", std::process::id()));
+    fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn stdout(o: &Output) -> String {
+    String::from_utf8(o.stdout.clone()).unwrap()
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8(o.stderr.clone()).unwrap()
+}
+
+/// A 6x5 room with four inner corners, as a PGM.
+fn room_pgm(dir: &std::path::Path) -> PathBuf {
+    let rows = ["######", "#....#", "#....#", "#....#", "######"];
+    let mut bytes = b"P5\n6 5\n255\n".to_vec();
+    for r in rows {
+        bytes.extend(r.bytes().map(|b| if b == b'#' { 0 } else { 254 }));
+    }
+    let p = dir.join("room.pgm");
+    fs::write(&p, bytes).unwrap();
+    p
+}
+
+#[test]
+fn detect_csv_to_stdout() {
+    let d = tmpdir("csv");
+    let o = run(&["detect", room_pgm(&d).to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = stdout(&o);
+    let lines: Vec<&str> = out.lines().collect();
+    assert_eq!(lines[0], "x,y,rule,code");
+    assert_eq!(
+        &lines[1..],
+        &["1,1,5,199", "4,1,5,31", "1,3,5,241", "4,3,5,124"]
+    );
+}
+
+#[test]
+fn detect_json_with_yaml_has_world_coordinates() {
+    let d = tmpdir("json");
+    room_pgm(&d);
+    let yaml = d.join("room.yaml");
+    fs::write(&yaml, "image: room.pgm\nresolution: 0.5\norigin: [1.0, 2.0, 0.0]\nnegate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.196\n").unwrap();
+    let out = d.join("k.json");
+    let o = run(&[
+        "detect",
+        yaml.to_str().unwrap(),
+        "--format",
+        "json",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(o.stdout.is_empty());
+    let v: serde_json::Value = serde_json::from_str(&fs::read_to_string(&out).unwrap()).unwrap();
+    assert_eq!(v["width"], 6);
+    assert_eq!(v["height"], 5);
+    assert_eq!(v["count"], 4);
+    assert_eq!(v["rules"], "paper");
+    let k0 = &v["keypoints"][0];
+    assert_eq!(
+        (k0["x"].as_u64(), k0["y"].as_u64(), k0["rule"].as_u64()),
+        (Some(1), Some(1), Some(5))
+    );
+    // Pixel (1, 1) of a 5-row map is row 3 from the bottom: centre at (1 + 1.5 * 0.5, 2 + 3.5 * 0.5).
+    assert_eq!(k0["world"][0].as_f64(), Some(1.75));
+    assert_eq!(k0["world"][1].as_f64(), Some(3.75));
+    // CSV of a yaml map carries world columns too.
+    let o = run(&["detect", yaml.to_str().unwrap()]);
+    let out = stdout(&o);
+    assert_eq!(out.lines().next(), Some("x,y,rule,code,world_x,world_y"));
+    assert_eq!(out.lines().nth(1), Some("1,1,5,199,1.750000,3.750000"));
+}
+
+#[test]
+fn overlay_is_a_png_with_coloured_marks() {
+    let d = tmpdir("overlay");
+    let png = d.join("o.png");
+    let o = run(&[
+        "detect",
+        room_pgm(&d).to_str().unwrap(),
+        "--overlay",
+        png.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let img = image::open(&png).unwrap().to_rgb8();
+    assert!(
+        img.width() >= 6 * 8,
+        "small maps are enlarged: {}",
+        img.width()
+    );
+    let coloured = img
+        .pixels()
+        .filter(|p| !(p[0] == p[1] && p[1] == p[2]))
+        .count();
+    assert!(
+        coloured > 4 * 8,
+        "keypoints must be marked in colour ({coloured} px)"
+    );
+}
+
+#[test]
+fn rule_options_change_the_result() {
+    let d = tmpdir("opts");
+    // An L of unknown cells: a corner only with --unknown-as-occupied.
+    let p = d.join("u.pgm");
+    let mut bytes = b"P5\n3 3\n255\n".to_vec();
+    bytes.extend([205, 205, 205, 205, 254, 254, 205, 254, 254]);
+    fs::write(&p, bytes).unwrap();
+    let plain = stdout(&run(&["detect", p.to_str().unwrap()]));
+    let uao = stdout(&run(&[
+        "detect",
+        p.to_str().unwrap(),
+        "--unknown-as-occupied",
+    ]));
+    assert_eq!(plain.lines().count(), 1);
+    assert_eq!(uao.lines().count(), 2, "{uao}");
+    let o = run(&[
+        "detect",
+        p.to_str().unwrap(),
+        "--rules",
+        "paper-mod2",
+        "--backend",
+        "cpu",
+    ]);
+    assert!(o.status.success());
+}
+
+#[test]
+fn rules_command_csv_and_text() {
+    let o = run(&["rules", "--format", "csv"]);
+    assert!(o.status.success());
+    let out = stdout(&o);
+    let mut lines = out.lines();
+    assert_eq!(lines.next(), Some("code,rule"));
+    let rows: Vec<(u8, u8)> = lines
+        .map(|l| {
+            let (c, r) = l.split_once(',').unwrap();
+            (c.parse().unwrap(), r.parse().unwrap())
+        })
+        .collect();
+    assert_eq!(rows.len(), 44);
+    let want: Vec<(u8, u8)> = ogm_corners::RuleTable::new(ogm_corners::RuleSet::Paper)
+        .accepted()
+        .collect();
+    assert_eq!(rows, want);
+    let o = run(&["rules", "--rules", "paper-mod2", "--format", "csv"]);
+    assert_eq!(stdout(&o).lines().count(), 37);
+    let text = stdout(&run(&["rules"]));
+    assert!(
+        text.contains("code 199 (0b11000111)  rule 5\n    # # #\n    # C .\n    # . ."),
+        "{text}"
+    );
+}
+
+#[test]
+fn demo_writes_map_overlay_and_keypoints() {
+    let d = tmpdir("demo");
+    let o = run(&[
+        "demo",
+        "-o",
+        d.to_str().unwrap(),
+        "--size",
+        "300x200",
+        "--seed",
+        "3",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = stdout(&o);
+    assert!(
+        out.contains("corners in a 300x200 synthetic office map"),
+        "{out}"
+    );
+    for f in [
+        "demo-map.pgm",
+        "demo-map.yaml",
+        "overlay.png",
+        "keypoints.csv",
+        "keypoints.json",
+    ] {
+        assert!(d.join(f).is_file(), "{f} missing");
+    }
+    let n: usize = out.split_whitespace().next().unwrap().parse().unwrap();
+    assert!(n > 10, "an office has corners: {n}");
+    let csv = fs::read_to_string(d.join("keypoints.csv")).unwrap();
+    assert_eq!(csv.lines().count(), n + 1);
+    // The written map detects to the same keypoints through `detect`.
+    let again = stdout(&run(&["detect", d.join("demo-map.yaml").to_str().unwrap()]));
+    assert_eq!(again, csv);
+}
+
+#[test]
+fn bad_input_exits_2_with_one_line_naming_the_file() {
+    let d = tmpdir("bad");
+    let trunc = d.join("trunc.pgm");
+    fs::write(&trunc, b"P5\n10 10\n255\n\x00").unwrap();
+    let yaml = d.join("broken.yaml");
+    fs::write(&yaml, "image: [\n").unwrap();
+    let missing = d.join("missing.pgm");
+    for p in [&trunc, &yaml, &missing] {
+        let o = run(&["detect", p.to_str().unwrap()]);
+        assert_eq!(o.status.code(), Some(2), "{}", p.display());
+        let err = stderr(&o);
+        assert_eq!(err.lines().count(), 1, "{err}");
+        assert!(
+            err.contains(p.file_name().unwrap().to_str().unwrap()),
+            "{err}"
+        );
+        assert!(!err.contains("panicked"), "{err}");
+    }
+}
+
+#[test]
+fn usage_errors_exit_2_and_help_exits_0() {
+    assert_eq!(run(&["detect"]).status.code(), Some(2));
+    assert_eq!(
+        run(&["detect", "x.pgm", "--rules", "nope"]).status.code(),
+        Some(2)
+    );
+    assert_eq!(run(&["frobnicate"]).status.code(), Some(2));
+    assert_eq!(run(&["demo", "--size", "0x5"]).status.code(), Some(2));
+    assert_eq!(
+        run(&[
+            "demo",
+            "--size",
+            "10x10",
+            "-o",
+            tmpdir("tiny").to_str().unwrap()
+        ])
+        .status
+        .code(),
+        Some(2)
+    );
+    let h = run(&["--help"]);
+    assert_eq!(h.status.code(), Some(0));
+    assert!(stdout(&h).contains("detect"));
+}
+
+#[test]
+fn unwritable_output_exits_1() {
+    let d = tmpdir("unwritable");
+    let o = run(&[
+        "detect",
+        room_pgm(&d).to_str().unwrap(),
+        "-o",
+        "/nonexistent-dir/k.csv",
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("/nonexistent-dir/k.csv"));
+}

@@ -1,0 +1,92 @@
+//! Helpers shared by the integration tests.
+#![allow(dead_code)]
+
+use std::path::PathBuf;
+
+use ogm_corners::synth::{FREE, OCCUPIED, UNKNOWN};
+use ogm_corners::{DetectOptions, Detector, Keypoint, MapImage, OccupancyMap, RuleSet};
+
+/// A map from ASCII art: `#` occupied, `.` free, `?` unknown; rows top to bottom.
+pub fn art(rows: &[&str]) -> MapImage {
+    let h = rows.len() as u32;
+    let w = rows[0].len() as u32;
+    let px = rows
+        .iter()
+        .flat_map(|r| {
+            assert_eq!(r.len() as u32, w, "ragged art");
+            r.bytes().map(|b| match b {
+                b'#' => OCCUPIED,
+                b'.' => FREE,
+                b'?' => UNKNOWN,
+                _ => panic!("bad art char {}", b as char),
+            })
+        })
+        .collect();
+    MapImage::new(w, h, px).unwrap()
+}
+
+/// CPU keypoints of an image with the ROS default thresholds.
+pub fn detect(img: &MapImage, rules: RuleSet, unknown_as_occupied: bool) -> Vec<Keypoint> {
+    let mut d = Detector::new(DetectOptions {
+        rules,
+        unknown_as_occupied,
+    });
+    d.detect(&OccupancyMap::from_image(img.clone()))
+        .unwrap()
+        .keypoints
+}
+
+/// The folder of real maps beside the project, or None with a clear message. Under CI=true a missing
+/// folder is a failure, so the real-map checks never silently skip there.
+pub fn shared_maps() -> Option<PathBuf> {
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/maps");
+    if dir.is_dir() {
+        return Some(dir);
+    }
+    let msg = format!(
+        "real maps not found at {}: the real-map checks did NOT run",
+        dir.display()
+    );
+    if std::env::var("CI").is_ok_and(|v| v == "true") {
+        panic!("{msg} (CI=true requires them)");
+    }
+    eprintln!("SKIPPED: {msg}");
+    None
+}
+
+/// Every map under `dir`: each yaml, and each image that no yaml names.
+pub fn real_maps(dir: &std::path::Path) -> Vec<PathBuf> {
+    let mut files = Vec::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for e in std::fs::read_dir(&d).unwrap() {
+            let p = e.unwrap().path();
+            if p.is_dir() {
+                stack.push(p);
+            } else {
+                files.push(p);
+            }
+        }
+    }
+    files.sort();
+    let ext = |p: &PathBuf| {
+        p.extension()
+            .and_then(|e| e.to_str())
+            .unwrap_or("")
+            .to_string()
+    };
+    let yamls: Vec<PathBuf> = files.iter().filter(|p| ext(p) == "yaml").cloned().collect();
+    let named: Vec<PathBuf> = yamls
+        .iter()
+        .filter_map(|y| OccupancyMap::load(y).ok().and_then(|m| m.image_path))
+        .map(|p| p.canonicalize().unwrap())
+        .collect();
+    let mut maps = yamls;
+    for p in files {
+        if matches!(ext(&p).as_str(), "pgm" | "png") && !named.contains(&p.canonicalize().unwrap())
+        {
+            maps.push(p);
+        }
+    }
+    maps
+}

@@ -1,0 +1,48 @@
+//! The synthetic office map: seeded, deterministic, realistic enough to have every state and corners.
+
+mod common;
+
+use ogm_corners::synth::{office_map, Rng, FREE, OCCUPIED, UNKNOWN};
+use ogm_corners::RuleSet;
+
+#[test]
+fn same_seed_same_map_other_seed_other_map() {
+    let a = office_map(400, 300, 5).unwrap();
+    assert_eq!(a, office_map(400, 300, 5).unwrap());
+    assert_ne!(a, office_map(400, 300, 6).unwrap());
+}
+
+#[test]
+fn office_has_all_three_states_unknown_outside_and_corners() {
+    let m = office_map(512, 384, 1).unwrap();
+    let count = |v: u8| m.pixels().iter().filter(|&&p| p == v).count();
+    let (free, occ, unk) = (count(FREE), count(OCCUPIED), count(UNKNOWN));
+    assert_eq!(free + occ + unk, m.len(), "only the three ROS values");
+    assert!(
+        free > m.len() / 2 && occ > m.len() / 100 && unk > m.len() / 20,
+        "{free} {occ} {unk}"
+    );
+    // The border is unknown space outside the building.
+    assert!((0..m.width()).all(|x| m.get(x, 0) == UNKNOWN && m.get(x, m.height() - 1) == UNKNOWN));
+    let kps = common::detect(&m, RuleSet::Paper, false);
+    assert!(kps.len() > 50, "rooms have corners: {}", kps.len());
+}
+
+#[test]
+fn too_small_is_an_error_not_a_panic() {
+    assert!(office_map(31, 100, 1).is_err());
+    assert!(office_map(0, 0, 1).is_err());
+    for (w, h) in [(32, 32), (33, 200), (200, 33)] {
+        office_map(w, h, 9).unwrap();
+    }
+}
+
+#[test]
+fn rng_range_stays_in_bounds() {
+    let mut r = Rng::new(3);
+    for _ in 0..10_000 {
+        let v = r.range(5, 9);
+        assert!((5..9).contains(&v));
+    }
+    assert_eq!(r.range(4, 4), 4);
+}
