@@ -36,10 +36,12 @@ pub fn detect(img: &MapImage, rules: RuleSet, unknown_as_occupied: bool) -> Vec<
         .keypoints
 }
 
-/// The folder of real maps beside the project, or None with a clear message. Under CI=true a missing
-/// folder is a failure, so the real-map checks never silently skip there.
+/// The folder of real maps (`$OGM_MAPS_DIR`, else `../shared/maps` beside the project), or None with a
+/// clear message. Under CI=true a missing folder is a failure, so the real-map checks never silently skip.
 pub fn shared_maps() -> Option<PathBuf> {
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/maps");
+    let dir = std::env::var_os("OGM_MAPS_DIR")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/maps"));
     if dir.is_dir() {
         return Some(dir);
     }
