@@ -8,6 +8,25 @@ if ! command -v cargo >/dev/null 2>&1; then
     exit 1
 fi
 
+# GPU tests run on a Vulkan adapter; with none present, install Mesa's lavapipe (a software Vulkan driver).
+have_vulkan() {
+    # No `grep -q`: it would close the pipe early and pipefail would report ldconfig's SIGPIPE.
+    ldconfig -p 2>/dev/null | grep 'libvulkan\.so\.1' >/dev/null || return 1
+    for f in /usr/share/vulkan/icd.d/*.json /etc/vulkan/icd.d/*.json; do
+        [ -e "$f" ] && return 0
+    done
+    return 1
+}
+if ! have_vulkan; then
+    echo "scripts/test.sh: no Vulkan driver found; installing mesa-vulkan-drivers (lavapipe)" >&2
+    sudo=""
+    if [ "$(id -u)" != 0 ]; then sudo="sudo"; fi
+    export DEBIAN_FRONTEND=noninteractive
+    $sudo apt-get update -qq
+    $sudo apt-get install -y -qq --no-install-recommends mesa-vulkan-drivers libvulkan1 >/dev/null
+    have_vulkan || { echo "scripts/test.sh: installing lavapipe did not give a Vulkan driver" >&2; exit 1; }
+fi
+
 if [ -z "${OGM_MAPS_DIR:-}" ] && [ ! -d ../shared/maps ]; then
     echo "scripts/test.sh: NOTE: ../shared/maps not found; the real-map tests will say SKIPPED (and fail under CI=true)" >&2
 fi

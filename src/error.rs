@@ -20,6 +20,8 @@ pub enum Error {
         /// What went wrong.
         message: String,
     },
+    /// A resource the request needs is not there (no GPU adapter, a device too small).
+    Unavailable(String),
     /// A bug or an environment failure that is nobody's input.
     Internal(String),
 }
@@ -53,7 +55,7 @@ impl Error {
     pub fn exit_code(&self) -> i32 {
         match self {
             Error::Input { .. } => 2,
-            Error::Output { .. } | Error::Internal(_) => 1,
+            Error::Output { .. } | Error::Unavailable(_) | Error::Internal(_) => 1,
         }
     }
 }
@@ -72,6 +74,7 @@ impl fmt::Display for Error {
             Error::Output { path, message } => {
                 write!(f, "{}: cannot write: {}", path.display(), message)
             }
+            Error::Unavailable(m) => write!(f, "{m}"),
             Error::Internal(m) => write!(f, "internal error: {m}"),
         }
     }

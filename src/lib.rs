@@ -23,6 +23,7 @@
 pub mod cpu;
 pub mod detector;
 pub mod error;
+pub mod gpu;
 pub mod map;
 pub mod output;
 pub mod overlay;

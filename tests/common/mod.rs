@@ -92,3 +92,18 @@ pub fn real_maps(dir: &std::path::Path) -> Vec<PathBuf> {
     }
     maps
 }
+
+/// A GPU backend for conformance tests, or None with a loud message. Under CI=true a missing adapter is
+/// a failure: GPU tests never silently skip there.
+pub fn gpu_backend(options: ogm_corners::gpu::GpuOptions) -> Option<ogm_corners::gpu::GpuBackend> {
+    match ogm_corners::gpu::GpuBackend::new(options) {
+        Ok(b) => Some(b),
+        Err(e) => {
+            if std::env::var("CI").is_ok_and(|v| v == "true") {
+                panic!("CI=true requires a GPU adapter (lavapipe will do): {e}");
+            }
+            eprintln!("SKIPPED: GPU conformance checks did NOT run: {e}");
+            None
+        }
+    }
+}

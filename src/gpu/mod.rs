@@ -1,0 +1,719 @@
+//! The GPU backend: the WGSL kernels in `shaders/` run through wgpu, headless.
+//!
+//! The device, pipelines and buffers live in [`GpuBackend`] and are reused across calls. Maps larger than
+//! the device's buffer limits are processed in tiles with a one-pixel halo (see [`tiles`]); the output is
+//! counted before it is written, so it is sized exactly and never truncated.
+
+pub mod tiles;
+
+use std::sync::{mpsc, Arc, Mutex};
+use std::time::Duration;
+
+use wgpu::util::DeviceExt;
+
+use crate::detector::{Backend, Keypoint};
+use crate::error::{Error, Result};
+use crate::map::MapImage;
+use crate::rules::RuleTable;
+use crate::states::ClassTable;
+
+/// Workgroup size of every kernel; each invocation handles one word of four pixels.
+const WORKGROUP: u32 = 256;
+/// Bytes of one keypoint in the output buffer: x, y, rule, code as u32.
+const KEYPOINT_BYTES: u64 = 16;
+
+/// The kernel parameters, laid out as `struct Params` in both shaders.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, bytemuck::Pod, bytemuck::Zeroable)]
+struct Params {
+    buf_w: u32,
+    buf_h: u32,
+    stride: u32,
+    words: u32,
+    core_x0: u32,
+    core_y0: u32,
+    core_x1: u32,
+    core_y1: u32,
+    origin_x: u32,
+    origin_y: u32,
+    unknown_as_occupied: u32,
+    groups_x: u32,
+    out_start: u32,
+    out_end: u32,
+    _pad: [u32; 2],
+}
+
+/// What `ogm-corners info` prints about an adapter.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct AdapterReport {
+    /// Adapter name, e.g. "llvmpipe (LLVM 15.0.6, 256 bits)".
+    pub name: String,
+    /// Vulkan, Metal, Dx12, Gl.
+    pub backend: String,
+    /// DiscreteGpu, IntegratedGpu, VirtualGpu, Cpu, Other.
+    pub device_type: String,
+    /// Driver name and version.
+    pub driver: String,
+    /// Largest storage buffer binding, bytes: bounds the tile size.
+    pub max_storage_buffer_binding_size: u64,
+    /// Largest buffer, bytes.
+    pub max_buffer_size: u64,
+    /// Largest dispatch in one dimension.
+    pub max_compute_workgroups_per_dimension: u32,
+    /// Whether kernel times can be measured on the GPU itself.
+    pub timestamp_query: bool,
+    /// Whether 64-bit integers are available in shaders.
+    pub shader_int64: bool,
+}
+
+fn report(a: &wgpu::Adapter) -> AdapterReport {
+    let info = a.get_info();
+    let limits = a.limits();
+    let features = a.features();
+    AdapterReport {
+        name: info.name,
+        backend: format!("{:?}", info.backend),
+        device_type: format!("{:?}", info.device_type),
+        driver: format!("{} {}", info.driver, info.driver_info)
+            .trim()
+            .to_string(),
+        max_storage_buffer_binding_size: limits.max_storage_buffer_binding_size,
+        max_buffer_size: limits.max_buffer_size,
+        max_compute_workgroups_per_dimension: limits.max_compute_workgroups_per_dimension,
+        timestamp_query: features.contains(wgpu::Features::TIMESTAMP_QUERY),
+        shader_int64: features.contains(wgpu::Features::SHADER_INT64),
+    }
+}
+
+fn instance() -> wgpu::Instance {
+    wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env())
+}
+
+fn enumerate(instance: &wgpu::Instance) -> Vec<wgpu::Adapter> {
+    let backends = wgpu::Backends::from_env().unwrap_or(wgpu::Backends::all());
+    pollster::block_on(instance.enumerate_adapters(backends))
+}
+
+/// Every adapter wgpu finds (honouring `WGPU_BACKEND`).
+pub fn list_adapters() -> Vec<AdapterReport> {
+    enumerate(&instance()).iter().map(report).collect()
+}
+
+/// What the environment asked for, for error messages.
+fn looked_for() -> String {
+    let var = |k: &str| std::env::var(k).unwrap_or_else(|_| "unset".into());
+    format!(
+        "wgpu adapters on backends {:?} (WGPU_BACKEND={}, WGPU_ADAPTER_NAME={})",
+        wgpu::Backends::from_env().unwrap_or(wgpu::Backends::all()),
+        var("WGPU_BACKEND"),
+        var("WGPU_ADAPTER_NAME")
+    )
+}
+
+/// Preference order of device types: real GPUs first, software rasterisers last.
+fn rank(t: wgpu::DeviceType) -> u8 {
+    match t {
+        wgpu::DeviceType::DiscreteGpu => 0,
+        wgpu::DeviceType::IntegratedGpu => 1,
+        wgpu::DeviceType::VirtualGpu => 2,
+        wgpu::DeviceType::Other => 3,
+        wgpu::DeviceType::Cpu => 4,
+    }
+}
+
+/// Picks an adapter: the one `WGPU_ADAPTER_NAME` names (a case-insensitive substring), else the best by
+/// device type. With `hardware_only`, a software adapter (lavapipe, WARP) is not chosen unless named.
+/// `Ok(None)` when there is none to choose.
+fn choose(hardware_only: bool) -> Result<Option<(wgpu::Instance, wgpu::Adapter)>> {
+    let instance = instance();
+    let adapters = enumerate(&instance);
+    if let Ok(want) = std::env::var("WGPU_ADAPTER_NAME") {
+        let want_l = want.to_lowercase();
+        return match adapters
+            .into_iter()
+            .find(|a| a.get_info().name.to_lowercase().contains(&want_l))
+        {
+            Some(a) => Ok(Some((instance, a))),
+            None => Err(Error::Unavailable(format!(
+                "no adapter matches WGPU_ADAPTER_NAME={want:?}; `ogm-corners info` lists the adapters"
+            ))),
+        };
+    }
+    let best = adapters
+        .into_iter()
+        .min_by_key(|a| rank(a.get_info().device_type));
+    Ok(match best {
+        Some(a) if hardware_only && a.get_info().device_type == wgpu::DeviceType::Cpu => None,
+        Some(a) => Some((instance, a)),
+        None => None,
+    })
+}
+
+/// Options of the GPU backend. The defaults suit real use; tests shrink them to force tiling and the
+/// multi-pass output path.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct GpuOptions {
+    /// Cap on the tile core size (width, height); `None` uses the device limits alone.
+    pub tile: Option<(u32, u32)>,
+    /// Keypoints the output buffer holds before it first grows.
+    pub initial_keypoint_capacity: u32,
+    /// Cap on keypoints written per pass; `None` uses the device's binding limit.
+    pub max_keypoints_per_pass: Option<u32>,
+}
+
+impl Default for GpuOptions {
+    fn default() -> Self {
+        GpuOptions {
+            tile: None,
+            initial_keypoint_capacity: 1 << 16,
+            max_keypoints_per_pass: None,
+        }
+    }
+}
+
+/// A reusable buffer that grows (to the next power of two) when a call needs more.
+struct Slot {
+    buffer: Option<wgpu::Buffer>,
+    size: u64,
+    usage: wgpu::BufferUsages,
+    label: &'static str,
+}
+
+impl Slot {
+    fn new(label: &'static str, usage: wgpu::BufferUsages) -> Self {
+        Slot {
+            buffer: None,
+            size: 0,
+            usage,
+            label,
+        }
+    }
+
+    /// A buffer of at least `size` bytes (rounded up to 16); `cap` bounds the growth.
+    fn get(&mut self, device: &wgpu::Device, size: u64, cap: u64) -> &wgpu::Buffer {
+        let size = size.max(16).next_multiple_of(16);
+        if self.buffer.is_none() || self.size < size {
+            let grown = size.next_power_of_two().min(cap.max(size));
+            self.buffer = Some(device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(self.label),
+                size: grown,
+                usage: self.usage,
+                mapped_at_creation: false,
+            }));
+            self.size = grown;
+        }
+        self.buffer.as_ref().expect("buffer was just created")
+    }
+}
+
+/// Statistics of the last call, for benchmarks and tests.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct GpuStats {
+    /// Tiles the map was split into.
+    pub tiles: usize,
+    /// Write passes run (more than the tiles with keypoints when the output exceeded one pass).
+    pub write_passes: usize,
+    /// Keypoint buffer capacity after the call, in keypoints.
+    pub keypoint_capacity: u64,
+    /// Kernel time measured on the GPU (timestamp queries), when the adapter supports it.
+    pub kernel_time: Option<Duration>,
+}
+
+/// The GPU backend: device, queue, pipelines and buffers, kept between calls.
+pub struct GpuBackend {
+    adapter: AdapterReport,
+    device: wgpu::Device,
+    queue: wgpu::Queue,
+    options: GpuOptions,
+    classify: wgpu::ComputePipeline,
+    count: wgpu::ComputePipeline,
+    write: wgpu::ComputePipeline,
+    params: wgpu::Buffer,
+    class_table: wgpu::Buffer,
+    rule_table: wgpu::Buffer,
+    pixels: Slot,
+    states: Slot,
+    counts: Slot,
+    offsets: Slot,
+    keypoints: Slot,
+    readback: Slot,
+    timestamps: Option<(wgpu::QuerySet, wgpu::Buffer, wgpu::Buffer)>,
+    max_binding: u64,
+    max_groups: u32,
+    error: Arc<Mutex<Option<String>>>,
+    stats: GpuStats,
+    staging: Vec<u8>,
+}
+
+impl GpuBackend {
+    /// A backend on the adapter wgpu offers (see [`GpuBackend::open`]); fails with a clear error naming what
+    /// it looked for when there is none.
+    pub fn new(options: GpuOptions) -> Result<Self> {
+        match Self::open(false, options)? {
+            Some(b) => Ok(b),
+            None => Err(Error::Unavailable(format!(
+                "no GPU adapter found: looked for {}; install a Vulkan driver (on Debian: \
+                 apt-get install mesa-vulkan-drivers, for the lavapipe software adapter) or use --backend cpu",
+                looked_for()
+            ))),
+        }
+    }
+
+    /// Opens an adapter: the one `WGPU_ADAPTER_NAME` names, else the best GPU; with `hardware_only`,
+    /// returns `Ok(None)` rather than a software adapter.
+    pub fn open(hardware_only: bool, options: GpuOptions) -> Result<Option<Self>> {
+        let Some((_instance, adapter)) = choose(hardware_only)? else {
+            return Ok(None);
+        };
+        Self::from_adapter(&adapter, options).map(Some)
+    }
+
+    fn from_adapter(adapter: &wgpu::Adapter, options: GpuOptions) -> Result<Self> {
+        let report = report(adapter);
+        let limits = adapter.limits();
+        let mut features = wgpu::Features::empty();
+        if report.timestamp_query {
+            features |= wgpu::Features::TIMESTAMP_QUERY;
+        }
+        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+            label: Some("ogm-corners"),
+            required_features: features,
+            required_limits: limits.clone(),
+            memory_hints: wgpu::MemoryHints::Performance,
+            ..Default::default()
+        }))
+        .map_err(|e| Error::Unavailable(format!("cannot open {}: {e}", report.name)))?;
+        // wgpu's default handler panics; keep the error and report it from the call instead.
+        let error = Arc::new(Mutex::new(None::<String>));
+        let slot = error.clone();
+        device.on_uncaptured_error(Arc::new(move |e: wgpu::Error| {
+            let mut s = slot.lock().unwrap_or_else(|p| p.into_inner());
+            s.get_or_insert_with(|| e.to_string().replace('\n', " "));
+        }));
+        let module = |label, src: &str| {
+            device.create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some(label),
+                source: wgpu::ShaderSource::Wgsl(src.into()),
+            })
+        };
+        let classify_mod = module("classify.wgsl", include_str!("../../shaders/classify.wgsl"));
+        let corners_mod = module(
+            "ogm_corners.wgsl",
+            include_str!("../../shaders/ogm_corners.wgsl"),
+        );
+        let pipeline = |m: &wgpu::ShaderModule, entry: &str| {
+            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(entry),
+                layout: None,
+                module: m,
+                entry_point: Some(entry),
+                compilation_options: Default::default(),
+                cache: None,
+            })
+        };
+        let classify = pipeline(&classify_mod, "classify");
+        let count = pipeline(&corners_mod, "count");
+        let write = pipeline(&corners_mod, "write");
+        let storage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST;
+        let table = |label| {
+            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents: &[0u8; 1024],
+                usage: storage,
+            })
+        };
+        let class_table = table("class_table");
+        let rule_table = table("rule_table");
+        let params = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("params"),
+            size: std::mem::size_of::<Params>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let timestamps = report.timestamp_query.then(|| {
+            let set = device.create_query_set(&wgpu::QuerySetDescriptor {
+                label: Some("kernel timestamps"),
+                ty: wgpu::QueryType::Timestamp,
+                count: 2,
+            });
+            let resolve = device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("timestamp resolve"),
+                size: 16,
+                usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            });
+            let read = device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("timestamp readback"),
+                size: 16,
+                usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            });
+            (set, resolve, read)
+        });
+        let copy_src = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC;
+        let backend = GpuBackend {
+            max_binding: limits
+                .max_storage_buffer_binding_size
+                .min(limits.max_buffer_size),
+            max_groups: limits.max_compute_workgroups_per_dimension,
+            adapter: report,
+            device,
+            queue,
+            options,
+            classify,
+            count,
+            write,
+            params,
+            class_table,
+            rule_table,
+            pixels: Slot::new("pixels", storage),
+            states: Slot::new("states", wgpu::BufferUsages::STORAGE),
+            counts: Slot::new("counts", copy_src),
+            offsets: Slot::new("offsets", storage),
+            keypoints: Slot::new("keypoints", copy_src),
+            readback: Slot::new(
+                "readback",
+                wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            ),
+            timestamps,
+            error,
+            stats: GpuStats::default(),
+            staging: Vec::new(),
+        };
+        backend.check()?;
+        Ok(backend)
+    }
+
+    /// The adapter in use.
+    pub fn adapter(&self) -> &AdapterReport {
+        &self.adapter
+    }
+
+    /// Statistics of the last call.
+    pub fn stats(&self) -> GpuStats {
+        self.stats
+    }
+
+    /// Fails with the first device error seen since the last check.
+    fn check(&self) -> Result<()> {
+        let mut slot = self.error.lock().unwrap_or_else(|p| p.into_inner());
+        match slot.take() {
+            Some(e) => Err(Error::Internal(format!(
+                "GPU error on {}: {e}",
+                self.adapter.name
+            ))),
+            None => Ok(()),
+        }
+    }
+
+    /// Submits `encoder`, then copies the first `size` bytes of `src` back to the host.
+    fn submit_and_read(
+        &mut self,
+        mut encoder: wgpu::CommandEncoder,
+        src: &wgpu::Buffer,
+        size: u64,
+        timed: bool,
+    ) -> Result<Vec<u8>> {
+        let size = size.next_multiple_of(4);
+        let read = self.readback.get(&self.device, size, u64::MAX).clone();
+        encoder.copy_buffer_to_buffer(src, 0, &read, 0, size);
+        if let (true, Some((set, resolve, ts_read))) = (timed, &self.timestamps) {
+            encoder.resolve_query_set(set, 0..2, resolve, 0);
+            encoder.copy_buffer_to_buffer(resolve, 0, ts_read, 0, 16);
+        }
+        self.queue.submit([encoder.finish()]);
+        let data = self.map_read(&read, size)?;
+        if let (true, Some((_, _, ts_read))) = (timed, &self.timestamps) {
+            let ts_read = ts_read.clone();
+            let ts = self.map_read(&ts_read, 16)?;
+            let t0 = u64::from_le_bytes(ts[0..8].try_into().expect("8 bytes"));
+            let t1 = u64::from_le_bytes(ts[8..16].try_into().expect("8 bytes"));
+            let ns = t1.saturating_sub(t0) as f64 * f64::from(self.queue.get_timestamp_period());
+            let prev = self.stats.kernel_time.unwrap_or_default();
+            self.stats.kernel_time = Some(prev + Duration::from_nanos(ns as u64));
+        }
+        Ok(data)
+    }
+
+    fn map_read(&self, buf: &wgpu::Buffer, size: u64) -> Result<Vec<u8>> {
+        let slice = buf.slice(0..size);
+        let (tx, rx) = mpsc::channel();
+        slice.map_async(wgpu::MapMode::Read, move |r| {
+            let _ = tx.send(r);
+        });
+        self.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(|e| Error::Internal(format!("GPU poll failed: {e}")))?;
+        self.check()?;
+        rx.recv()
+            .map_err(|_| Error::Internal("GPU buffer map was dropped".into()))?
+            .map_err(|e| Error::Internal(format!("GPU buffer map failed: {e}")))?;
+        let data = slice
+            .get_mapped_range()
+            .map_err(|e| Error::Internal(format!("GPU buffer map failed: {e}")))?
+            .to_vec();
+        buf.unmap();
+        Ok(data)
+    }
+
+    /// Copies the tile's rectangle into the word-padded staging buffer.
+    fn stage(&mut self, image: &MapImage, t: &tiles::Tile) {
+        let (w, stride_bytes) = (t.buf_w() as usize, t.stride() as usize * 4);
+        self.staging.clear();
+        self.staging.resize(stride_bytes * t.buf_h() as usize, 0);
+        let iw = image.width() as usize;
+        for (r, y) in (t.buf[1]..t.buf[3]).enumerate() {
+            let src = y as usize * iw + t.buf[0] as usize;
+            self.staging[r * stride_bytes..r * stride_bytes + w]
+                .copy_from_slice(&image.pixels()[src..src + w]);
+        }
+    }
+
+    fn dispatch_shape(&self, words: u32) -> (u32, u32) {
+        let groups = words.div_ceil(WORKGROUP).max(1);
+        let gx = groups.min(self.max_groups);
+        (gx, groups.div_ceil(gx))
+    }
+
+    fn pass<'e>(
+        encoder: &'e mut wgpu::CommandEncoder,
+        label: &str,
+        ts: Option<&'e wgpu::QuerySet>,
+        begin: bool,
+        end: bool,
+    ) -> wgpu::ComputePass<'e> {
+        encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some(label),
+            timestamp_writes: ts.map(|query_set| wgpu::ComputePassTimestampWrites {
+                query_set,
+                beginning_of_pass_write_index: begin.then_some(0),
+                end_of_pass_write_index: end.then_some(1),
+            }),
+        })
+    }
+
+    fn bind(
+        &self,
+        pipeline: &wgpu::ComputePipeline,
+        entries: &[(u32, &wgpu::Buffer)],
+    ) -> wgpu::BindGroup {
+        let entries: Vec<wgpu::BindGroupEntry> = entries
+            .iter()
+            .map(|(binding, b)| wgpu::BindGroupEntry {
+                binding: *binding,
+                resource: b.as_entire_binding(),
+            })
+            .collect();
+        self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: None,
+            layout: &pipeline.get_bind_group_layout(0),
+            entries: &entries,
+        })
+    }
+
+    /// Runs one tile; appends its keypoints (map coordinates) in (y, x) order.
+    fn run_tile(
+        &mut self,
+        image: &MapImage,
+        t: &tiles::Tile,
+        unknown_as_occupied: bool,
+        out: &mut Vec<Keypoint>,
+    ) -> Result<()> {
+        let words = t.stride() * t.buf_h();
+        let (gx, gy) = self.dispatch_shape(words);
+        if gy > self.max_groups {
+            return Err(Error::Internal(format!(
+                "tile of {} words needs {gx}x{gy} workgroups, over the device's {}",
+                words, self.max_groups
+            )));
+        }
+        let groups = u64::from(gx) * u64::from(gy);
+        let mut params = Params {
+            buf_w: t.buf_w(),
+            buf_h: t.buf_h(),
+            stride: t.stride(),
+            words,
+            core_x0: t.core[0] - t.buf[0],
+            core_y0: t.core[1] - t.buf[1],
+            core_x1: t.core[2] - t.buf[0],
+            core_y1: t.core[3] - t.buf[1],
+            origin_x: t.buf[0],
+            origin_y: t.buf[1],
+            unknown_as_occupied: u32::from(unknown_as_occupied),
+            groups_x: gx,
+            ..Params::default()
+        };
+        self.stage(image, t);
+        let bytes = t.bytes();
+        let pixels = self
+            .pixels
+            .get(&self.device, bytes, self.max_binding)
+            .clone();
+        let states = self
+            .states
+            .get(&self.device, bytes, self.max_binding)
+            .clone();
+        let counts = self
+            .counts
+            .get(&self.device, groups * 4, self.max_binding)
+            .clone();
+        self.queue.write_buffer(&pixels, 0, &self.staging);
+        self.queue
+            .write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
+
+        // Pass 1: classify and count.
+        let bg_classify = self.bind(
+            &self.classify,
+            &[
+                (0, &self.params),
+                (1, &self.class_table),
+                (2, &pixels),
+                (3, &states),
+            ],
+        );
+        let bg_count = self.bind(
+            &self.count,
+            &[
+                (0, &self.params),
+                (1, &self.rule_table),
+                (2, &states),
+                (3, &counts),
+            ],
+        );
+        let mut encoder = self.device.create_command_encoder(&Default::default());
+        let ts = self.timestamps.as_ref().map(|t| &t.0);
+        {
+            let mut pass = Self::pass(&mut encoder, "classify", ts, true, false);
+            pass.set_pipeline(&self.classify);
+            pass.set_bind_group(0, &bg_classify, &[]);
+            pass.dispatch_workgroups(gx, gy, 1);
+        }
+        {
+            let mut pass = Self::pass(&mut encoder, "count", ts, false, true);
+            pass.set_pipeline(&self.count);
+            pass.set_bind_group(0, &bg_count, &[]);
+            pass.dispatch_workgroups(gx, gy, 1);
+        }
+        let raw = self.submit_and_read(encoder, &counts, groups * 4, true)?;
+        let mut offsets = Vec::with_capacity(groups as usize);
+        let mut total = 0u64;
+        for c in raw.chunks_exact(4).take(groups as usize) {
+            offsets.push(total as u32);
+            total += u64::from(u32::from_le_bytes(c.try_into().expect("4 bytes")));
+        }
+        if total == 0 {
+            return Ok(());
+        }
+        let offsets_buf = self
+            .offsets
+            .get(&self.device, groups * 4, self.max_binding)
+            .clone();
+        self.queue
+            .write_buffer(&offsets_buf, 0, bytemuck::cast_slice(&offsets));
+
+        // Pass 2: write, in chunks of what one binding (or the test cap) holds.
+        let per_pass = (self.max_binding / KEYPOINT_BYTES)
+            .min(
+                self.options
+                    .max_keypoints_per_pass
+                    .map_or(u64::MAX, u64::from),
+            )
+            .max(1);
+        let mut start = 0u64;
+        while start < total {
+            let len = per_pass.min(total - start);
+            let want = len.max(u64::from(self.options.initial_keypoint_capacity));
+            let kp = self
+                .keypoints
+                .get(
+                    &self.device,
+                    want * KEYPOINT_BYTES,
+                    per_pass * KEYPOINT_BYTES,
+                )
+                .clone();
+            self.stats.keypoint_capacity = self.keypoints.size / KEYPOINT_BYTES;
+            params.out_start = start as u32;
+            params.out_end = (start + len) as u32;
+            self.queue
+                .write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
+            let bg_write = self.bind(
+                &self.write,
+                &[
+                    (0, &self.params),
+                    (1, &self.rule_table),
+                    (2, &states),
+                    (4, &offsets_buf),
+                    (5, &kp),
+                ],
+            );
+            let mut encoder = self.device.create_command_encoder(&Default::default());
+            let ts = self.timestamps.as_ref().map(|t| &t.0);
+            {
+                let mut pass = Self::pass(&mut encoder, "write", ts, true, true);
+                pass.set_pipeline(&self.write);
+                pass.set_bind_group(0, &bg_write, &[]);
+                pass.dispatch_workgroups(gx, gy, 1);
+            }
+            let raw = self.submit_and_read(encoder, &kp, len * KEYPOINT_BYTES, true)?;
+            self.stats.write_passes += 1;
+            out.extend(raw.chunks_exact(16).take(len as usize).map(|c| {
+                let w =
+                    |i: usize| u32::from_le_bytes(c[4 * i..4 * i + 4].try_into().expect("4 bytes"));
+                Keypoint {
+                    x: w(0),
+                    y: w(1),
+                    rule: w(2) as u8,
+                    code: w(3) as u8,
+                }
+            }));
+            start += len;
+        }
+        Ok(())
+    }
+}
+
+impl Backend for GpuBackend {
+    fn name(&self) -> String {
+        format!("gpu ({}, {})", self.adapter.name, self.adapter.backend)
+    }
+
+    fn detect(
+        &mut self,
+        image: &MapImage,
+        classes: &ClassTable,
+        rules: &RuleTable,
+        unknown_as_occupied: bool,
+    ) -> Result<Vec<Keypoint>> {
+        self.check()?;
+        self.stats = GpuStats {
+            kernel_time: self.timestamps.as_ref().map(|_| Duration::ZERO),
+            ..GpuStats::default()
+        };
+        let class_words: Vec<u32> = classes.states().iter().map(|&s| s as u32).collect();
+        let rule_words: Vec<u32> = rules.as_bytes().iter().map(|&r| u32::from(r)).collect();
+        self.queue
+            .write_buffer(&self.class_table, 0, bytemuck::cast_slice(&class_words));
+        self.queue
+            .write_buffer(&self.rule_table, 0, bytemuck::cast_slice(&rule_words));
+        let (w, h) = (image.width(), image.height());
+        let (tw, th) =
+            tiles::tile_size(w, h, self.max_binding, self.options.tile).ok_or_else(|| {
+                Error::Unavailable(format!(
+                    "{}'s buffer limit ({} bytes) is too small for any tile",
+                    self.adapter.name, self.max_binding
+                ))
+            })?;
+        let plan = tiles::plan(w, h, tw, th);
+        self.stats.tiles = plan.len();
+        let mut out = Vec::new();
+        for t in &plan {
+            self.run_tile(image, t, unknown_as_occupied, &mut out)?;
+        }
+        if tw < w {
+            // Tiles side by side interleave rows; restore (y, x) order.
+            out.sort_unstable();
+        }
+        self.check()?;
+        Ok(out)
+    }
+}

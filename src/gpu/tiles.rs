@@ -1,0 +1,132 @@
+//! Splitting a map into tiles that fit the device's buffer limits, each with a one-pixel halo.
+
+/// One tile: the rectangle of map pixels it reports keypoints for (its core) and the rectangle it uploads
+/// (the core plus a one-pixel halo wherever the map extends).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Tile {
+    /// Core rectangle, map coordinates, half-open: [x0, x1) x [y0, y1).
+    pub core: [u32; 4],
+    /// Uploaded rectangle, map coordinates, half-open.
+    pub buf: [u32; 4],
+}
+
+impl Tile {
+    /// Width of the uploaded rectangle.
+    pub fn buf_w(&self) -> u32 {
+        self.buf[2] - self.buf[0]
+    }
+
+    /// Height of the uploaded rectangle.
+    pub fn buf_h(&self) -> u32 {
+        self.buf[3] - self.buf[1]
+    }
+
+    /// Words per uploaded row (four pixels a word).
+    pub fn stride(&self) -> u32 {
+        self.buf_w().div_ceil(4)
+    }
+
+    /// Bytes of the uploaded, word-padded rectangle.
+    pub fn bytes(&self) -> u64 {
+        u64::from(self.stride()) * 4 * u64::from(self.buf_h())
+    }
+}
+
+/// Bytes one tile's padded upload needs for a core of `w` x `h` (halo included, worst case).
+pub fn tile_bytes(w: u32, h: u32) -> u64 {
+    u64::from((w + 2).div_ceil(4)) * 4 * u64::from(h + 2)
+}
+
+/// The core size to use for a `width` x `height` map when one tile's upload may take `max_bytes`:
+/// whole rows when they fit (so tiles are horizontal bands and the output needs no sort), else square-ish
+/// tiles. `forced` (for tests) caps the core size further.
+pub fn tile_size(
+    width: u32,
+    height: u32,
+    max_bytes: u64,
+    forced: Option<(u32, u32)>,
+) -> Option<(u32, u32)> {
+    let (mut tw, mut th) = forced.unwrap_or((width, height));
+    tw = tw.clamp(1, width);
+    th = th.clamp(1, height);
+    if tile_bytes(tw, th) <= max_bytes {
+        return Some((tw, th));
+    }
+    // Full-width bands of as many rows as fit, if at least a few rows fit.
+    let row = u64::from((tw + 2).div_ceil(4)) * 4;
+    let rows = (max_bytes / row).saturating_sub(2);
+    if rows >= 16 {
+        return Some((tw, rows.min(u64::from(th)) as u32));
+    }
+    // Otherwise square tiles: side s with (s + 2)^2 (padded) <= max_bytes.
+    let mut s = ((max_bytes as f64).sqrt() as u32).saturating_sub(6);
+    while s > 0 && tile_bytes(s, s) > max_bytes {
+        s -= 1;
+    }
+    if s == 0 {
+        return None;
+    }
+    Some((tw.min(s), th.min(s)))
+}
+
+/// The tiles covering a `width` x `height` map with cores of `tw` x `th`, row by row.
+pub fn plan(width: u32, height: u32, tw: u32, th: u32) -> Vec<Tile> {
+    let mut tiles = Vec::new();
+    for y0 in (0..height).step_by(th as usize) {
+        let y1 = (y0 + th).min(height);
+        for x0 in (0..width).step_by(tw as usize) {
+            let x1 = (x0 + tw).min(width);
+            tiles.push(Tile {
+                core: [x0, y0, x1, y1],
+                buf: [
+                    x0.saturating_sub(1),
+                    y0.saturating_sub(1),
+                    (x1 + 1).min(width),
+                    (y1 + 1).min(height),
+                ],
+            });
+        }
+    }
+    tiles
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn tiles_cover_the_map_once_with_halos() {
+        for (w, h, tw, th) in [(10, 7, 3, 2), (1, 1, 1, 1), (5, 1, 2, 5), (9, 9, 9, 9)] {
+            let tiles = plan(w, h, tw, th);
+            let mut seen = vec![0u8; (w * h) as usize];
+            for t in &tiles {
+                for y in t.core[1]..t.core[3] {
+                    for x in t.core[0]..t.core[2] {
+                        seen[(y * w + x) as usize] += 1;
+                    }
+                }
+                assert_eq!(t.buf[0], t.core[0].saturating_sub(1));
+                assert_eq!(t.buf[2], (t.core[2] + 1).min(w));
+                assert!(t.buf_w() <= tw + 2 && t.buf_h() <= th + 2);
+            }
+            assert!(seen.iter().all(|&s| s == 1));
+        }
+    }
+
+    #[test]
+    fn sizes_respect_the_limit() {
+        // Fits whole.
+        assert_eq!(tile_size(100, 100, 1 << 20, None), Some((100, 100)));
+        // Bands of full rows.
+        let (tw, th) = tile_size(20_000, 20_000, 128 << 20, None).unwrap();
+        assert_eq!(tw, 20_000);
+        assert!(tile_bytes(tw, th) <= 128 << 20 && th > 6000);
+        // Too wide for bands: square tiles.
+        let (tw, th) = tile_size(1 << 30, 4, 4096, None).unwrap();
+        assert!(tile_bytes(tw, th) <= 4096 && tw < 64, "{tw} {th}");
+        // Forced small tiles.
+        assert_eq!(tile_size(100, 50, 1 << 20, Some((7, 5))), Some((7, 5)));
+        assert_eq!(tile_size(3, 2, 1 << 20, Some((7, 5))), Some((3, 2)));
+        assert_eq!(tile_size(100, 100, 8, None), None);
+    }
+}

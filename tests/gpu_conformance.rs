@@ -1,0 +1,279 @@
+//! The GPU backend returns exactly the CPU reference's keypoints, in the same order.
+//! Runs on whatever adapter wgpu finds (lavapipe in CI); with CI=true a missing adapter fails.
+
+mod common;
+
+use ogm_corners::cpu::CpuBackend;
+use ogm_corners::gpu::{GpuBackend, GpuOptions};
+use ogm_corners::synth::{office_map, Rng, FREE, OCCUPIED, UNKNOWN};
+use ogm_corners::{Backend, ClassTable, MapImage, OccupancyMap, RuleSet, RuleTable, Thresholds};
+
+const VARIANTS: [(RuleSet, bool); 4] = [
+    (RuleSet::Paper, false),
+    (RuleSet::Paper, true),
+    (RuleSet::PaperMod2, false),
+    (RuleSet::PaperMod2, true),
+];
+
+/// Asserts CPU and GPU agree on `img` for every rule reading and unknown option; returns the CPU count.
+fn assert_same(gpu: &mut GpuBackend, img: &MapImage, thresholds: &Thresholds, what: &str) -> usize {
+    let classes = ClassTable::new(thresholds);
+    let mut n = 0;
+    for (set, uao) in VARIANTS {
+        let rules = RuleTable::new(set);
+        let want = CpuBackend.detect(img, &classes, &rules, uao).unwrap();
+        let got = gpu.detect(img, &classes, &rules, uao).unwrap();
+        if got != want {
+            let first = got.iter().zip(&want).position(|(a, b)| a != b);
+            panic!(
+                "{what} ({}x{}, {set}, unknown_as_occupied={uao}): GPU {} keypoints, CPU {}; first difference at {first:?}",
+                img.width(),
+                img.height(),
+                got.len(),
+                want.len()
+            );
+        }
+        n += want.len();
+    }
+    n
+}
+
+fn random_map(w: u32, h: u32, seed: u64) -> MapImage {
+    let mut rng = Rng::new(seed);
+    // Densities vary with the seed so that sparse and dense maps both occur.
+    let occ = 0.15 + 0.3 * (seed % 4) as f64 / 3.0;
+    let px = (0..w as usize * h as usize)
+        .map(|_| {
+            if rng.chance(occ) {
+                OCCUPIED
+            } else if rng.chance(0.15) {
+                UNKNOWN
+            } else {
+                FREE
+            }
+        })
+        .collect();
+    MapImage::new(w, h, px).unwrap()
+}
+
+#[test]
+fn every_three_state_3x3_configuration() {
+    let Some(mut gpu) = common::gpu_backend(GpuOptions::default()) else {
+        return;
+    };
+    // 3^9 configurations as adjacent 3x3 blocks: each block's centre sees exactly its own block.
+    let (cols, n) = (141u32, 3u32.pow(9));
+    let rows = n.div_ceil(cols);
+    let (w, h) = (cols * 3, rows * 3);
+    let mut px = vec![FREE; (w * h) as usize];
+    for c in 0..n {
+        let (bx, by) = ((c % cols) * 3, (c / cols) * 3);
+        let mut v = c;
+        for cell in 0..9 {
+            px[((by + cell / 3) * w + bx + cell % 3) as usize] =
+                [FREE, UNKNOWN, OCCUPIED][(v % 3) as usize];
+            v /= 3;
+        }
+    }
+    let img = MapImage::new(w, h, px).unwrap();
+    let total = assert_same(&mut gpu, &img, &Thresholds::default(), "3^9 configurations");
+    assert!(total > 1000, "{total}");
+}
+
+#[test]
+fn random_maps_of_many_sizes() {
+    let Some(mut gpu) = common::gpu_backend(GpuOptions::default()) else {
+        return;
+    };
+    let sizes = [
+        (1, 1),
+        (1, 2),
+        (2, 1),
+        (1, 9),
+        (9, 1),
+        (2, 2),
+        (3, 3),
+        (4, 4),
+        (5, 3),
+        (3, 5),
+        (7, 7),
+        (13, 17),
+        (31, 29),
+        (64, 1),
+        (1, 64),
+        (65, 65),
+        (257, 3),
+        (3, 257),
+        (1023, 5),
+        (250, 250),
+    ];
+    for (i, (w, h)) in sizes.into_iter().enumerate() {
+        for seed in 0..3 {
+            let img = random_map(w, h, (i * 10 + seed) as u64);
+            assert_same(&mut gpu, &img, &Thresholds::default(), "random map");
+        }
+    }
+}
+
+#[test]
+fn odd_thresholds_and_negate() {
+    let Some(mut gpu) = common::gpu_backend(GpuOptions::default()) else {
+        return;
+    };
+    let mut rng = Rng::new(11);
+    let px = (0..300 * 200).map(|_| rng.range(0, 256) as u8).collect();
+    let img = MapImage::new(300, 200, px).unwrap();
+    for t in [
+        Thresholds::default(),
+        Thresholds {
+            negate: true,
+            ..Thresholds::default()
+        },
+        Thresholds {
+            negate: false,
+            occupied_thresh: 0.5,
+            free_thresh: 0.5,
+        },
+    ] {
+        assert_same(&mut gpu, &img, &t, "grey map");
+    }
+}
+
+#[test]
+fn tiled_runs_match_untiled() {
+    // Small maps keep the many tiles (each a round trip) quick on a software adapter.
+    let img = office_map(120, 80, 4).unwrap();
+    let Some(mut whole) = common::gpu_backend(GpuOptions::default()) else {
+        return;
+    };
+    let n = assert_same(&mut whole, &img, &Thresholds::default(), "untiled");
+    assert_eq!(whole.stats().tiles, 1);
+    assert!(n > 10, "{n}");
+    for tile in [(7, 5), (64, 3), (120, 17), (13, 80), (33, 33)] {
+        let opts = GpuOptions {
+            tile: Some(tile),
+            ..GpuOptions::default()
+        };
+        let mut tiled = common::gpu_backend(opts).unwrap();
+        assert_same(&mut tiled, &img, &Thresholds::default(), "tiled");
+        assert!(tiled.stats().tiles > 1, "{tile:?} must tile");
+    }
+    // Random maps with tiny tiles (down to single pixels), odd sizes.
+    for tile in [(1, 1), (5, 3)] {
+        let opts = GpuOptions {
+            tile: Some(tile),
+            ..GpuOptions::default()
+        };
+        let mut tiled = common::gpu_backend(opts).unwrap();
+        for (w, h) in [(11, 7), (1, 13), (13, 1)] {
+            let img = random_map(w, h, u64::from(w * h));
+            assert_same(&mut tiled, &img, &Thresholds::default(), "tiled random");
+        }
+    }
+}
+
+#[test]
+fn output_grows_and_splits_instead_of_truncating() {
+    let img = random_map(200, 150, 2);
+    let opts = GpuOptions {
+        initial_keypoint_capacity: 1,
+        max_keypoints_per_pass: Some(7),
+        ..GpuOptions::default()
+    };
+    let Some(mut gpu) = common::gpu_backend(opts) else {
+        return;
+    };
+    let n = assert_same(
+        &mut gpu,
+        &img,
+        &Thresholds::default(),
+        "small output buffer",
+    );
+    let s = gpu.stats();
+    assert!(n > 100, "{n}");
+    assert!(
+        s.write_passes > 10,
+        "the output must have taken many passes: {s:?}"
+    );
+    // Growth alone, without a per-pass cap: a one-keypoint buffer grows to hold them all.
+    let mut gpu = common::gpu_backend(GpuOptions {
+        initial_keypoint_capacity: 1,
+        ..GpuOptions::default()
+    })
+    .unwrap();
+    let classes = ClassTable::default();
+    let rules = RuleTable::new(RuleSet::Paper);
+    let got = gpu.detect(&img, &classes, &rules, false).unwrap();
+    assert_eq!(
+        got,
+        CpuBackend.detect(&img, &classes, &rules, false).unwrap()
+    );
+    assert!(gpu.stats().keypoint_capacity >= got.len() as u64 && got.len() > 1);
+}
+
+#[test]
+fn the_backend_is_reused_across_maps() {
+    let Some(mut gpu) = common::gpu_backend(GpuOptions::default()) else {
+        return;
+    };
+    // Big then small then big: cached buffers must not leak stale data between calls.
+    for (w, h, seed) in [(400, 300, 1), (5, 5, 2), (37, 3, 3), (400, 300, 4)] {
+        assert_same(
+            &mut gpu,
+            &random_map(w, h, seed),
+            &Thresholds::default(),
+            "reuse",
+        );
+    }
+}
+
+#[test]
+fn every_real_map() {
+    let Some(dir) = common::shared_maps() else {
+        return;
+    };
+    let Some(mut gpu) = common::gpu_backend(GpuOptions::default()) else {
+        return;
+    };
+    let mut tiled = common::gpu_backend(GpuOptions {
+        tile: Some((100, 70)),
+        ..GpuOptions::default()
+    })
+    .unwrap();
+    for p in common::real_maps(&dir) {
+        let map = OccupancyMap::load(&p).unwrap();
+        let name = p.display().to_string();
+        assert_same(&mut gpu, &map.image, &map.thresholds, &name);
+        assert_same(&mut tiled, &map.image, &map.thresholds, &name);
+    }
+}
+
+#[test]
+fn a_map_over_128_mib_is_tiled_and_exact() {
+    let Some(mut gpu) = common::gpu_backend(GpuOptions::default()) else {
+        return;
+    };
+    // 12000 x 11500 = 138 Mpx, over lavapipe's 128 MiB storage binding.
+    let img = office_map(12_000, 11_500, 8).unwrap();
+    let classes = ClassTable::default();
+    let rules = RuleTable::new(RuleSet::Paper);
+    let want = CpuBackend.detect(&img, &classes, &rules, false).unwrap();
+    let got = gpu.detect(&img, &classes, &rules, false).unwrap();
+    assert_eq!(got.len(), want.len());
+    assert!(got == want, "GPU and CPU differ on the large map");
+    let limit = gpu
+        .adapter()
+        .max_storage_buffer_binding_size
+        .min(gpu.adapter().max_buffer_size);
+    if img.len() as u64 > limit {
+        assert!(
+            gpu.stats().tiles > 1,
+            "a map over the binding limit must be tiled"
+        );
+    } else {
+        eprintln!(
+            "note: {} binds {limit} bytes, so the large map fit in one tile",
+            gpu.adapter().name
+        );
+    }
+}
