@@ -17,8 +17,8 @@ struct Params {
     groups_x: u32, // workgroups per row of the 2D dispatch
     out_start: u32,
     out_end: u32,
-    _pad0: u32,
-    _pad1: u32,
+    active_len: u32,
+    _pad: u32,
 }
 
 @group(0) @binding(0) var<uniform> params: Params;

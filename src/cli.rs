@@ -7,11 +7,15 @@ use std::time::Instant;
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
 
+use ogm_corners::cpu::{classify::classify, ogm_corners::ogm_corners, CpuBackend};
+use ogm_corners::gpu::{self, GpuBackend, GpuOptions};
 use ogm_corners::output::{self, Format};
 use ogm_corners::overlay;
-use ogm_corners::rules::{code_picture, RuleTable};
+use ogm_corners::rules::code_picture;
 use ogm_corners::synth;
-use ogm_corners::{DetectOptions, Detector, Error, OccupancyMap, Result, RuleSet};
+use ogm_corners::{
+    Backend, ClassTable, DetectOptions, Detector, Error, OccupancyMap, Result, RuleSet, RuleTable,
+};
 
 /// Finds corners in robot occupancy grid maps with the OGM corner detector.
 #[derive(Parser, Debug)]
@@ -29,6 +33,10 @@ enum Command {
     Demo(DemoArgs),
     /// Print the rule table: the accepted 8-neighbour codes and the rule that accepts each.
     Rules(RulesArgs),
+    /// List the GPU adapters wgpu finds (WGPU_BACKEND and WGPU_ADAPTER_NAME select among them).
+    Info(InfoArgs),
+    /// Measure throughput per backend: kernels alone and end to end, median of repeats.
+    Bench(BenchArgs),
 }
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
@@ -50,8 +58,12 @@ impl From<RulesArg> for RuleSet {
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
 enum BackendArg {
+    /// A hardware GPU adapter when there is one, else the CPU (says which on standard error).
+    Auto,
     /// The CPU reference implementation.
     Cpu,
+    /// A GPU adapter through wgpu (software adapters such as lavapipe included); fails without one.
+    Gpu,
 }
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
@@ -69,7 +81,7 @@ struct DetectOpts {
     #[arg(long)]
     unknown_as_occupied: bool,
     /// Where to run the detector.
-    #[arg(long, value_enum, default_value = "cpu")]
+    #[arg(long, value_enum, default_value = "auto")]
     backend: BackendArg,
 }
 
@@ -81,10 +93,33 @@ impl DetectOpts {
         }
     }
 
-    fn detector(&self) -> Detector {
-        match self.backend {
-            BackendArg::Cpu => Detector::new(self.options()),
-        }
+    fn detector(&self) -> Result<Detector> {
+        let options = self.options();
+        Ok(match self.backend {
+            BackendArg::Cpu => Detector::new(options),
+            BackendArg::Gpu => {
+                Detector::with_backend(options, Box::new(GpuBackend::new(GpuOptions::default())?))
+            }
+            BackendArg::Auto => match GpuBackend::open(true, GpuOptions::default()) {
+                Ok(Some(g)) => {
+                    eprintln!(
+                        "ogm-corners: backend: gpu ({}, {})",
+                        g.adapter().name,
+                        g.adapter().backend
+                    );
+                    Detector::with_backend(options, Box::new(g))
+                }
+                Ok(None) => {
+                    eprintln!("ogm-corners: backend: cpu (no hardware GPU adapter found; --backend gpu accepts software ones)");
+                    Detector::new(options)
+                }
+                Err(e @ Error::Input { .. }) => return Err(e),
+                Err(e) => {
+                    eprintln!("ogm-corners: backend: cpu (the GPU could not be opened: {e})");
+                    Detector::new(options)
+                }
+            },
+        })
     }
 }
 
@@ -158,6 +193,8 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Detect(a) => detect(a),
         Command::Demo(a) => demo(a),
         Command::Rules(a) => rules(a),
+        Command::Info(a) => info(a),
+        Command::Bench(a) => bench(a),
     }
 }
 
@@ -166,7 +203,7 @@ fn detect(a: DetectArgs) -> Result<()> {
     for w in &map.warnings {
         eprintln!("ogm-corners: warning: {w}");
     }
-    let mut detector = a.opts.detector();
+    let mut detector = a.opts.detector()?;
     let det = detector.detect(&map)?;
     let format = match a.format {
         FormatArg::Csv => Format::Csv,
@@ -219,7 +256,7 @@ fn demo(a: DemoArgs) -> Result<()> {
     fs::write(&yaml, yaml_text).map_err(|e| Error::output(&yaml, e))?;
     // Load it back as a user's map would be, so the demo runs the whole path.
     let map = OccupancyMap::load(&yaml)?;
-    let mut detector = a.opts.detector();
+    let mut detector = a.opts.detector()?;
     let start = Instant::now();
     let det = detector.detect(&map)?;
     let elapsed = start.elapsed();
@@ -286,6 +323,263 @@ fn rules(a: RulesArgs) -> Result<()> {
                     }
                 }
             }
+        }
+        out.flush()
+    })
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+enum TextOrJson {
+    Text,
+    Json,
+}
+
+#[derive(Args, Debug)]
+struct InfoArgs {
+    /// Output format.
+    #[arg(long, value_enum, default_value = "text")]
+    format: TextOrJson,
+}
+
+fn info(a: InfoArgs) -> Result<()> {
+    let adapters = gpu::list_adapters();
+    write_stdout(|out| {
+        if a.format == TextOrJson::Json {
+            serde_json::to_writer_pretty(&mut *out, &adapters)?;
+            writeln!(out)?;
+            return out.flush();
+        }
+        if adapters.is_empty() {
+            writeln!(
+                out,
+                "no adapters found (WGPU_BACKEND={}); install a Vulkan driver, e.g. mesa-vulkan-drivers",
+                std::env::var("WGPU_BACKEND").unwrap_or_else(|_| "unset".into())
+            )?;
+        }
+        for (i, r) in adapters.iter().enumerate() {
+            writeln!(out, "adapter {i}: {}", r.name)?;
+            writeln!(
+                out,
+                "  backend: {}, device type: {}",
+                r.backend, r.device_type
+            )?;
+            writeln!(out, "  driver: {}", r.driver)?;
+            writeln!(
+                out,
+                "  max_storage_buffer_binding_size: {} MiB, max_buffer_size: {} MiB",
+                r.max_storage_buffer_binding_size >> 20,
+                r.max_buffer_size >> 20
+            )?;
+            writeln!(
+                out,
+                "  max_compute_workgroups_per_dimension: {}, timestamp queries: {}, shader int64: {}",
+                r.max_compute_workgroups_per_dimension, r.timestamp_query, r.shader_int64
+            )?;
+        }
+        out.flush()
+    })
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+enum DetectorArg {
+    /// The OGM corner detector of the paper.
+    Ogm,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+enum BenchBackend {
+    Cpu,
+    Gpu,
+    /// The CPU and every usable GPU adapter (the one wgpu picks).
+    All,
+}
+
+#[derive(Args, Debug)]
+struct BenchArgs {
+    /// A map to measure on (yaml or image); without it, a synthetic office map of --size.
+    map: Option<PathBuf>,
+    /// Size of the synthetic map, WIDTHxHEIGHT.
+    #[arg(long, value_name = "WxH", value_parser = parse_size, conflicts_with = "map")]
+    size: Option<(u32, u32)>,
+    /// Which detector.
+    #[arg(long, value_enum, default_value = "ogm")]
+    detector: DetectorArg,
+    /// Which backends.
+    #[arg(long, value_enum, default_value = "all")]
+    backend: BenchBackend,
+    /// Timed runs per measurement (after one warm-up run); the median is reported.
+    #[arg(long, default_value_t = 10, value_parser = clap::value_parser!(u32).range(1..))]
+    repeat: u32,
+    /// Rule reading.
+    #[arg(long, value_enum, default_value = "paper")]
+    rules: RulesArg,
+    /// Output format.
+    #[arg(long, value_enum, default_value = "text")]
+    format: TextOrJson,
+}
+
+/// One measurement of `bench --format json`.
+#[derive(serde::Serialize, Debug)]
+struct BenchRecord {
+    detector: &'static str,
+    backend: &'static str,
+    adapter: String,
+    width: u32,
+    height: u32,
+    stage: &'static str,
+    median_ms: f64,
+    mpx_per_s: f64,
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        (v[n / 2 - 1] + v[n / 2]) / 2.0
+    }
+}
+
+/// The CPU's model name, for naming the machine in benchmark records.
+fn cpu_name() -> String {
+    let model = std::fs::read_to_string("/proc/cpuinfo")
+        .ok()
+        .and_then(|s| {
+            s.lines()
+                .find(|l| l.starts_with("model name"))
+                .and_then(|l| l.split_once(':'))
+                .map(|(_, v)| v.trim().to_string())
+        })
+        .unwrap_or_else(|| std::env::consts::ARCH.to_string());
+    let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+    format!("{model} ({threads} threads)")
+}
+
+fn bench(a: BenchArgs) -> Result<()> {
+    let (map, label) = match (&a.map, a.size) {
+        (Some(p), _) => (OccupancyMap::load(p)?, p.display().to_string()),
+        (None, size) => {
+            let (w, h) = size.unwrap_or((4096, 4096));
+            (
+                OccupancyMap::from_image(synth::office_map(w, h, 1)?),
+                format!("synthetic office map {w}x{h} (seed 1)"),
+            )
+        }
+    };
+    let (w, h) = (map.image.width(), map.image.height());
+    let mpx = f64::from(w) * f64::from(h) / 1e6;
+    let classes = ClassTable::new(&map.thresholds);
+    let rules = RuleTable::new(a.rules.into());
+    let detector = match a.detector {
+        DetectorArg::Ogm => "ogm",
+    };
+    let record = |backend, adapter: &str, stage, ms: f64| BenchRecord {
+        detector,
+        backend,
+        adapter: adapter.to_string(),
+        width: w,
+        height: h,
+        stage,
+        median_ms: ms,
+        mpx_per_s: mpx / (ms / 1e3),
+    };
+    let timed = |f: &mut dyn FnMut() -> Result<usize>| -> Result<(f64, usize)> {
+        let n = f()?; // warm-up: first-use costs (allocation, pipeline caches) stay out of the median
+        let mut times = Vec::new();
+        for _ in 0..a.repeat {
+            let t = Instant::now();
+            f()?;
+            times.push(t.elapsed().as_secs_f64() * 1e3);
+        }
+        Ok((median(times), n))
+    };
+    let mut records = Vec::new();
+    let mut counts = Vec::new();
+    if matches!(a.backend, BenchBackend::Cpu | BenchBackend::All) {
+        let name = cpu_name();
+        let (ms, _) = timed(&mut || {
+            let states = classify(&map.image, &classes);
+            Ok(ogm_corners(&states, w, h, &rules, false).len())
+        })?;
+        records.push(record("cpu", &name, "kernel", ms));
+        let mut cpu = CpuBackend;
+        let (ms, n) = timed(&mut || Ok(cpu.detect(&map.image, &classes, &rules, false)?.len()))?;
+        records.push(record("cpu", &name, "end_to_end", ms));
+        counts.push(("cpu", n));
+    }
+    if matches!(a.backend, BenchBackend::Gpu | BenchBackend::All) {
+        let gpu = if a.backend == BenchBackend::All {
+            match GpuBackend::new(GpuOptions::default()) {
+                Ok(g) => Some(g),
+                Err(e) => {
+                    eprintln!("ogm-corners: bench: no GPU rows: {e}");
+                    None
+                }
+            }
+        } else {
+            Some(GpuBackend::new(GpuOptions::default())?)
+        };
+        if let Some(mut g) = gpu {
+            let name = format!(
+                "{} ({}, {})",
+                g.adapter().name,
+                g.adapter().backend,
+                g.adapter().device_type
+            );
+            let mut kernel = Vec::new();
+            let (ms, n) = timed(&mut || {
+                let n = g.detect(&map.image, &classes, &rules, false)?.len();
+                if let Some(k) = g.stats().kernel_time {
+                    kernel.push(k.as_secs_f64() * 1e3);
+                }
+                Ok(n)
+            })?;
+            // The warm-up's kernel time is the first entry; the median uses the timed runs only.
+            if kernel.len() > 1 {
+                records.push(record("gpu", &name, "kernel", median(kernel[1..].to_vec())));
+            } else {
+                eprintln!(
+                    "ogm-corners: bench: {} has no timestamp queries; no kernel-only row",
+                    g.adapter().name
+                );
+            }
+            records.push(record("gpu", &name, "end_to_end", ms));
+            counts.push(("gpu", n));
+        }
+    }
+    if let Some(&(_, n0)) = counts.first() {
+        if let Some(&(b, n)) = counts.iter().find(|c| c.1 != n0) {
+            return Err(Error::Internal(format!(
+                "backends disagree: {} found {n0} keypoints, {b} found {n}",
+                counts[0].0
+            )));
+        }
+    }
+    let keypoints = counts.first().map_or(0, |c| c.1);
+    write_stdout(|out| {
+        if a.format == TextOrJson::Json {
+            serde_json::to_writer_pretty(&mut *out, &records)?;
+            writeln!(out)?;
+            return out.flush();
+        }
+        writeln!(
+            out,
+            "{label}: {w}x{h} ({mpx:.2} Mpx), detector {detector}, rules {}, {keypoints} keypoints, median of {} runs",
+            RuleSet::from(a.rules),
+            a.repeat
+        )?;
+        writeln!(
+            out,
+            "{:<5} {:<11} {:>10} {:>10}  adapter",
+            "backend", "stage", "median ms", "Mpx/s"
+        )?;
+        for r in &records {
+            writeln!(
+                out,
+                "{:<7} {:<11} {:>10.3} {:>10.1}  {}",
+                r.backend, r.stage, r.median_ms, r.mpx_per_s, r.adapter
+            )?;
         }
         out.flush()
     })

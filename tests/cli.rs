@@ -265,3 +265,141 @@ fn unwritable_output_exits_1() {
     assert_eq!(o.status.code(), Some(1));
     assert!(stderr(&o).contains("/nonexistent-dir/k.csv"));
 }
+
+fn gpu_available() -> bool {
+    let ok = !ogm_corners::gpu::list_adapters().is_empty();
+    if !ok {
+        assert!(
+            std::env::var("CI").map_or(true, |v| v != "true"),
+            "CI=true requires a GPU adapter"
+        );
+        eprintln!("SKIPPED: no GPU adapter; the GPU CLI checks did NOT run");
+    }
+    ok
+}
+
+#[test]
+fn gpu_and_cpu_backends_write_the_same_csv() {
+    if !gpu_available() {
+        return;
+    }
+    let d = tmpdir("backends");
+    let map = d.join("office");
+    let o = run(&[
+        "demo",
+        "-o",
+        map.to_str().unwrap(),
+        "--size",
+        "200x150",
+        "--backend",
+        "cpu",
+    ]);
+    assert!(o.status.success());
+    let yaml = map.join("demo-map.yaml");
+    let cpu = run(&["detect", yaml.to_str().unwrap(), "--backend", "cpu"]);
+    let gpu = run(&["detect", yaml.to_str().unwrap(), "--backend", "gpu"]);
+    assert!(gpu.status.success(), "{}", stderr(&gpu));
+    assert_eq!(stdout(&cpu), stdout(&gpu));
+    assert!(stdout(&cpu).lines().count() > 5);
+    // auto says on standard error which backend it picked.
+    let auto = run(&["detect", yaml.to_str().unwrap()]);
+    assert!(
+        stderr(&auto).contains("ogm-corners: backend: "),
+        "{}",
+        stderr(&auto)
+    );
+    assert_eq!(stdout(&auto), stdout(&cpu));
+}
+
+#[test]
+fn gpu_backend_without_adapter_fails_clearly() {
+    let d = tmpdir("noadapter");
+    let o = bin()
+        .args(["detect", room_pgm(&d).to_str().unwrap(), "--backend", "gpu"])
+        .env("WGPU_ADAPTER_NAME", "no-such-adapter-anywhere")
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("WGPU_ADAPTER_NAME"), "{}", stderr(&o));
+}
+
+#[test]
+fn info_lists_adapters() {
+    let o = run(&["info", "--format", "json"]);
+    assert!(o.status.success());
+    let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    let list = v.as_array().unwrap();
+    if gpu_available() {
+        assert!(!list.is_empty());
+        assert!(list[0]["max_storage_buffer_binding_size"].as_u64().unwrap() > 0);
+        let text = stdout(&run(&["info"]));
+        assert!(
+            text.contains("adapter 0:") && text.contains("max_storage_buffer_binding_size"),
+            "{text}"
+        );
+    }
+}
+
+#[test]
+fn bench_json_has_a_record_per_measurement() {
+    let o = run(&[
+        "bench",
+        "--size",
+        "256x192",
+        "--repeat",
+        "2",
+        "--backend",
+        "cpu",
+        "--format",
+        "json",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    let recs = v.as_array().unwrap();
+    let stages: Vec<&str> = recs.iter().map(|r| r["stage"].as_str().unwrap()).collect();
+    assert_eq!(stages, ["kernel", "end_to_end"]);
+    for r in recs {
+        for k in [
+            "detector",
+            "backend",
+            "adapter",
+            "width",
+            "height",
+            "stage",
+            "median_ms",
+            "mpx_per_s",
+        ] {
+            assert!(!r[k].is_null(), "{k} missing in {r}");
+        }
+        assert_eq!(
+            (r["width"].as_u64(), r["height"].as_u64()),
+            (Some(256), Some(192))
+        );
+        assert!(r["mpx_per_s"].as_f64().unwrap() > 0.0);
+    }
+    if gpu_available() {
+        let o = run(&[
+            "bench",
+            "--size",
+            "256x192",
+            "--repeat",
+            "2",
+            "--backend",
+            "all",
+            "--format",
+            "json",
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+        assert!(v
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|r| r["backend"] == "gpu" && r["stage"] == "end_to_end"));
+    }
+    assert_eq!(run(&["bench", "--repeat", "0"]).status.code(), Some(2));
+    assert_eq!(
+        run(&["bench", "x.pgm", "--size", "5x5"]).status.code(),
+        Some(2)
+    );
+}

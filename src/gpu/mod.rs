@@ -40,7 +40,8 @@ struct Params {
     groups_x: u32,
     out_start: u32,
     out_end: u32,
-    _pad: [u32; 2],
+    active_len: u32,
+    _pad: u32,
 }
 
 /// What `ogm-corners info` prints about an adapter.
@@ -470,7 +471,12 @@ impl GpuBackend {
     }
 
     fn dispatch_shape(&self, words: u32) -> (u32, u32) {
-        let groups = words.div_ceil(WORKGROUP).max(1);
+        self.dispatch_shape_groups(words.div_ceil(WORKGROUP))
+    }
+
+    /// A 2D dispatch of at least `groups` workgroups within the per-dimension limit.
+    fn dispatch_shape_groups(&self, groups: u32) -> (u32, u32) {
+        let groups = groups.max(1);
         let gx = groups.min(self.max_groups);
         (gx, groups.div_ceil(gx))
     }
@@ -595,21 +601,29 @@ impl GpuBackend {
             pass.dispatch_workgroups(gx, gy, 1);
         }
         let raw = self.submit_and_read(encoder, &counts, groups * 4, true)?;
-        let mut offsets = Vec::with_capacity(groups as usize);
+        // The groups that found keypoints, each with its first position in the list (an exclusive
+        // prefix sum of the counts). Only these are dispatched in the write pass.
+        let mut active: Vec<[u32; 2]> = Vec::new();
         let mut total = 0u64;
-        for c in raw.chunks_exact(4).take(groups as usize) {
-            offsets.push(total as u32);
-            total += u64::from(u32::from_le_bytes(c.try_into().expect("4 bytes")));
+        for (g, c) in raw.chunks_exact(4).take(groups as usize).enumerate() {
+            let n = u32::from_le_bytes(c.try_into().expect("4 bytes"));
+            if n > 0 {
+                active.push([g as u32, total as u32]);
+                total += u64::from(n);
+            }
         }
         if total == 0 {
             return Ok(());
         }
-        let offsets_buf = self
+        let active_buf = self
             .offsets
-            .get(&self.device, groups * 4, self.max_binding)
+            .get(&self.device, active.len() as u64 * 8, self.max_binding)
             .clone();
         self.queue
-            .write_buffer(&offsets_buf, 0, bytemuck::cast_slice(&offsets));
+            .write_buffer(&active_buf, 0, bytemuck::cast_slice(&active));
+        let (ax, ay) = self.dispatch_shape_groups(active.len() as u32);
+        params.groups_x = ax;
+        params.active_len = active.len() as u32;
 
         // Pass 2: write, in chunks of what one binding (or the test cap) holds.
         let per_pass = (self.max_binding / KEYPOINT_BYTES)
@@ -642,7 +656,7 @@ impl GpuBackend {
                     (0, &self.params),
                     (1, &self.rule_table),
                     (2, &states),
-                    (4, &offsets_buf),
+                    (4, &active_buf),
                     (5, &kp),
                 ],
             );
@@ -652,7 +666,7 @@ impl GpuBackend {
                 let mut pass = Self::pass(&mut encoder, "write", ts, true, true);
                 pass.set_pipeline(&self.write);
                 pass.set_bind_group(0, &bg_write, &[]);
-                pass.dispatch_workgroups(gx, gy, 1);
+                pass.dispatch_workgroups(ax, ay, 1);
             }
             let raw = self.submit_and_read(encoder, &kp, len * KEYPOINT_BYTES, true)?;
             self.stats.write_passes += 1;
