@@ -7,6 +7,7 @@ use std::time::Instant;
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
 
+use ogm_corners::baselines;
 use ogm_corners::cpu::{classify::classify, ogm_corners::ogm_corners, CpuBackend};
 use ogm_corners::gpu::{self, GpuBackend, GpuOptions};
 use ogm_corners::output::{self, Format};
@@ -14,7 +15,8 @@ use ogm_corners::overlay;
 use ogm_corners::rules::code_picture;
 use ogm_corners::synth;
 use ogm_corners::{
-    Backend, ClassTable, DetectOptions, Detector, Error, OccupancyMap, Result, RuleSet, RuleTable,
+    Backend, Baseline, BaselineParams, ClassTable, DetectOptions, Detector, DetectorKind, Error,
+    OccupancyMap, Result, RuleSet, RuleTable,
 };
 
 /// Finds corners in robot occupancy grid maps with the OGM corner detector.
@@ -72,9 +74,77 @@ enum FormatArg {
     Json,
 }
 
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+enum DetectorArg {
+    /// The OGM corner detector of the paper.
+    Ogm,
+    /// Harris (Gaussian blur, Sobel, structure tensor, k; OpenCV's cornerHarris).
+    Harris,
+    /// Shi-Tomasi (minimum eigenvalue, OpenCV's goodFeaturesToTrack selection).
+    ShiTomasi,
+    /// Trajkovic-Hedley, 4-neighbour, two resolutions.
+    Trajkovic,
+}
+
+impl From<DetectorArg> for DetectorKind {
+    fn from(d: DetectorArg) -> Self {
+        match d {
+            DetectorArg::Ogm => DetectorKind::Ogm,
+            DetectorArg::Harris => DetectorKind::Baseline(Baseline::Harris),
+            DetectorArg::ShiTomasi => DetectorKind::Baseline(Baseline::ShiTomasi),
+            DetectorArg::Trajkovic => DetectorKind::Baseline(Baseline::Trajkovic),
+        }
+    }
+}
+
+/// The baselines' options; defaults are the paper's configuration.
+#[derive(Args, Debug, Clone)]
+struct BaselineArgs {
+    /// Gaussian sigma of the 3x3 blur before Harris and Shi-Tomasi.
+    #[arg(long, default_value_t = 1.0)]
+    sigma: f64,
+    /// Harris k (at most three decimals).
+    #[arg(long, default_value_t = 0.04)]
+    harris_k: f64,
+    /// Harris and Shi-Tomasi quality level (fraction of the strongest response).
+    #[arg(long, default_value_t = 0.01)]
+    quality: f64,
+    /// Shi-Tomasi minimum distance between keypoints, pixels.
+    #[arg(long, default_value_t = 3.0)]
+    min_distance: f64,
+    /// Shi-Tomasi maximum number of keypoints, strongest first (default: all).
+    #[arg(long)]
+    max_corners: Option<usize>,
+    /// Trajkovic low-resolution threshold T1 (squared grey levels).
+    #[arg(long, default_value_t = 10_000)]
+    t1: u32,
+    /// Trajkovic full-resolution threshold T2 (squared grey levels).
+    #[arg(long, default_value_t = 20_000)]
+    t2: u32,
+}
+
+impl BaselineArgs {
+    fn params(&self) -> BaselineParams {
+        BaselineParams {
+            sigma: self.sigma,
+            harris_k: self.harris_k,
+            quality: self.quality,
+            min_distance: self.min_distance,
+            max_corners: self.max_corners,
+            t1: self.t1,
+            t2: self.t2,
+        }
+    }
+}
+
 #[derive(Args, Debug)]
 struct DetectOpts {
-    /// Which reading of the paper's rules to use.
+    /// Which detector.
+    #[arg(long, value_enum, default_value = "ogm")]
+    detector: DetectorArg,
+    #[command(flatten)]
+    baseline: BaselineArgs,
+    /// Which reading of the paper's rules to use (OGM detector).
     #[arg(long, value_enum, default_value = "paper")]
     rules: RulesArg,
     /// Count unknown neighbours as occupied.
@@ -88,6 +158,8 @@ struct DetectOpts {
 impl DetectOpts {
     fn options(&self) -> DetectOptions {
         DetectOptions {
+            detector: self.detector.into(),
+            baseline: self.baseline.params(),
             rules: self.rules.into(),
             unknown_as_occupied: self.unknown_as_occupied,
         }
@@ -381,12 +453,6 @@ fn info(a: InfoArgs) -> Result<()> {
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-enum DetectorArg {
-    /// The OGM corner detector of the paper.
-    Ogm,
-}
-
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 enum BenchBackend {
     Cpu,
     Gpu,
@@ -410,9 +476,11 @@ struct BenchArgs {
     /// Timed runs per measurement (after one warm-up run); the median is reported.
     #[arg(long, default_value_t = 10, value_parser = clap::value_parser!(u32).range(1..))]
     repeat: u32,
-    /// Rule reading.
+    /// Rule reading (OGM detector).
     #[arg(long, value_enum, default_value = "paper")]
     rules: RulesArg,
+    #[command(flatten)]
+    baseline: BaselineArgs,
     /// Output format.
     #[arg(long, value_enum, default_value = "text")]
     format: TextOrJson,
@@ -471,8 +539,19 @@ fn bench(a: BenchArgs) -> Result<()> {
     let mpx = f64::from(w) * f64::from(h) / 1e6;
     let classes = ClassTable::new(&map.thresholds);
     let rules = RuleTable::new(a.rules.into());
-    let detector = match a.detector {
-        DetectorArg::Ogm => "ogm",
+    let kind: DetectorKind = a.detector.into();
+    let detector = kind.name();
+    let bparams = a.baseline.params();
+    let exact = bparams.exact()?;
+    // End to end through the backend trait: map in memory to keypoints in memory.
+    let run = |b: &mut dyn Backend| -> Result<usize> {
+        Ok(match kind {
+            DetectorKind::Ogm => b.detect(&map.image, &classes, &rules, false)?.len(),
+            DetectorKind::Baseline(k) => {
+                let s = b.baseline_scores(k, &map.image, &exact)?;
+                baselines::select(k, &s, w, h, &bparams).len()
+            }
+        })
     };
     let record = |backend, adapter: &str, stage, ms: f64| BenchRecord {
         detector,
@@ -498,13 +577,19 @@ fn bench(a: BenchArgs) -> Result<()> {
     let mut counts = Vec::new();
     if matches!(a.backend, BenchBackend::Cpu | BenchBackend::All) {
         let name = cpu_name();
+        // The CPU "kernels" are the twins of the GPU kernels: the work before keypoint selection.
         let (ms, _) = timed(&mut || {
-            let states = classify(&map.image, &classes);
-            Ok(ogm_corners(&states, w, h, &rules, false).len())
+            Ok(match kind {
+                DetectorKind::Ogm => {
+                    let states = classify(&map.image, &classes);
+                    ogm_corners(&states, w, h, &rules, false).len()
+                }
+                DetectorKind::Baseline(k) => baselines::cpu_scores(k, &map.image, &exact).len(),
+            })
         })?;
         records.push(record("cpu", &name, "kernel", ms));
         let mut cpu = CpuBackend;
-        let (ms, n) = timed(&mut || Ok(cpu.detect(&map.image, &classes, &rules, false)?.len()))?;
+        let (ms, n) = timed(&mut || run(&mut cpu))?;
         records.push(record("cpu", &name, "end_to_end", ms));
         counts.push(("cpu", n));
     }
@@ -529,7 +614,7 @@ fn bench(a: BenchArgs) -> Result<()> {
             );
             let mut kernel = Vec::new();
             let (ms, n) = timed(&mut || {
-                let n = g.detect(&map.image, &classes, &rules, false)?.len();
+                let n = run(&mut g)?;
                 if let Some(k) = g.stats().kernel_time {
                     kernel.push(k.as_secs_f64() * 1e3);
                 }

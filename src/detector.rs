@@ -2,6 +2,7 @@
 
 use serde::Serialize;
 
+use crate::baselines::{self, Baseline, BaselineParams, ExactParams};
 use crate::cpu::CpuBackend;
 use crate::error::Result;
 use crate::map::{MapImage, OccupancyMap, Thresholds};
@@ -17,13 +18,41 @@ pub struct Keypoint {
     pub x: u32,
     /// The rule that accepted the neighbourhood: 4, 5 or 6 occupied neighbours.
     pub rule: u8,
-    /// The 8-neighbour code (bit order in [`crate::rules`]).
+    /// The 8-neighbour code (bit order in [`crate::rules`]); 0 for the baselines.
     pub code: u8,
+    /// The baselines' integer response (see [`crate::baselines`]); 0 for the OGM detector.
+    pub score: i64,
+}
+
+/// Which detector.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum DetectorKind {
+    /// The OGM corner detector of the paper (the default).
+    #[default]
+    Ogm,
+    /// One of the paper's baselines.
+    Baseline(Baseline),
+}
+
+impl DetectorKind {
+    /// The name used on the command line and in outputs.
+    pub fn name(self) -> &'static str {
+        match self {
+            DetectorKind::Ogm => "ogm",
+            DetectorKind::Baseline(Baseline::Harris) => "harris",
+            DetectorKind::Baseline(Baseline::ShiTomasi) => "shi-tomasi",
+            DetectorKind::Baseline(Baseline::Trajkovic) => "trajkovic",
+        }
+    }
 }
 
 /// How to detect.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct DetectOptions {
+    /// Which detector.
+    pub detector: DetectorKind,
+    /// The baselines' options (ignored by the OGM detector).
+    pub baseline: BaselineParams,
     /// Which reading of the paper's rules.
     pub rules: RuleSet,
     /// Count unknown neighbours as occupied (by default they count as not occupied).
@@ -57,6 +86,15 @@ pub trait Backend {
         rules: &RuleTable,
         unknown_as_occupied: bool,
     ) -> Result<Vec<Keypoint>>;
+
+    /// The score map of a baseline detector: one integer per pixel, row-major, exactly as
+    /// [`crate::baselines::cpu_scores`] computes it.
+    fn baseline_scores(
+        &mut self,
+        kind: Baseline,
+        image: &MapImage,
+        params: &ExactParams,
+    ) -> Result<Vec<i64>>;
 }
 
 /// Detects corners in maps; keep one and reuse it so backend set-up is paid once.
@@ -103,13 +141,37 @@ impl Detector {
 
     /// Detects corners in an image, reading its pixels with `thresholds`.
     pub fn detect_image(&mut self, image: &MapImage, thresholds: &Thresholds) -> Result<Detection> {
-        let classes = ClassTable::new(thresholds);
-        let keypoints = self.backend.detect(
-            image,
-            &classes,
-            &self.rules,
-            self.options.unknown_as_occupied,
-        )?;
+        let keypoints = match self.options.detector {
+            DetectorKind::Ogm => {
+                let classes = ClassTable::new(thresholds);
+                self.backend.detect(
+                    image,
+                    &classes,
+                    &self.rules,
+                    self.options.unknown_as_occupied,
+                )?
+            }
+            DetectorKind::Baseline(kind) => {
+                let exact = self.options.baseline.exact()?;
+                let scores = self.backend.baseline_scores(kind, image, &exact)?;
+                baselines::select(
+                    kind,
+                    &scores,
+                    image.width(),
+                    image.height(),
+                    &self.options.baseline,
+                )
+                .into_iter()
+                .map(|(x, y, score)| Keypoint {
+                    y,
+                    x,
+                    rule: 0,
+                    code: 0,
+                    score,
+                })
+                .collect()
+            }
+        };
         Ok(Detection {
             width: image.width(),
             height: image.height(),

@@ -20,6 +20,7 @@
 //! assert_eq!(corners, vec![(1, 1), (6, 1), (1, 6), (6, 6)]);
 //! ```
 
+pub mod baselines;
 pub mod cpu;
 pub mod detector;
 pub mod error;
@@ -31,7 +32,8 @@ pub mod rules;
 pub mod states;
 pub mod synth;
 
-pub use detector::{Backend, DetectOptions, Detection, Detector, Keypoint};
+pub use baselines::{Baseline, BaselineParams};
+pub use detector::{Backend, DetectOptions, Detection, Detector, DetectorKind, Keypoint};
 pub use error::{Error, Result};
 pub use map::{GeoRef, MapImage, OccupancyMap, Thresholds};
 pub use rules::{RuleSet, RuleTable};

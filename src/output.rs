@@ -4,13 +4,14 @@ use std::io::Write;
 
 use serde::Serialize;
 
-use crate::detector::{DetectOptions, Detection};
+use crate::detector::{DetectOptions, Detection, DetectorKind};
 use crate::map::OccupancyMap;
 
 /// Output formats of `detect`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Format {
-    /// A header line `x,y,rule,code[,world_x,world_y]`, then one keypoint a line.
+    /// A header line `x,y,rule,code[,world_x,world_y]` (baselines: `x,y,score[,...]`), then one keypoint a
+    /// line.
     Csv,
     /// One object with the map's size and the keypoint list.
     Json,
@@ -26,19 +27,36 @@ pub fn write_keypoints(
     backend: &str,
 ) -> std::io::Result<()> {
     match format {
-        Format::Csv => write_csv(out, map, det),
+        Format::Csv => write_csv(out, map, det, options.detector),
         Format::Json => write_json(out, map, det, options, backend),
     }
 }
 
-/// CSV: `x,y,rule,code`, plus `world_x,world_y` in metres when the map has a yaml.
-pub fn write_csv(out: &mut dyn Write, map: &OccupancyMap, det: &Detection) -> std::io::Result<()> {
-    match &map.georef {
-        Some(_) => writeln!(out, "x,y,rule,code,world_x,world_y")?,
-        None => writeln!(out, "x,y,rule,code")?,
-    }
+/// CSV: `x,y,rule,code` for the OGM detector, `x,y,score` for the baselines, plus `world_x,world_y` in
+/// metres when the map has a yaml.
+pub fn write_csv(
+    out: &mut dyn Write,
+    map: &OccupancyMap,
+    det: &Detection,
+    detector: DetectorKind,
+) -> std::io::Result<()> {
+    let ogm = detector == DetectorKind::Ogm;
+    write!(out, "{}", if ogm { "x,y,rule,code" } else { "x,y,score" })?;
+    writeln!(
+        out,
+        "{}",
+        if map.georef.is_some() {
+            ",world_x,world_y"
+        } else {
+            ""
+        }
+    )?;
     for k in &det.keypoints {
-        write!(out, "{},{},{},{}", k.x, k.y, k.rule, k.code)?;
+        if ogm {
+            write!(out, "{},{},{},{}", k.x, k.y, k.rule, k.code)?;
+        } else {
+            write!(out, "{},{},{}", k.x, k.y, k.score)?;
+        }
         if let Some(g) = &map.georef {
             let (wx, wy) = g.pixel_to_world(k.x, k.y, det.height);
             write!(out, ",{wx:.6},{wy:.6}")?;
@@ -52,8 +70,12 @@ pub fn write_csv(out: &mut dyn Write, map: &OccupancyMap, det: &Detection) -> st
 struct JsonKeypoint {
     x: u32,
     y: u32,
-    rule: u8,
-    code: u8,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    rule: Option<u8>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    code: Option<u8>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    score: Option<i64>,
     #[serde(skip_serializing_if = "Option::is_none")]
     world: Option<[f64; 2]>,
 }
@@ -67,6 +89,7 @@ struct JsonDetection<'a> {
     resolution: Option<f64>,
     #[serde(skip_serializing_if = "Option::is_none")]
     origin: Option<[Option<f64>; 3]>,
+    detector: &'a str,
     rules: &'a str,
     unknown_as_occupied: bool,
     backend: &'a str,
@@ -83,6 +106,7 @@ pub fn write_json(
     options: &DetectOptions,
     backend: &str,
 ) -> std::io::Result<()> {
+    let ogm = options.detector == DetectorKind::Ogm;
     let doc = JsonDetection {
         map: map.source().map(|p| p.display().to_string()),
         width: det.width,
@@ -92,6 +116,7 @@ pub fn write_json(
         origin: map
             .georef
             .map(|g| g.origin.map(|v| v.is_finite().then_some(v))),
+        detector: options.detector.name(),
         rules: options.rules.name(),
         unknown_as_occupied: options.unknown_as_occupied,
         backend,
@@ -102,8 +127,9 @@ pub fn write_json(
             .map(|k| JsonKeypoint {
                 x: k.x,
                 y: k.y,
-                rule: k.rule,
-                code: k.code,
+                rule: ogm.then_some(k.rule),
+                code: ogm.then_some(k.code),
+                score: (!ogm).then_some(k.score),
                 world: map.georef.map(|g| {
                     let (wx, wy) = g.pixel_to_world(k.x, k.y, det.height);
                     [wx, wy]

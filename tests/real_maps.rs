@@ -27,6 +27,7 @@ fn every_real_map_loads_and_detects() {
         Detector::new(DetectOptions {
             rules,
             unknown_as_occupied,
+            ..DetectOptions::default()
         })
     })
     .into();

@@ -3,8 +3,14 @@
 //! These are the oracle the other backends are tested against, so they favour obviousness over speed.
 
 pub mod classify;
+pub mod gaussian_blur;
+pub mod harris;
 pub mod ogm_corners;
+pub mod shi_tomasi;
+pub mod structure_tensor;
+pub mod trajkovic;
 
+use crate::baselines::{self, Baseline, ExactParams};
 use crate::detector::{Backend, Keypoint};
 use crate::error::Result;
 use crate::map::MapImage;
@@ -35,5 +41,14 @@ impl Backend for CpuBackend {
             rules,
             unknown_as_occupied,
         ))
+    }
+
+    fn baseline_scores(
+        &mut self,
+        kind: Baseline,
+        image: &MapImage,
+        params: &ExactParams,
+    ) -> Result<Vec<i64>> {
+        Ok(baselines::cpu_scores(kind, image, params))
     }
 }

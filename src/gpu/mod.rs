@@ -11,6 +11,7 @@ use std::time::Duration;
 
 use wgpu::util::DeviceExt;
 
+use crate::baselines::{Baseline, ExactParams};
 use crate::detector::{Backend, Keypoint};
 use crate::error::{Error, Result};
 use crate::map::MapImage;
@@ -42,6 +43,63 @@ struct Params {
     out_end: u32,
     active_len: u32,
     _pad: u32,
+}
+
+/// The baseline kernels' parameters, laid out as `struct BParams` in `shaders/lib/baseline_common.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, bytemuck::Pod, bytemuck::Zeroable)]
+struct BParams {
+    map_w: u32,
+    map_h: u32,
+    origin_x: u32,
+    origin_y: u32,
+    buf_w: u32,
+    buf_h: u32,
+    stride: u32,
+    core_x0: u32,
+    core_y0: u32,
+    core_w: u32,
+    core_h: u32,
+    k_side: u32,
+    k_centre: u32,
+    kn: u32,
+    kd: u32,
+    t1: u32,
+    t2: u32,
+    groups_x: u32,
+    n_items: u32,
+    _pad: u32,
+}
+
+/// Halo of the baseline tiles: blur, Sobel and the 3x3 window reach 3 pixels; Trajkovic's low-resolution
+/// neighbours reach 4. Even, so tile origins stay on the low-resolution grid.
+const BASELINE_HALO: u32 = 4;
+/// Bytes per buffer pixel of the largest baseline buffer (the structure tensor, 4 x i32).
+const BASELINE_BYTES_PER_PX: u64 = 16;
+
+/// The WGSL source of a kernel as the GPU receives it: the baseline kernels get the shared header and the
+/// 64-bit integer library (native with SHADER_INT64, emulated otherwise) prepended. `None` for an unknown
+/// name.
+pub fn shader_source(kernel: &str, native_int64: bool) -> Option<String> {
+    let body = match kernel {
+        "classify" => return Some(include_str!("../../shaders/classify.wgsl").to_string()),
+        "ogm_corners" => return Some(include_str!("../../shaders/ogm_corners.wgsl").to_string()),
+        "gaussian_blur" => include_str!("../../shaders/gaussian_blur.wgsl"),
+        "structure_tensor" => include_str!("../../shaders/structure_tensor.wgsl"),
+        "harris" => include_str!("../../shaders/harris.wgsl"),
+        "shi_tomasi" => include_str!("../../shaders/shi_tomasi.wgsl"),
+        "trajkovic" => include_str!("../../shaders/trajkovic.wgsl"),
+        _ => return None,
+    };
+    let int64 = if native_int64 {
+        include_str!("../../shaders/lib/int64_native.wgsl")
+    } else {
+        include_str!("../../shaders/lib/int64_emulated.wgsl")
+    };
+    Some(format!(
+        "{}\n{int64}\n{body}",
+        include_str!("../../shaders/lib/baseline_common.wgsl")
+    ))
 }
 
 /// What `ogm-corners info` prints about an adapter.
@@ -160,6 +218,8 @@ pub struct GpuOptions {
     pub initial_keypoint_capacity: u32,
     /// Cap on keypoints written per pass; `None` uses the device's binding limit.
     pub max_keypoints_per_pass: Option<u32>,
+    /// Use the exact 64-bit emulation even where the adapter has SHADER_INT64 (to test it).
+    pub emulate_int64: bool,
 }
 
 impl Default for GpuOptions {
@@ -168,6 +228,7 @@ impl Default for GpuOptions {
             tile: None,
             initial_keypoint_capacity: 1 << 16,
             max_keypoints_per_pass: None,
+            emulate_int64: false,
         }
     }
 }
@@ -244,6 +305,13 @@ pub struct GpuBackend {
     error: Arc<Mutex<Option<String>>>,
     stats: GpuStats,
     staging: Vec<u8>,
+    native_int64: bool,
+    baseline_pipelines: std::collections::HashMap<&'static str, wgpu::ComputePipeline>,
+    bp_buf: wgpu::Buffer,
+    bp_core: wgpu::Buffer,
+    blurred: Slot,
+    tensor: Slot,
+    scores: Slot,
 }
 
 impl GpuBackend {
@@ -275,6 +343,10 @@ impl GpuBackend {
         let mut features = wgpu::Features::empty();
         if report.timestamp_query {
             features |= wgpu::Features::TIMESTAMP_QUERY;
+        }
+        let native_int64 = report.shader_int64 && !options.emulate_int64;
+        if native_int64 {
+            features |= wgpu::Features::SHADER_INT64;
         }
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("ogm-corners"),
@@ -352,7 +424,24 @@ impl GpuBackend {
             (set, resolve, read)
         });
         let copy_src = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC;
+        let uniform = |label| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: std::mem::size_of::<BParams>() as u64,
+                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            })
+        };
+        let bp_buf = uniform("baseline params (buffer pixels)");
+        let bp_core = uniform("baseline params (core pixels)");
         let backend = GpuBackend {
+            native_int64,
+            baseline_pipelines: Default::default(),
+            bp_buf,
+            bp_core,
+            blurred: Slot::new("blurred", wgpu::BufferUsages::STORAGE),
+            tensor: Slot::new("tensor", wgpu::BufferUsages::STORAGE),
+            scores: Slot::new("scores", copy_src),
             max_binding: limits
                 .max_storage_buffer_binding_size
                 .min(limits.max_buffer_size),
@@ -490,10 +579,12 @@ impl GpuBackend {
     ) -> wgpu::ComputePass<'e> {
         encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some(label),
-            timestamp_writes: ts.map(|query_set| wgpu::ComputePassTimestampWrites {
-                query_set,
-                beginning_of_pass_write_index: begin.then_some(0),
-                end_of_pass_write_index: end.then_some(1),
+            timestamp_writes: ts.filter(|_| begin || end).map(|query_set| {
+                wgpu::ComputePassTimestampWrites {
+                    query_set,
+                    beginning_of_pass_write_index: begin.then_some(0),
+                    end_of_pass_write_index: end.then_some(1),
+                }
             }),
         })
     }
@@ -678,6 +769,7 @@ impl GpuBackend {
                     y: w(1),
                     rule: w(2) as u8,
                     code: w(3) as u8,
+                    score: 0,
                 }
             }));
             start += len;
@@ -686,7 +778,220 @@ impl GpuBackend {
     }
 }
 
+impl GpuBackend {
+    /// Whether the baseline kernels use native 64-bit integers (else the exact emulation).
+    pub fn native_int64(&self) -> bool {
+        self.native_int64
+    }
+
+    fn baseline_pipeline(&mut self, name: &'static str) -> Result<wgpu::ComputePipeline> {
+        if let Some(p) = self.baseline_pipelines.get(name) {
+            return Ok(p.clone());
+        }
+        let src = shader_source(name, self.native_int64)
+            .ok_or_else(|| Error::Internal(format!("no kernel {name}")))?;
+        let module = self
+            .device
+            .create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some(name),
+                source: wgpu::ShaderSource::Wgsl(src.into()),
+            });
+        let p = self
+            .device
+            .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(name),
+                layout: None,
+                module: &module,
+                entry_point: Some(name),
+                compilation_options: Default::default(),
+                cache: None,
+            });
+        self.check()?;
+        self.baseline_pipelines.insert(name, p.clone());
+        Ok(p)
+    }
+
+    /// Runs one baseline tile and writes its core's scores into `out` (the whole map's score map).
+    fn run_baseline_tile(
+        &mut self,
+        kind: Baseline,
+        image: &MapImage,
+        p: &ExactParams,
+        t: &tiles::Tile,
+        out: &mut [i64],
+    ) -> Result<()> {
+        let (bw, bh) = (t.buf_w(), t.buf_h());
+        let (cw, ch) = (t.core[2] - t.core[0], t.core[3] - t.core[1]);
+        let buf_px = u64::from(bw) * u64::from(bh);
+        let core_px = u64::from(cw) * u64::from(ch);
+        let (bgx, bgy) = self.dispatch_shape_groups(buf_px.div_ceil(u64::from(WORKGROUP)) as u32);
+        let (cgx, cgy) = self.dispatch_shape_groups(core_px.div_ceil(u64::from(WORKGROUP)) as u32);
+        if bgy > self.max_groups || cgy > self.max_groups {
+            return Err(Error::Internal(
+                "baseline tile needs too many workgroups".into(),
+            ));
+        }
+        let base = BParams {
+            map_w: image.width(),
+            map_h: image.height(),
+            origin_x: t.buf[0],
+            origin_y: t.buf[1],
+            buf_w: bw,
+            buf_h: bh,
+            stride: t.stride(),
+            core_x0: t.core[0],
+            core_y0: t.core[1],
+            core_w: cw,
+            core_h: ch,
+            k_side: p.blur[0],
+            k_centre: p.blur[1],
+            kn: p.kn,
+            kd: p.kd,
+            t1: p.t1,
+            t2: p.t2,
+            ..BParams::default()
+        };
+        let on_buf = BParams {
+            groups_x: bgx,
+            n_items: buf_px as u32,
+            ..base
+        };
+        let on_core = BParams {
+            groups_x: cgx,
+            n_items: core_px as u32,
+            ..base
+        };
+        self.queue
+            .write_buffer(&self.bp_buf, 0, bytemuck::bytes_of(&on_buf));
+        self.queue
+            .write_buffer(&self.bp_core, 0, bytemuck::bytes_of(&on_core));
+        self.stage(image, t);
+        let raw = self
+            .pixels
+            .get(&self.device, t.bytes(), self.max_binding)
+            .clone();
+        self.queue.write_buffer(&raw, 0, &self.staging);
+        let scores = self
+            .scores
+            .get(&self.device, core_px * 8, self.max_binding)
+            .clone();
+
+        // (pipeline, uniform, input, output, groups) per pass.
+        let mut passes: Vec<(
+            wgpu::ComputePipeline,
+            wgpu::Buffer,
+            wgpu::Buffer,
+            wgpu::Buffer,
+            (u32, u32),
+        )> = Vec::new();
+        match kind {
+            Baseline::Harris | Baseline::ShiTomasi => {
+                let blurred = self
+                    .blurred
+                    .get(&self.device, buf_px * 4, self.max_binding)
+                    .clone();
+                let tensor = self
+                    .tensor
+                    .get(&self.device, buf_px * 16, self.max_binding)
+                    .clone();
+                let score_kernel = if kind == Baseline::Harris {
+                    "harris"
+                } else {
+                    "shi_tomasi"
+                };
+                passes.push((
+                    self.baseline_pipeline("gaussian_blur")?,
+                    self.bp_buf.clone(),
+                    raw,
+                    blurred.clone(),
+                    (bgx, bgy),
+                ));
+                passes.push((
+                    self.baseline_pipeline("structure_tensor")?,
+                    self.bp_buf.clone(),
+                    blurred,
+                    tensor.clone(),
+                    (bgx, bgy),
+                ));
+                passes.push((
+                    self.baseline_pipeline(score_kernel)?,
+                    self.bp_core.clone(),
+                    tensor,
+                    scores.clone(),
+                    (cgx, cgy),
+                ));
+            }
+            Baseline::Trajkovic => passes.push((
+                self.baseline_pipeline("trajkovic")?,
+                self.bp_core.clone(),
+                raw,
+                scores.clone(),
+                (cgx, cgy),
+            )),
+        }
+        let groups: Vec<wgpu::BindGroup> = passes
+            .iter()
+            .map(|(pl, u, i, o, _)| self.bind(pl, &[(0, u), (1, i), (2, o)]))
+            .collect();
+        let mut encoder = self.device.create_command_encoder(&Default::default());
+        let ts = self.timestamps.as_ref().map(|t| &t.0);
+        let last = passes.len() - 1;
+        for (n, ((pl, _, _, _, (gx, gy)), bg)) in passes.iter().zip(&groups).enumerate() {
+            let mut pass = Self::pass(&mut encoder, "baseline", ts, n == 0, n == last);
+            pass.set_pipeline(pl);
+            pass.set_bind_group(0, bg, &[]);
+            pass.dispatch_workgroups(*gx, *gy, 1);
+        }
+        let raw_scores = self.submit_and_read(encoder, &scores, core_px * 8, true)?;
+        let w = image.width() as usize;
+        for (r, row) in raw_scores
+            .chunks_exact(8 * cw as usize)
+            .take(ch as usize)
+            .enumerate()
+        {
+            let start = (t.core[1] as usize + r) * w + t.core[0] as usize;
+            for (dst, b) in out[start..start + cw as usize]
+                .iter_mut()
+                .zip(row.chunks_exact(8))
+            {
+                *dst = i64::from_le_bytes(b.try_into().expect("8 bytes"));
+            }
+        }
+        Ok(())
+    }
+}
+
 impl Backend for GpuBackend {
+    fn baseline_scores(
+        &mut self,
+        kind: Baseline,
+        image: &MapImage,
+        params: &ExactParams,
+    ) -> Result<Vec<i64>> {
+        self.check()?;
+        self.stats = GpuStats {
+            kernel_time: self.timestamps.as_ref().map(|_| Duration::ZERO),
+            ..GpuStats::default()
+        };
+        let (w, h) = (image.width(), image.height());
+        let max_px = self.max_binding / BASELINE_BYTES_PER_PX;
+        let (tw, th) = tiles::tile_size_halo(w, h, max_px, BASELINE_HALO, self.options.tile)
+            .ok_or_else(|| {
+                Error::Unavailable(format!(
+                    "{}'s buffer limit ({} bytes) is too small for any tile",
+                    self.adapter.name, self.max_binding
+                ))
+            })?;
+        let plan = tiles::plan(w, h, tw, th, BASELINE_HALO);
+        self.stats.tiles = plan.len();
+        let mut out = vec![0i64; image.len()];
+        for t in &plan {
+            self.run_baseline_tile(kind, image, params, t, &mut out)?;
+        }
+        self.check()?;
+        Ok(out)
+    }
+
     fn name(&self) -> String {
         format!("gpu ({}, {})", self.adapter.name, self.adapter.backend)
     }
@@ -717,7 +1022,7 @@ impl Backend for GpuBackend {
                     self.adapter.name, self.max_binding
                 ))
             })?;
-        let plan = tiles::plan(w, h, tw, th);
+        let plan = tiles::plan(w, h, tw, th, 1);
         self.stats.tiles = plan.len();
         let mut out = Vec::new();
         for t in &plan {

@@ -69,8 +69,47 @@ pub fn tile_size(
     Some((tw.min(s), th.min(s)))
 }
 
-/// The tiles covering a `width` x `height` map with cores of `tw` x `th`, row by row.
-pub fn plan(width: u32, height: u32, tw: u32, th: u32) -> Vec<Tile> {
+/// The core size for the baseline kernels: whole tiles of at most `max_px` buffer pixels with a `halo` on
+/// each side, core sides even (so that tile origins stay on the 2x2 grid of Trajkovic's low resolution).
+pub fn tile_size_halo(
+    width: u32,
+    height: u32,
+    max_px: u64,
+    halo: u32,
+    forced: Option<(u32, u32)>,
+) -> Option<(u32, u32)> {
+    let even = |v: u32, full: u32| {
+        if v >= full {
+            full
+        } else {
+            (v & !1).max(2).min(full)
+        }
+    };
+    let (fw, fh) = forced.unwrap_or((width, height));
+    let (mut tw, mut th) = (even(fw.max(1), width), even(fh.max(1), height));
+    let area = |w: u32, h: u32| u64::from(w + 2 * halo) * u64::from(h + 2 * halo);
+    if area(tw, th) <= max_px {
+        return Some((tw, th));
+    }
+    let rows = (max_px / u64::from(tw + 2 * halo)).saturating_sub(u64::from(2 * halo));
+    if rows >= 16 {
+        return Some((tw, even(rows.min(u64::from(th)) as u32, height)));
+    }
+    let mut s = ((max_px as f64).sqrt() as u32).saturating_sub(2 * halo + 2) & !1;
+    while s > 0 && area(s, s) > max_px {
+        s -= 2;
+    }
+    if s == 0 {
+        return None;
+    }
+    tw = tw.min(s);
+    th = th.min(s);
+    Some((even(tw, width), even(th, height)))
+}
+
+/// The tiles covering a `width` x `height` map with cores of `tw` x `th`, row by row, each buffer holding
+/// `halo` more pixels on every side where the map extends.
+pub fn plan(width: u32, height: u32, tw: u32, th: u32, halo: u32) -> Vec<Tile> {
     let mut tiles = Vec::new();
     for y0 in (0..height).step_by(th as usize) {
         let y1 = (y0 + th).min(height);
@@ -79,10 +118,10 @@ pub fn plan(width: u32, height: u32, tw: u32, th: u32) -> Vec<Tile> {
             tiles.push(Tile {
                 core: [x0, y0, x1, y1],
                 buf: [
-                    x0.saturating_sub(1),
-                    y0.saturating_sub(1),
-                    (x1 + 1).min(width),
-                    (y1 + 1).min(height),
+                    x0.saturating_sub(halo),
+                    y0.saturating_sub(halo),
+                    (x1 + halo).min(width),
+                    (y1 + halo).min(height),
                 ],
             });
         }
@@ -97,7 +136,7 @@ mod tests {
     #[test]
     fn tiles_cover_the_map_once_with_halos() {
         for (w, h, tw, th) in [(10, 7, 3, 2), (1, 1, 1, 1), (5, 1, 2, 5), (9, 9, 9, 9)] {
-            let tiles = plan(w, h, tw, th);
+            let tiles = plan(w, h, tw, th, 1);
             let mut seen = vec![0u8; (w * h) as usize];
             for t in &tiles {
                 for y in t.core[1]..t.core[3] {

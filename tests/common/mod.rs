@@ -30,6 +30,7 @@ pub fn detect(img: &MapImage, rules: RuleSet, unknown_as_occupied: bool) -> Vec<
     let mut d = Detector::new(DetectOptions {
         rules,
         unknown_as_occupied,
+        ..DetectOptions::default()
     });
     d.detect(&OccupancyMap::from_image(img.clone()))
         .unwrap()

@@ -1,0 +1,256 @@
+//! The paper's three baseline detectors: Harris, Shi-Tomasi and Trajkovic-Hedley.
+//!
+//! Every backend computes a per-pixel integer score map (exact, see the CPU twins in `src/cpu/`); the
+//! selection of keypoints from a score map is host code shared by all backends, so the backends agree
+//! bit for bit by construction once their score maps do.
+
+use crate::error::{Error, Result};
+
+/// Which baseline.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Baseline {
+    /// Harris and Stephens, as OpenCV's cornerHarris plus threshold and 3x3 local maxima.
+    Harris,
+    /// Shi and Tomasi's minimum eigenvalue, selected as OpenCV's goodFeaturesToTrack does.
+    ShiTomasi,
+    /// Trajkovic and Hedley's 4-neighbour detector with its two resolutions.
+    Trajkovic,
+}
+
+/// The detectors' options, with the paper's configuration as defaults.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BaselineParams {
+    /// Gaussian blur sigma before Harris and Shi-Tomasi (3x3 kernel). Default 1.
+    pub sigma: f64,
+    /// Harris k (three decimals at most, so it is an exact fraction). Default 0.04.
+    pub harris_k: f64,
+    /// Harris and Shi-Tomasi quality level: keep scores above quality x the map's maximum. Default 0.01.
+    pub quality: f64,
+    /// Shi-Tomasi minimum distance between keypoints, pixels. Default 3.
+    pub min_distance: f64,
+    /// Shi-Tomasi maximum number of keypoints (strongest first); `None` keeps all. Default `None`.
+    pub max_corners: Option<usize>,
+    /// Trajkovic low-resolution threshold T1 on min(r_A, r_B) (squared grey levels). Default 10000.
+    pub t1: u32,
+    /// Trajkovic full-resolution threshold T2. Default 20000.
+    pub t2: u32,
+}
+
+impl Default for BaselineParams {
+    fn default() -> Self {
+        BaselineParams {
+            sigma: 1.0,
+            harris_k: 0.04,
+            quality: 0.01,
+            min_distance: 3.0,
+            max_corners: None,
+            t1: 10_000,
+            t2: 20_000,
+        }
+    }
+}
+
+/// The integer form of the parameters that score maps depend on; every backend uses exactly these.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ExactParams {
+    /// Fixed-point Gaussian kernel [side, centre, side], sum 256.
+    pub blur: [u32; 3],
+    /// Harris k = kn / kd.
+    pub kn: u32,
+    /// Harris k = kn / kd.
+    pub kd: u32,
+    /// Trajkovic T1.
+    pub t1: u32,
+    /// Trajkovic T2.
+    pub t2: u32,
+}
+
+fn gcd(a: u32, b: u32) -> u32 {
+    if b == 0 {
+        a
+    } else {
+        gcd(b, a % b)
+    }
+}
+
+impl BaselineParams {
+    /// Checks the options and turns them into exact integers.
+    pub fn exact(&self) -> Result<ExactParams> {
+        if !(self.sigma.is_finite() && self.sigma > 0.0 && self.sigma <= 100.0) {
+            return Err(Error::invalid(format!(
+                "sigma must be in (0, 100], got {}",
+                self.sigma
+            )));
+        }
+        let k1000 = self.harris_k * 1000.0;
+        if !(0.0..=250.0).contains(&k1000) || (k1000 - k1000.round()).abs() > 1e-9 {
+            return Err(Error::invalid(format!(
+                "harris k must be in [0, 0.25] with at most three decimals, got {}",
+                self.harris_k
+            )));
+        }
+        if !(self.quality.is_finite() && self.quality > 0.0 && self.quality < 1.0) {
+            return Err(Error::invalid(format!(
+                "quality must be in (0, 1), got {}",
+                self.quality
+            )));
+        }
+        if !(self.min_distance.is_finite() && self.min_distance >= 0.0) {
+            return Err(Error::invalid(format!(
+                "min distance must be >= 0, got {}",
+                self.min_distance
+            )));
+        }
+        if self.t1 > 1 << 20 || self.t2 > 1 << 20 {
+            return Err(Error::invalid("trajkovic thresholds must be at most 2^20"));
+        }
+        let kn = k1000.round() as u32;
+        let g = gcd(kn, 1000).max(1);
+        Ok(ExactParams {
+            blur: crate::cpu::gaussian_blur::gaussian_kernel(self.sigma),
+            kn: kn / g,
+            kd: 1000 / g,
+            t1: self.t1,
+            t2: self.t2,
+        })
+    }
+
+    /// The quality level in parts per million (exact threshold arithmetic).
+    pub fn quality_ppm(&self) -> i128 {
+        (self.quality * 1e6).round() as i128
+    }
+}
+
+/// The CPU reference score map of `kind` (row-major, one i64 per pixel).
+pub fn cpu_scores(kind: Baseline, image: &crate::MapImage, p: &ExactParams) -> Vec<i64> {
+    use crate::cpu::{gaussian_blur, harris, shi_tomasi, structure_tensor, trajkovic};
+    let (w, h) = (image.width(), image.height());
+    match kind {
+        Baseline::Harris | Baseline::ShiTomasi => {
+            let blurred = gaussian_blur::gaussian_blur(image, p.blur);
+            let t = structure_tensor::structure_tensor(&blurred, w, h);
+            if kind == Baseline::Harris {
+                harris::harris(&t, p.kn, p.kd)
+            } else {
+                shi_tomasi::shi_tomasi(&t)
+            }
+        }
+        Baseline::Trajkovic => trajkovic::trajkovic(image.pixels(), w, h, p.t1, p.t2),
+    }
+}
+
+/// Whether scores[i] is at least every in-map 8-neighbour's score (OpenCV's `val == dilate(val)`).
+fn local_max(scores: &[i64], w: usize, h: usize, x: usize, y: usize) -> bool {
+    let v = scores[y * w + x];
+    for ny in y.saturating_sub(1)..(y + 2).min(h) {
+        for nx in x.saturating_sub(1)..(x + 2).min(w) {
+            if scores[ny * w + nx] > v {
+                return false;
+            }
+        }
+    }
+    true
+}
+
+/// Keypoints (x, y, score) from a score map, in (y, x) order.
+pub fn select(
+    kind: Baseline,
+    scores: &[i64],
+    width: u32,
+    height: u32,
+    params: &BaselineParams,
+) -> Vec<(u32, u32, i64)> {
+    let (w, h) = (width as usize, height as usize);
+    match kind {
+        Baseline::Harris => {
+            // Keep R > quality * max(R) (and R > 0), 3x3 local maxima.
+            let max = scores.iter().copied().max().unwrap_or(0);
+            let q = params.quality_ppm();
+            let mut out = Vec::new();
+            for y in 0..h {
+                for x in 0..w {
+                    let v = scores[y * w + x];
+                    if v > 0
+                        && i128::from(v) * 1_000_000 > q * i128::from(max)
+                        && local_max(scores, w, h, x, y)
+                    {
+                        out.push((x as u32, y as u32, v));
+                    }
+                }
+            }
+            out
+        }
+        Baseline::ShiTomasi => select_shi_tomasi(scores, w, h, params),
+        Baseline::Trajkovic => {
+            let mut out = Vec::new();
+            for y in 0..h {
+                for x in 0..w {
+                    let v = scores[y * w + x];
+                    if v > 0 && local_max(scores, w, h, x, y) {
+                        out.push((x as u32, y as u32, v));
+                    }
+                }
+            }
+            out
+        }
+    }
+}
+
+/// goodFeaturesToTrack's selection: threshold at quality x max (values at or below become 0), 3x3 local
+/// maxima of the thresholded map away from the 1-pixel border, strongest first (ties: the later pixel
+/// first, as OpenCV's pointer comparison does), greedily dropping any within `min_distance` of a kept one.
+fn select_shi_tomasi(
+    scores: &[i64],
+    w: usize,
+    h: usize,
+    params: &BaselineParams,
+) -> Vec<(u32, u32, i64)> {
+    let max = scores.iter().copied().max().unwrap_or(0);
+    let q = params.quality_ppm();
+    let thresholded: Vec<i64> = scores
+        .iter()
+        .map(|&v| {
+            if i128::from(v) * 1_000_000 > q * i128::from(max) {
+                v
+            } else {
+                0
+            }
+        })
+        .collect();
+    let mut cand: Vec<(i64, usize)> = Vec::new();
+    for y in 1..h.saturating_sub(1) {
+        for x in 1..w.saturating_sub(1) {
+            let v = thresholded[y * w + x];
+            if v != 0 && local_max(&thresholded, w, h, x, y) {
+                cand.push((v, y * w + x));
+            }
+        }
+    }
+    cand.sort_unstable_by(|a, b| b.cmp(a));
+    let min_d2 = params.min_distance * params.min_distance;
+    let cell = params.min_distance.max(1.0).ceil() as usize;
+    let (gw, gh) = (w.div_ceil(cell), h.div_ceil(cell));
+    let mut grid: Vec<Vec<(usize, usize)>> = vec![Vec::new(); gw * gh];
+    let mut out = Vec::new();
+    for (v, i) in cand {
+        if params.max_corners.is_some_and(|m| out.len() >= m) {
+            break;
+        }
+        let (x, y) = (i % w, i / w);
+        let (cx, cy) = (x / cell, y / cell);
+        let near = (cy.saturating_sub(1)..(cy + 2).min(gh)).any(|gy| {
+            (cx.saturating_sub(1)..(cx + 2).min(gw)).any(|gx| {
+                grid[gy * gw + gx].iter().any(|&(px, py)| {
+                    let (dx, dy) = (px as f64 - x as f64, py as f64 - y as f64);
+                    dx * dx + dy * dy < min_d2
+                })
+            })
+        });
+        if !near {
+            grid[cy * gw + cx].push((x, y));
+            out.push((x as u32, y as u32, v));
+        }
+    }
+    out.sort_unstable_by_key(|&(x, y, _)| (y, x));
+    out
+}
