@@ -31,5 +31,21 @@ if [ -z "${OGM_MAPS_DIR:-}" ] && [ ! -d ../shared/maps ]; then
     echo "scripts/test.sh: NOTE: ../shared/maps not found; the real-map tests will say SKIPPED (and fail under CI=true)" >&2
 fi
 
+# OpenCV (for the Harris / Shi-Tomasi agreement test) in a virtual environment under target/.
+venv=target/opencv-venv
+if [ ! -x "$venv/bin/python" ] || ! "$venv/bin/python" -c "import cv2, numpy" 2>/dev/null; then
+    echo "scripts/test.sh: setting up $venv with opencv-python-headless" >&2
+    if ! python3 -m venv --help >/dev/null 2>&1 || ! python3 -c "import ensurepip" 2>/dev/null; then
+        sudo=""
+        if [ "$(id -u)" != 0 ]; then sudo="sudo"; fi
+        export DEBIAN_FRONTEND=noninteractive
+        $sudo apt-get update -qq
+        $sudo apt-get install -y -qq python3-venv >/dev/null
+    fi
+    rm -rf "$venv"
+    python3 -m venv "$venv"
+    "$venv/bin/pip" install -q --disable-pip-version-check opencv-python-headless numpy
+fi
+
 # Unit, integration and doc tests. The dev profile is optimised (Cargo.toml), so real maps stay quick.
 cargo test --locked

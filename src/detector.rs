@@ -119,6 +119,14 @@ impl Detector {
         }
     }
 
+    /// Changes the options, keeping the backend (and its set-up).
+    pub fn set_options(&mut self, options: DetectOptions) {
+        if options.rules != self.options.rules {
+            self.rules = RuleTable::new(options.rules);
+        }
+        self.options = options;
+    }
+
     /// The options this detector was built with.
     pub fn options(&self) -> DetectOptions {
         self.options

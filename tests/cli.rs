@@ -403,3 +403,73 @@ fn bench_json_has_a_record_per_measurement() {
         Some(2)
     );
 }
+
+#[test]
+fn every_detector_through_the_cli() {
+    let d = tmpdir("detectors");
+    let o = run(&[
+        "demo",
+        "-o",
+        d.to_str().unwrap(),
+        "--size",
+        "200x150",
+        "--backend",
+        "cpu",
+    ]);
+    assert!(o.status.success());
+    let yaml = d.join("demo-map.yaml");
+    for det in ["harris", "shi-tomasi", "trajkovic"] {
+        let o = run(&[
+            "detect",
+            yaml.to_str().unwrap(),
+            "--detector",
+            det,
+            "--backend",
+            "cpu",
+        ]);
+        assert!(o.status.success(), "{det}: {}", stderr(&o));
+        let out = stdout(&o);
+        assert_eq!(
+            out.lines().next(),
+            Some("x,y,score,world_x,world_y"),
+            "{det}"
+        );
+        assert!(out.lines().count() > 10, "{det} finds corners in an office");
+        let j = run(&[
+            "detect",
+            yaml.to_str().unwrap(),
+            "--detector",
+            det,
+            "--backend",
+            "cpu",
+            "--format",
+            "json",
+        ]);
+        let v: serde_json::Value = serde_json::from_str(&stdout(&j)).unwrap();
+        assert_eq!(v["detector"], det);
+        assert!(v["keypoints"][0]["score"].as_i64().unwrap() > 0);
+        assert!(v["keypoints"][0]["rule"].is_null());
+    }
+    // Options reach the detector: a cap on Shi-Tomasi's count, and bad values are usage errors.
+    let o = run(&[
+        "detect",
+        yaml.to_str().unwrap(),
+        "--detector",
+        "shi-tomasi",
+        "--max-corners",
+        "5",
+        "--backend",
+        "cpu",
+    ]);
+    assert_eq!(stdout(&o).lines().count(), 6);
+    let o = run(&[
+        "detect",
+        yaml.to_str().unwrap(),
+        "--detector",
+        "harris",
+        "--harris-k",
+        "0.0401",
+    ]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("harris k"));
+}

@@ -3,10 +3,14 @@
 
 mod common;
 
+use ogm_corners::baselines;
 use ogm_corners::cpu::CpuBackend;
 use ogm_corners::gpu::{GpuBackend, GpuOptions};
 use ogm_corners::synth::{office_map, Rng, FREE, OCCUPIED, UNKNOWN};
-use ogm_corners::{Backend, ClassTable, MapImage, OccupancyMap, RuleSet, RuleTable, Thresholds};
+use ogm_corners::{
+    Backend, Baseline, BaselineParams, ClassTable, MapImage, OccupancyMap, RuleSet, RuleTable,
+    Thresholds,
+};
 
 const VARIANTS: [(RuleSet, bool); 4] = [
     (RuleSet::Paper, false),
@@ -275,5 +279,146 @@ fn a_map_over_128_mib_is_tiled_and_exact() {
             "note: {} binds {limit} bytes, so the large map fit in one tile",
             gpu.adapter().name
         );
+    }
+}
+
+// ---- The baselines: GPU score maps equal the CPU reference's, so the shared selection gives identical
+// keypoints.
+
+const BASELINES: [Baseline; 3] = [Baseline::Harris, Baseline::ShiTomasi, Baseline::Trajkovic];
+
+fn assert_same_scores(gpu: &mut GpuBackend, img: &MapImage, what: &str) {
+    let p = BaselineParams::default().exact().unwrap();
+    for kind in BASELINES {
+        let want = baselines::cpu_scores(kind, img, &p);
+        let got = gpu.baseline_scores(kind, img, &p).unwrap();
+        if got != want {
+            let i = got.iter().zip(&want).position(|(a, b)| a != b).unwrap();
+            panic!(
+                "{what} ({}x{}) {kind:?}: first difference at pixel ({}, {}): GPU {} CPU {}",
+                img.width(),
+                img.height(),
+                i % img.width() as usize,
+                i / img.width() as usize,
+                got[i],
+                want[i]
+            );
+        }
+    }
+}
+
+fn grey_map(w: u32, h: u32, seed: u64) -> MapImage {
+    let mut rng = Rng::new(seed);
+    MapImage::new(w, h, (0..w * h).map(|_| rng.range(0, 256) as u8).collect()).unwrap()
+}
+
+#[test]
+fn baselines_on_random_maps_of_many_sizes() {
+    let Some(mut gpu) = common::gpu_backend(GpuOptions::default()) else {
+        return;
+    };
+    let sizes = [
+        (1, 1),
+        (1, 9),
+        (9, 1),
+        (2, 2),
+        (3, 3),
+        (3, 5),
+        (5, 4),
+        (13, 17),
+        (64, 1),
+        (257, 3),
+        (120, 90),
+    ];
+    for (i, (w, h)) in sizes.into_iter().enumerate() {
+        assert_same_scores(&mut gpu, &random_map(w, h, i as u64), "ternary map");
+        assert_same_scores(&mut gpu, &grey_map(w, h, i as u64 + 100), "grey map");
+    }
+    assert_same_scores(&mut gpu, &office_map(300, 200, 5).unwrap(), "office map");
+}
+
+#[test]
+fn baselines_tiled_match_untiled() {
+    let img = office_map(120, 80, 6).unwrap();
+    let grey = grey_map(37, 29, 3);
+    for tile in [(8, 6), (2, 2), (64, 16), (120, 10)] {
+        let opts = GpuOptions {
+            tile: Some(tile),
+            ..GpuOptions::default()
+        };
+        let Some(mut gpu) = common::gpu_backend(opts) else {
+            return;
+        };
+        assert_same_scores(&mut gpu, &img, "tiled office");
+        assert!(gpu.stats().tiles > 1, "{tile:?} must tile");
+        assert_same_scores(&mut gpu, &grey, "tiled grey");
+    }
+}
+
+#[test]
+fn baselines_with_emulated_int64_match() {
+    let opts = GpuOptions {
+        emulate_int64: true,
+        ..GpuOptions::default()
+    };
+    let Some(mut gpu) = common::gpu_backend(opts) else {
+        return;
+    };
+    assert!(!gpu.native_int64());
+    // Grey maps reach the largest responses (strong gradients everywhere), where 64 bits matter.
+    assert_same_scores(&mut gpu, &grey_map(97, 61, 9), "grey, emulated int64");
+    assert_same_scores(
+        &mut gpu,
+        &office_map(200, 150, 2).unwrap(),
+        "office, emulated int64",
+    );
+    let native = common::gpu_backend(GpuOptions::default()).unwrap();
+    eprintln!("adapter native int64: {}", native.native_int64());
+}
+
+#[test]
+fn baselines_on_every_real_map() {
+    let Some(dir) = common::shared_maps() else {
+        return;
+    };
+    let Some(gpu) = common::gpu_backend(GpuOptions::default()) else {
+        return;
+    };
+    let mut gpu_det = ogm_corners::Detector::with_backend(Default::default(), Box::new(gpu));
+    for p in common::real_maps(&dir) {
+        let map = OccupancyMap::load(&p).unwrap();
+        for kind in BASELINES {
+            let opts = ogm_corners::DetectOptions {
+                detector: ogm_corners::DetectorKind::Baseline(kind),
+                ..Default::default()
+            };
+            let want = ogm_corners::Detector::new(opts).detect(&map).unwrap();
+            gpu_det.set_options(opts);
+            let got = gpu_det.detect(&map).unwrap();
+            assert!(
+                got == want,
+                "{} {kind:?}: GPU {} CPU {}",
+                p.display(),
+                got.keypoints.len(),
+                want.keypoints.len()
+            );
+        }
+    }
+}
+
+#[test]
+fn baselines_on_a_map_over_the_binding_limit_are_tiled() {
+    let Some(mut gpu) = common::gpu_backend(GpuOptions::default()) else {
+        return;
+    };
+    // The structure tensor takes 16 bytes a pixel: 3000 x 3000 is over lavapipe's 128 MiB binding.
+    let img = office_map(3000, 3000, 12).unwrap();
+    assert_same_scores(&mut gpu, &img, "large office");
+    let limit = gpu
+        .adapter()
+        .max_storage_buffer_binding_size
+        .min(gpu.adapter().max_buffer_size);
+    if img.len() as u64 * 16 > limit {
+        assert!(gpu.stats().tiles > 1);
     }
 }

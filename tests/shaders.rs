@@ -1,53 +1,75 @@
-//! The WGSL kernels parse and validate with naga (no GPU needed), and their parameter block matches the
-//! host's: a broken shader fails here even on a machine without an adapter.
+//! The WGSL kernels parse and validate with naga (no GPU needed), exactly as the GPU backend assembles
+//! them, and their parameter blocks match the host's: a broken shader fails here even without an adapter.
 
-fn validate(name: &str) -> naga::Module {
-    let path = format!("{}/shaders/{name}", env!("CARGO_MANIFEST_DIR"));
-    let src = std::fs::read_to_string(&path).unwrap();
-    let module =
-        naga::front::wgsl::parse_str(&src).unwrap_or_else(|e| panic!("{}", e.emit_to_string(&src)));
-    naga::valid::Validator::new(
-        naga::valid::ValidationFlags::all(),
-        naga::valid::Capabilities::empty(),
-    )
-    .validate(&module)
-    .unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(&src)));
+/// Parses and validates a kernel exactly as the GPU backend assembles it.
+fn validate_kernel(kernel: &str, native_int64: bool) -> naga::Module {
+    let src = ogm_corners::gpu::shader_source(kernel, native_int64).expect("known kernel");
+    let module = naga::front::wgsl::parse_str(&src)
+        .unwrap_or_else(|e| panic!("{kernel}: {}", e.emit_to_string(&src)));
+    let caps = if native_int64 {
+        naga::valid::Capabilities::SHADER_INT64
+    } else {
+        naga::valid::Capabilities::empty()
+    };
+    naga::valid::Validator::new(naga::valid::ValidationFlags::all(), caps)
+        .validate(&module)
+        .unwrap_or_else(|e| panic!("{kernel}: {}", e.emit_to_string(&src)));
     module
 }
 
-fn params_size(m: &naga::Module) -> u32 {
+fn struct_size(m: &naga::Module, name: &str) -> u32 {
     let (_, ty) = m
         .types
         .iter()
-        .find(|(_, t)| t.name.as_deref() == Some("Params"))
-        .expect("struct Params");
+        .find(|(_, t)| t.name.as_deref() == Some(name))
+        .unwrap_or_else(|| panic!("struct {name}"));
     match ty.inner {
         naga::TypeInner::Struct { span, .. } => span,
-        _ => panic!("Params is not a struct"),
+        _ => panic!("{name} is not a struct"),
     }
 }
 
+fn entries(m: &naga::Module) -> Vec<String> {
+    m.entry_points.iter().map(|e| e.name.clone()).collect()
+}
+
 #[test]
-fn kernels_validate_and_share_the_parameter_layout() {
-    let classify = validate("classify.wgsl");
-    let corners = validate("ogm_corners.wgsl");
-    assert_eq!(params_size(&classify), 64);
-    assert_eq!(params_size(&corners), 64);
-    let entries = |m: &naga::Module| {
-        m.entry_points
-            .iter()
-            .map(|e| e.name.clone())
-            .collect::<Vec<_>>()
-    };
+fn ogm_kernels_validate_and_share_the_parameter_layout() {
+    let classify = validate_kernel("classify", false);
+    let corners = validate_kernel("ogm_corners", false);
+    assert_eq!(struct_size(&classify, "Params"), 64);
+    assert_eq!(struct_size(&corners, "Params"), 64);
     assert_eq!(entries(&classify), ["classify"]);
     assert_eq!(entries(&corners), ["count", "write"]);
 }
 
 #[test]
+fn baseline_kernels_validate_with_both_int64_libraries() {
+    for k in [
+        "gaussian_blur",
+        "structure_tensor",
+        "harris",
+        "shi_tomasi",
+        "trajkovic",
+    ] {
+        for native in [false, true] {
+            let m = validate_kernel(k, native);
+            assert_eq!(entries(&m), [k]);
+            assert_eq!(struct_size(&m, "BParams"), 80, "{k}");
+        }
+    }
+}
+
+#[test]
 fn every_kernel_has_a_cpu_twin_of_the_same_name() {
     let root = env!("CARGO_MANIFEST_DIR");
+    let mut kernels = 0;
     for e in std::fs::read_dir(format!("{root}/shaders")).unwrap() {
-        let name = e.unwrap().file_name().into_string().unwrap();
+        let e = e.unwrap();
+        if e.file_type().unwrap().is_dir() {
+            continue; // shaders/lib: libraries prepended to kernels, not kernels
+        }
+        let name = e.file_name().into_string().unwrap();
         let stem = name
             .strip_suffix(".wgsl")
             .expect("only .wgsl files in shaders/");
@@ -56,5 +78,11 @@ fn every_kernel_has_a_cpu_twin_of_the_same_name() {
             std::path::Path::new(&twin).is_file(),
             "{name} has no CPU twin at {twin}"
         );
+        assert!(
+            ogm_corners::gpu::shader_source(stem, false).is_some(),
+            "{name} is not built"
+        );
+        kernels += 1;
     }
+    assert_eq!(kernels, 7);
 }

@@ -71,6 +71,15 @@ struct BParams {
     _pad: u32,
 }
 
+/// One baseline pass: pipeline, uniform, input, output, and the dispatch's workgroups.
+struct BaselinePass(
+    wgpu::ComputePipeline,
+    wgpu::Buffer,
+    wgpu::Buffer,
+    wgpu::Buffer,
+    (u32, u32),
+);
+
 /// Halo of the baseline tiles: blur, Sobel and the 3x3 window reach 3 pixels; Trajkovic's low-resolution
 /// neighbours reach 4. Even, so tile origins stay on the low-resolution grid.
 const BASELINE_HALO: u32 = 4;
@@ -876,14 +885,7 @@ impl GpuBackend {
             .get(&self.device, core_px * 8, self.max_binding)
             .clone();
 
-        // (pipeline, uniform, input, output, groups) per pass.
-        let mut passes: Vec<(
-            wgpu::ComputePipeline,
-            wgpu::Buffer,
-            wgpu::Buffer,
-            wgpu::Buffer,
-            (u32, u32),
-        )> = Vec::new();
+        let mut passes: Vec<BaselinePass> = Vec::new();
         match kind {
             Baseline::Harris | Baseline::ShiTomasi => {
                 let blurred = self
@@ -899,21 +901,21 @@ impl GpuBackend {
                 } else {
                     "shi_tomasi"
                 };
-                passes.push((
+                passes.push(BaselinePass(
                     self.baseline_pipeline("gaussian_blur")?,
                     self.bp_buf.clone(),
                     raw,
                     blurred.clone(),
                     (bgx, bgy),
                 ));
-                passes.push((
+                passes.push(BaselinePass(
                     self.baseline_pipeline("structure_tensor")?,
                     self.bp_buf.clone(),
                     blurred,
                     tensor.clone(),
                     (bgx, bgy),
                 ));
-                passes.push((
+                passes.push(BaselinePass(
                     self.baseline_pipeline(score_kernel)?,
                     self.bp_core.clone(),
                     tensor,
@@ -921,7 +923,7 @@ impl GpuBackend {
                     (cgx, cgy),
                 ));
             }
-            Baseline::Trajkovic => passes.push((
+            Baseline::Trajkovic => passes.push(BaselinePass(
                 self.baseline_pipeline("trajkovic")?,
                 self.bp_core.clone(),
                 raw,
@@ -931,12 +933,13 @@ impl GpuBackend {
         }
         let groups: Vec<wgpu::BindGroup> = passes
             .iter()
-            .map(|(pl, u, i, o, _)| self.bind(pl, &[(0, u), (1, i), (2, o)]))
+            .map(|BaselinePass(pl, u, i, o, _)| self.bind(pl, &[(0, u), (1, i), (2, o)]))
             .collect();
         let mut encoder = self.device.create_command_encoder(&Default::default());
         let ts = self.timestamps.as_ref().map(|t| &t.0);
         let last = passes.len() - 1;
-        for (n, ((pl, _, _, _, (gx, gy)), bg)) in passes.iter().zip(&groups).enumerate() {
+        for (n, (BaselinePass(pl, _, _, _, (gx, gy)), bg)) in passes.iter().zip(&groups).enumerate()
+        {
             let mut pass = Self::pass(&mut encoder, "baseline", ts, n == 0, n == last);
             pass.set_pipeline(pl);
             pass.set_bind_group(0, bg, &[]);
