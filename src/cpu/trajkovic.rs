@@ -35,19 +35,26 @@ pub fn ceil_div(n: i64, d: i64) -> i64 {
     (n + d - 1) / d
 }
 
-/// Whether full-resolution pixel (x, y) is a candidate of the low-resolution pass.
-pub fn is_candidate(img: &[u8], w: i64, h: i64, x: i64, y: i64, t1: i64) -> bool {
+/// The low-resolution cornerness min(r_A, r_B) of every low-resolution pixel off the low-res border
+/// (0 on it), row-major, `(w + 1) / 2` wide.
+pub fn low_res_cornerness(img: &[u8], w: i64, h: i64) -> Vec<i64> {
+    let (lw, lh) = ((w + 1) / 2, (h + 1) / 2);
+    let mut out = vec![0i64; (lw * lh) as usize];
+    for v in 1..lh - 1 {
+        for u in 1..lw - 1 {
+            out[(v * lw + u) as usize] = simple_cornerness(|a, b| low_res(img, w, h, a, b), u, v);
+        }
+    }
+    out
+}
+
+/// Whether full-resolution pixel (x, y) is a candidate: a low-resolution pixel whose 2x2 block plus a
+/// one-pixel ring holds it, off the low-res border, has cornerness above T1.
+pub fn is_candidate(low: &[i64], w: i64, h: i64, x: i64, y: i64, t1: i64) -> bool {
     let (lw, lh) = ((w + 1) / 2, (h + 1) / 2);
     let range =
         |p: i64, n: i64| ((p - 1).div_euclid(2).max(1))..=((p + 1).div_euclid(2).min(n - 2));
-    for v in range(y, lh) {
-        for u in range(x, lw) {
-            if simple_cornerness(|a, b| low_res(img, w, h, a, b), u, v) > t1 {
-                return true;
-            }
-        }
-    }
-    false
+    range(y, lh).any(|v| range(x, lw).any(|u| low[(v * lw + u) as usize] > t1))
 }
 
 /// The full-resolution score of (x, y) (not on the border), 0 when it is no corner.
@@ -80,9 +87,10 @@ pub fn trajkovic(img: &[u8], width: u32, height: u32, t1: u32, t2: u32) -> Vec<i
     let (w, h) = (i64::from(width), i64::from(height));
     let f = |x: i64, y: i64| i64::from(img[(y * w + x) as usize]);
     let mut out = vec![0i64; img.len()];
+    let low = low_res_cornerness(img, w, h);
     for y in 1..h - 1 {
         for x in 1..w - 1 {
-            if is_candidate(img, w, h, x, y, i64::from(t1)) {
+            if is_candidate(&low, w, h, x, y, i64::from(t1)) {
                 out[(y * w + x) as usize] = full_res_score(f, x, y, i64::from(t2));
             }
         }
