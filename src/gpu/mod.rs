@@ -579,15 +579,32 @@ impl GpuBackend {
         (gx, groups.div_ceil(gx))
     }
 
+    /// Records one compute pass per (pipeline, bind group, workgroups); the first pass writes the start
+    /// timestamp and the last the end one, so the kernels' time covers them all.
+    fn encode(
+        &self,
+        dispatches: &[(&wgpu::ComputePipeline, &wgpu::BindGroup, (u32, u32))],
+    ) -> wgpu::CommandEncoder {
+        let mut encoder = self.device.create_command_encoder(&Default::default());
+        let ts = self.timestamps.as_ref().map(|t| &t.0);
+        let last = dispatches.len().saturating_sub(1);
+        for (n, (pipeline, bind_group, (gx, gy))) in dispatches.iter().enumerate() {
+            let mut pass = Self::pass(&mut encoder, ts, n == 0, n == last);
+            pass.set_pipeline(pipeline);
+            pass.set_bind_group(0, *bind_group, &[]);
+            pass.dispatch_workgroups(*gx, *gy, 1);
+        }
+        encoder
+    }
+
     fn pass<'e>(
         encoder: &'e mut wgpu::CommandEncoder,
-        label: &str,
         ts: Option<&'e wgpu::QuerySet>,
         begin: bool,
         end: bool,
     ) -> wgpu::ComputePass<'e> {
         encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-            label: Some(label),
+            label: None,
             timestamp_writes: ts.filter(|_| begin || end).map(|query_set| {
                 wgpu::ComputePassTimestampWrites {
                     query_set,
@@ -686,20 +703,10 @@ impl GpuBackend {
                 (3, &counts),
             ],
         );
-        let mut encoder = self.device.create_command_encoder(&Default::default());
-        let ts = self.timestamps.as_ref().map(|t| &t.0);
-        {
-            let mut pass = Self::pass(&mut encoder, "classify", ts, true, false);
-            pass.set_pipeline(&self.classify);
-            pass.set_bind_group(0, &bg_classify, &[]);
-            pass.dispatch_workgroups(gx, gy, 1);
-        }
-        {
-            let mut pass = Self::pass(&mut encoder, "count", ts, false, true);
-            pass.set_pipeline(&self.count);
-            pass.set_bind_group(0, &bg_count, &[]);
-            pass.dispatch_workgroups(gx, gy, 1);
-        }
+        let encoder = self.encode(&[
+            (&self.classify, &bg_classify, (gx, gy)),
+            (&self.count, &bg_count, (gx, gy)),
+        ]);
         let raw = self.submit_and_read(encoder, &counts, groups * 4, true)?;
         // The groups that found keypoints, each with its first position in the list (an exclusive
         // prefix sum of the counts). Only these are dispatched in the write pass.
@@ -760,14 +767,7 @@ impl GpuBackend {
                     (5, &kp),
                 ],
             );
-            let mut encoder = self.device.create_command_encoder(&Default::default());
-            let ts = self.timestamps.as_ref().map(|t| &t.0);
-            {
-                let mut pass = Self::pass(&mut encoder, "write", ts, true, true);
-                pass.set_pipeline(&self.write);
-                pass.set_bind_group(0, &bg_write, &[]);
-                pass.dispatch_workgroups(ax, ay, 1);
-            }
+            let encoder = self.encode(&[(&self.write, &bg_write, (ax, ay))]);
             let raw = self.submit_and_read(encoder, &kp, len * KEYPOINT_BYTES, true)?;
             self.stats.write_passes += 1;
             out.extend(raw.chunks_exact(16).take(len as usize).map(|c| {
@@ -935,16 +935,12 @@ impl GpuBackend {
             .iter()
             .map(|BaselinePass(pl, u, i, o, _)| self.bind(pl, &[(0, u), (1, i), (2, o)]))
             .collect();
-        let mut encoder = self.device.create_command_encoder(&Default::default());
-        let ts = self.timestamps.as_ref().map(|t| &t.0);
-        let last = passes.len() - 1;
-        for (n, (BaselinePass(pl, _, _, _, (gx, gy)), bg)) in passes.iter().zip(&groups).enumerate()
-        {
-            let mut pass = Self::pass(&mut encoder, "baseline", ts, n == 0, n == last);
-            pass.set_pipeline(pl);
-            pass.set_bind_group(0, bg, &[]);
-            pass.dispatch_workgroups(*gx, *gy, 1);
-        }
+        let dispatches: Vec<_> = passes
+            .iter()
+            .zip(&groups)
+            .map(|(BaselinePass(pl, _, _, _, shape), bg)| (pl, bg, *shape))
+            .collect();
+        let encoder = self.encode(&dispatches);
         let raw_scores = self.submit_and_read(encoder, &scores, core_px * 8, true)?;
         let w = image.width() as usize;
         for (r, row) in raw_scores
