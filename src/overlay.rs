@@ -8,7 +8,7 @@ use crate::detector::Keypoint;
 use crate::error::{Error, Result};
 use crate::map::MapImage;
 
-/// Marker colour of each rule: 4 orange, 5 red, 6 blue.
+/// Marker colour of each rule: 4 orange, 5 red, 6 blue; the baselines' keypoints (rule 0) magenta.
 pub fn rule_colour(rule: u8) -> Rgb<u8> {
     match rule {
         4 => Rgb([255, 140, 0]),
@@ -18,31 +18,50 @@ pub fn rule_colour(rule: u8) -> Rgb<u8> {
     }
 }
 
+/// Longest side of an overlay of a large map; larger maps are shrunk to it, so that an overlay of a huge
+/// map stays a viewable PNG of bounded memory.
+pub const MAX_OVERLAY_SIDE: u32 = 8192;
+
 /// The integer zoom used for a map: small maps are enlarged so a marker is visible, large ones are not.
 pub fn overlay_scale(width: u32, height: u32) -> u32 {
     (1200 / width.max(height)).clamp(1, 8)
 }
 
-/// Draws the map (grey levels as they are) enlarged by [`overlay_scale`], each keypoint's cell filled with
-/// its rule's colour and circled so that it stands out at any zoom.
+/// The integer shrink factor for maps over [`MAX_OVERLAY_SIDE`] (1 otherwise).
+pub fn overlay_shrink(width: u32, height: u32) -> u32 {
+    width.max(height).div_ceil(MAX_OVERLAY_SIDE)
+}
+
+/// Draws the map (grey levels as they are) enlarged by [`overlay_scale`] (or, for maps over
+/// [`MAX_OVERLAY_SIDE`], shrunk by [`overlay_shrink`], each output pixel the darkest of its block so walls
+/// stay visible), each keypoint's cell filled with its rule's colour and circled so that it stands out at
+/// any zoom.
 pub fn render_overlay(map: &MapImage, keypoints: &[Keypoint]) -> RgbImage {
     let s = overlay_scale(map.width(), map.height());
-    let (w, h) = (map.width() * s, map.height() * s);
+    let d = overlay_shrink(map.width(), map.height());
+    let (w, h) = (map.width().div_ceil(d) * s, map.height().div_ceil(d) * s);
     let mut img = RgbImage::from_fn(w, h, |x, y| {
-        let v = map.get(x / s, y / s);
+        let (bx, by) = ((x / s) * d, (y / s) * d);
+        let mut v = u8::MAX;
+        for yy in by..(by + d).min(map.height()) {
+            for xx in bx..(bx + d).min(map.width()) {
+                v = v.min(map.get(xx, yy));
+            }
+        }
         Rgb([v, v, v])
     });
     let radius = (2 * s + 2) as i64;
     for k in keypoints {
         let colour = rule_colour(k.rule);
+        let (kx, ky) = (k.x / d, k.y / d);
         for dy in 0..s {
             for dx in 0..s {
-                img.put_pixel(k.x * s + dx, k.y * s + dy, colour);
+                img.put_pixel(kx * s + dx, ky * s + dy, colour);
             }
         }
         // Centre of the enlarged cell, in doubled coordinates so that even zooms stay symmetric.
-        let cx2 = (2 * k.x * s + s) as i64;
-        let cy2 = (2 * k.y * s + s) as i64;
+        let cx2 = (2 * kx * s + s) as i64;
+        let cy2 = (2 * ky * s + s) as i64;
         ring(&mut img, cx2, cy2, radius, colour);
     }
     img

@@ -473,3 +473,40 @@ fn every_detector_through_the_cli() {
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     assert!(stderr(&o).contains("harris k"));
 }
+
+#[test]
+fn overlay_of_a_map_wider_than_the_overlay_limit_is_shrunk() {
+    let d = tmpdir("wide");
+    // 20000 x 40: a wall along the top and a room corner at x = 19990.
+    let (w, h) = (20_000u32, 40u32);
+    let mut bytes = format!("P5\n{w} {h}\n255\n").into_bytes();
+    for y in 0..h {
+        for x in 0..w {
+            bytes.push(if y == 5 || (x == 19_990 && y > 5) {
+                0
+            } else {
+                254
+            });
+        }
+    }
+    let p = d.join("wide.pgm");
+    fs::write(&p, bytes).unwrap();
+    let png = d.join("wide.png");
+    let o = run(&[
+        "detect",
+        p.to_str().unwrap(),
+        "--backend",
+        "cpu",
+        "--overlay",
+        png.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let img = image::open(&png).unwrap().to_rgb8();
+    assert_eq!(
+        (img.width(), img.height()),
+        (20_000u32.div_ceil(3), 40u32.div_ceil(3))
+    );
+    // The wall survives the shrink and the corner is marked in colour.
+    assert!(img.pixels().any(|p| p[0] == 0 && p[1] == 0 && p[2] == 0));
+    assert!(img.pixels().any(|p| p[0] > 200 && p[1] < 60));
+}
