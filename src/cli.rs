@@ -39,6 +39,9 @@ enum Command {
     Info(InfoArgs),
     /// Measure throughput per backend: kernels alone and end to end, median of repeats.
     Bench(BenchArgs),
+    /// Repeatability of every detector under known transforms: exact turns and mirror, rotations with
+    /// translation, SLAM-like noise, partial overlap.
+    Eval(EvalArgs),
 }
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
@@ -267,6 +270,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Rules(a) => rules(a),
         Command::Info(a) => info(a),
         Command::Bench(a) => bench(a),
+        Command::Eval(a) => eval(a),
     }
 }
 
@@ -665,6 +669,151 @@ fn bench(a: BenchArgs) -> Result<()> {
                 "{:<7} {:<11} {:>10.3} {:>10.1}  {}",
                 r.backend, r.stage, r.median_ms, r.mpx_per_s, r.adapter
             )?;
+        }
+        out.flush()
+    })
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+enum TableFormat {
+    Md,
+    Csv,
+    Json,
+}
+
+#[derive(Args, Debug)]
+struct EvalArgs {
+    /// Maps (yaml or image).
+    #[arg(required = true)]
+    maps: Vec<PathBuf>,
+    /// Random trials per condition (exact transforms run once).
+    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..))]
+    trials: u32,
+    /// Seed of the random transforms.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Match distance, pixels.
+    #[arg(long, default_value_t = 2.0)]
+    tolerance: f64,
+    /// Output format.
+    #[arg(long, value_enum, default_value = "md")]
+    format: TableFormat,
+    /// Where to run the detectors.
+    #[arg(long, value_enum, default_value = "auto")]
+    backend: BackendArg,
+}
+
+/// One row of `eval`.
+#[derive(serde::Serialize, Debug)]
+struct EvalRecord {
+    map: String,
+    detector: &'static str,
+    condition: &'static str,
+    level: f64,
+    repeatability: Option<f64>,
+    trials: u32,
+}
+
+fn eval(a: EvalArgs) -> Result<()> {
+    use ogm_corners::eval::{conditions, repeatability, Pair};
+    if !(a.tolerance.is_finite() && a.tolerance >= 0.0) {
+        return Err(Error::invalid(format!(
+            "tolerance must be >= 0, got {}",
+            a.tolerance
+        )));
+    }
+    let maps = a
+        .maps
+        .iter()
+        .map(|p| OccupancyMap::load(p).map(|m| (p.display().to_string(), m)))
+        .collect::<Result<Vec<_>>>()?;
+    let opts = DetectOpts {
+        detector: DetectorArg::Ogm,
+        baseline: BaselineArgs {
+            sigma: 1.0,
+            harris_k: 0.04,
+            quality: 0.01,
+            min_distance: 3.0,
+            max_corners: None,
+            t1: 10_000,
+            t2: 20_000,
+        },
+        rules: RulesArg::Paper,
+        unknown_as_occupied: false,
+        backend: a.backend,
+    };
+    let mut detector = opts.detector()?;
+    let kinds = [
+        DetectorKind::Ogm,
+        DetectorKind::Baseline(Baseline::Harris),
+        DetectorKind::Baseline(Baseline::ShiTomasi),
+        DetectorKind::Baseline(Baseline::Trajkovic),
+    ];
+    let mut rows = Vec::new();
+    for (name, map) in &maps {
+        let (w, h) = (map.image.width(), map.image.height());
+        for cond in conditions() {
+            let trials = if cond.is_exact() { 1 } else { a.trials };
+            let pairs = (0..trials)
+                .map(|t| Pair::new(&map.image, cond.transform(w, h, a.seed, u64::from(t))))
+                .collect::<Result<Vec<_>>>()?;
+            for kind in kinds {
+                detector.set_options(DetectOptions {
+                    detector: kind,
+                    ..opts.options()
+                });
+                let mut scores = Vec::new();
+                for pair in &pairs {
+                    if let Some(r) = repeatability(&mut detector, pair, a.tolerance)? {
+                        scores.push(r);
+                    }
+                }
+                rows.push(EvalRecord {
+                    map: name.clone(),
+                    detector: kind.name(),
+                    condition: cond.name,
+                    level: cond.level,
+                    repeatability: (!scores.is_empty())
+                        .then(|| scores.iter().sum::<f64>() / scores.len() as f64),
+                    trials,
+                });
+            }
+        }
+    }
+    write_stdout(|out| {
+        match a.format {
+            TableFormat::Json => {
+                serde_json::to_writer_pretty(&mut *out, &rows)?;
+                writeln!(out)?;
+            }
+            TableFormat::Csv => {
+                writeln!(out, "map,detector,condition,level,repeatability,trials")?;
+                for r in &rows {
+                    let rep = r.repeatability.map_or(String::new(), |v| format!("{v:.4}"));
+                    writeln!(
+                        out,
+                        "{},{},{},{},{rep},{}",
+                        r.map, r.detector, r.condition, r.level, r.trials
+                    )?;
+                }
+            }
+            TableFormat::Md => {
+                writeln!(
+                    out,
+                    "| map | detector | condition | level | repeatability | trials |"
+                )?;
+                writeln!(out, "|---|---|---|---|---|---|")?;
+                for r in &rows {
+                    let rep = r
+                        .repeatability
+                        .map_or("n/a".to_string(), |v| format!("{:.1}%", 100.0 * v));
+                    writeln!(
+                        out,
+                        "| {} | {} | {} | {} | {rep} | {} |",
+                        r.map, r.detector, r.condition, r.level, r.trials
+                    )?;
+                }
+            }
         }
         out.flush()
     })

@@ -24,6 +24,7 @@ pub mod baselines;
 pub mod cpu;
 pub mod detector;
 pub mod error;
+pub mod eval;
 pub mod gpu;
 pub mod map;
 pub mod output;

@@ -510,3 +510,51 @@ fn overlay_of_a_map_wider_than_the_overlay_limit_is_shrunk() {
     assert!(img.pixels().any(|p| p[0] == 0 && p[1] == 0 && p[2] == 0));
     assert!(img.pixels().any(|p| p[0] > 200 && p[1] < 60));
 }
+
+#[test]
+fn eval_reports_every_detector_and_condition() {
+    let d = tmpdir("eval");
+    let o = run(&[
+        "demo",
+        "-o",
+        d.to_str().unwrap(),
+        "--size",
+        "160x120",
+        "--backend",
+        "cpu",
+    ]);
+    assert!(o.status.success());
+    let yaml = d.join("demo-map.yaml");
+    let o = run(&[
+        "eval",
+        yaml.to_str().unwrap(),
+        "--trials",
+        "1",
+        "--backend",
+        "cpu",
+        "--format",
+        "csv",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = stdout(&o);
+    let mut lines = out.lines();
+    assert_eq!(
+        lines.next(),
+        Some("map,detector,condition,level,repeatability,trials")
+    );
+    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+    assert_eq!(rows.len(), 4 * ogm_corners::eval::conditions().len());
+    for r in rows
+        .iter()
+        .filter(|r| r[1] == "ogm" && ["rot90", "rot180", "rot270", "mirror"].contains(&r[2]))
+    {
+        assert_eq!(r[4], "1.0000", "{r:?}");
+    }
+    assert_eq!(run(&["eval"]).status.code(), Some(2));
+    assert_eq!(
+        run(&["eval", yaml.to_str().unwrap(), "--tolerance", "-1"])
+            .status
+            .code(),
+        Some(2)
+    );
+}
