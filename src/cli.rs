@@ -701,6 +701,77 @@ struct EvalArgs {
     /// Where to run the detectors.
     #[arg(long, value_enum, default_value = "auto")]
     backend: BackendArg,
+    /// Also write plots of repeatability against noise and rotation (averaged over the maps) to DIR.
+    #[arg(long, value_name = "DIR")]
+    plot: Option<PathBuf>,
+}
+
+/// Writes `repeatability-noise.png` and `repeatability-rotation.png`: mean over maps, a line per detector.
+fn eval_plots(dir: &std::path::Path, rows: &[EvalRecord]) -> Result<()> {
+    use ogm_corners::plot::{line_plot, Series};
+    fs::create_dir_all(dir).map_err(|e| Error::output(dir, e))?;
+    let colours = [
+        ("ogm", image::Rgb([220, 20, 20])),
+        ("harris", image::Rgb([30, 90, 220])),
+        ("shi-tomasi", image::Rgb([20, 160, 60])),
+        ("trajkovic", image::Rgb([240, 140, 0])),
+    ];
+    for (cond, file, x_label, x_scale) in [
+        (
+            "noise",
+            "repeatability-noise.png",
+            "NOISE % (SPECKLE AND WALL JITTER)",
+            100.0,
+        ),
+        (
+            "rotation",
+            "repeatability-rotation.png",
+            "ROTATION (DEGREES) WITH RANDOM SHIFT",
+            1.0,
+        ),
+    ] {
+        let series: Vec<Series> = colours
+            .iter()
+            .map(|(det, colour)| {
+                let mut levels: Vec<f64> = rows
+                    .iter()
+                    .filter(|r| r.condition == cond && r.detector == *det)
+                    .map(|r| r.level)
+                    .collect();
+                levels.sort_by(f64::total_cmp);
+                levels.dedup();
+                let points = levels
+                    .into_iter()
+                    .filter_map(|lv| {
+                        let v: Vec<f64> = rows
+                            .iter()
+                            .filter(|r| r.condition == cond && r.detector == *det && r.level == lv)
+                            .filter_map(|r| r.repeatability)
+                            .collect();
+                        (!v.is_empty())
+                            .then(|| (lv * x_scale, v.iter().sum::<f64>() / v.len() as f64))
+                    })
+                    .collect();
+                Series {
+                    label: det.to_uppercase(),
+                    colour: *colour,
+                    points,
+                }
+            })
+            .collect();
+        let maps = rows
+            .iter()
+            .map(|r| &r.map)
+            .collect::<std::collections::BTreeSet<_>>()
+            .len();
+        let title = format!("REPEATABILITY VS {} ({maps} MAPS)", cond.to_uppercase());
+        let path = dir.join(file);
+        line_plot(&title, x_label, &series, 900, 520)
+            .save_with_format(&path, image::ImageFormat::Png)
+            .map_err(|e| Error::output(&path, e))?;
+        eprintln!("ogm-corners: wrote {}", path.display());
+    }
+    Ok(())
 }
 
 /// One row of `eval`.
@@ -779,6 +850,9 @@ fn eval(a: EvalArgs) -> Result<()> {
                 });
             }
         }
+    }
+    if let Some(dir) = &a.plot {
+        eval_plots(dir, &rows)?;
     }
     write_stdout(|out| {
         match a.format {

@@ -29,6 +29,7 @@ pub mod gpu;
 pub mod map;
 pub mod output;
 pub mod overlay;
+pub mod plot;
 pub mod rules;
 pub mod states;
 pub mod synth;

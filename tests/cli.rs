@@ -550,6 +550,25 @@ fn eval_reports_every_detector_and_condition() {
     {
         assert_eq!(r[4], "1.0000", "{r:?}");
     }
+    let plots = d.join("plots");
+    let o = run(&[
+        "eval",
+        yaml.to_str().unwrap(),
+        "--trials",
+        "1",
+        "--backend",
+        "cpu",
+        "--plot",
+        plots.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    for f in ["repeatability-noise.png", "repeatability-rotation.png"] {
+        let img = image::open(plots.join(f)).unwrap().to_rgb8();
+        assert_eq!((img.width(), img.height()), (900, 520));
+        // A line per detector, in its colour: red (ogm) and blue (harris) are drawn.
+        assert!(img.pixels().any(|p| p.0 == [220, 20, 20]), "{f}");
+        assert!(img.pixels().any(|p| p.0 == [30, 90, 220]), "{f}");
+    }
     assert_eq!(run(&["eval"]).status.code(), Some(2));
     assert_eq!(
         run(&["eval", yaml.to_str().unwrap(), "--tolerance", "-1"])
