@@ -169,33 +169,37 @@ impl DetectOpts {
     }
 
     fn detector(&self) -> Result<Detector> {
-        let options = self.options();
-        Ok(match self.backend {
-            BackendArg::Cpu => Detector::new(options),
-            BackendArg::Gpu => {
-                Detector::with_backend(options, Box::new(GpuBackend::new(GpuOptions::default())?))
-            }
-            BackendArg::Auto => match GpuBackend::open(true, GpuOptions::default()) {
-                Ok(Some(g)) => {
-                    eprintln!(
-                        "ogm-corners: backend: gpu ({}, {})",
-                        g.adapter().name,
-                        g.adapter().backend
-                    );
-                    Detector::with_backend(options, Box::new(g))
-                }
-                Ok(None) => {
-                    eprintln!("ogm-corners: backend: cpu (no hardware GPU adapter found; --backend gpu accepts software ones)");
-                    Detector::new(options)
-                }
-                Err(e @ Error::Input { .. }) => return Err(e),
-                Err(e) => {
-                    eprintln!("ogm-corners: backend: cpu (the GPU could not be opened: {e})");
-                    Detector::new(options)
-                }
-            },
-        })
+        detector_on(self.backend, self.options())
     }
+}
+
+/// A detector with `options` on the backend the user chose (auto says which on standard error).
+fn detector_on(backend: BackendArg, options: DetectOptions) -> Result<Detector> {
+    Ok(match backend {
+        BackendArg::Cpu => Detector::new(options),
+        BackendArg::Gpu => {
+            Detector::with_backend(options, Box::new(GpuBackend::new(GpuOptions::default())?))
+        }
+        BackendArg::Auto => match GpuBackend::open(true, GpuOptions::default()) {
+            Ok(Some(g)) => {
+                eprintln!(
+                    "ogm-corners: backend: gpu ({}, {})",
+                    g.adapter().name,
+                    g.adapter().backend
+                );
+                Detector::with_backend(options, Box::new(g))
+            }
+            Ok(None) => {
+                eprintln!("ogm-corners: backend: cpu (no hardware GPU adapter found; --backend gpu accepts software ones)");
+                Detector::new(options)
+            }
+            Err(e @ Error::Input { .. }) => return Err(e),
+            Err(e) => {
+                eprintln!("ogm-corners: backend: cpu (the GPU could not be opened: {e})");
+                Detector::new(options)
+            }
+        },
+    })
 }
 
 #[derive(Args, Debug)]
@@ -798,22 +802,8 @@ fn eval(a: EvalArgs) -> Result<()> {
         .iter()
         .map(|p| OccupancyMap::load(p).map(|m| (p.display().to_string(), m)))
         .collect::<Result<Vec<_>>>()?;
-    let opts = DetectOpts {
-        detector: DetectorArg::Ogm,
-        baseline: BaselineArgs {
-            sigma: 1.0,
-            harris_k: 0.04,
-            quality: 0.01,
-            min_distance: 3.0,
-            max_corners: None,
-            t1: 10_000,
-            t2: 20_000,
-        },
-        rules: RulesArg::Paper,
-        unknown_as_occupied: false,
-        backend: a.backend,
-    };
-    let mut detector = opts.detector()?;
+    // Every detector with its default (the paper's) options.
+    let mut detector = detector_on(a.backend, DetectOptions::default())?;
     let kinds = [
         DetectorKind::Ogm,
         DetectorKind::Baseline(Baseline::Harris),
@@ -831,7 +821,7 @@ fn eval(a: EvalArgs) -> Result<()> {
             for kind in kinds {
                 detector.set_options(DetectOptions {
                     detector: kind,
-                    ..opts.options()
+                    ..DetectOptions::default()
                 });
                 let mut scores = Vec::new();
                 for pair in &pairs {
