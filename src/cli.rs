@@ -42,6 +42,9 @@ enum Command {
     /// Repeatability of every detector under known transforms: exact turns and mirror, rotations with
     /// translation, SLAM-like noise, partial overlap.
     Eval(EvalArgs),
+    /// The paper's Table I with timings: every detector's keypoint count and median times per backend on
+    /// each map, and a contact sheet PNG per map.
+    Compare(CompareArgs),
 }
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
@@ -275,6 +278,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Info(a) => info(a),
         Command::Bench(a) => bench(a),
         Command::Eval(a) => eval(a),
+        Command::Compare(a) => compare(a),
     }
 }
 
@@ -532,24 +536,23 @@ fn cpu_name() -> String {
     format!("{model} ({threads} threads)")
 }
 
-fn bench(a: BenchArgs) -> Result<()> {
-    let (map, label) = match (&a.map, a.size) {
-        (Some(p), _) => (OccupancyMap::load(p)?, p.display().to_string()),
-        (None, size) => {
-            let (w, h) = size.unwrap_or((4096, 4096));
-            (
-                OccupancyMap::from_image(synth::office_map(w, h, 1)?),
-                format!("synthetic office map {w}x{h} (seed 1)"),
-            )
-        }
-    };
+/// Median times of one detector on one map: for the CPU (when `cpu`) and for `gpu` (when given), the
+/// kernels alone and end to end, after one warm-up run. Returns the records and the keypoint count; fails
+/// if the backends disagree on the count.
+fn measure(
+    map: &OccupancyMap,
+    kind: DetectorKind,
+    bparams: &BaselineParams,
+    rule_set: RuleSet,
+    cpu: bool,
+    gpu: Option<&mut GpuBackend>,
+    repeat: u32,
+) -> Result<(Vec<BenchRecord>, usize)> {
     let (w, h) = (map.image.width(), map.image.height());
     let mpx = f64::from(w) * f64::from(h) / 1e6;
     let classes = ClassTable::new(&map.thresholds);
-    let rules = RuleTable::new(a.rules.into());
-    let kind: DetectorKind = a.detector.into();
+    let rules = RuleTable::new(rule_set);
     let detector = kind.name();
-    let bparams = a.baseline.params();
     let exact = bparams.exact()?;
     // End to end through the backend trait: map in memory to keypoints in memory.
     let run = |b: &mut dyn Backend| -> Result<usize> {
@@ -557,7 +560,7 @@ fn bench(a: BenchArgs) -> Result<()> {
             DetectorKind::Ogm => b.detect(&map.image, &classes, &rules, false)?.len(),
             DetectorKind::Baseline(k) => {
                 let s = b.baseline_scores(k, &map.image, &exact)?;
-                baselines::select(k, &s, w, h, &bparams).len()
+                baselines::select(k, &s, w, h, bparams).len()
             }
         })
     };
@@ -574,7 +577,7 @@ fn bench(a: BenchArgs) -> Result<()> {
     let timed = |f: &mut dyn FnMut() -> Result<usize>| -> Result<(f64, usize)> {
         let n = f()?; // warm-up: first-use costs (allocation, pipeline caches) stay out of the median
         let mut times = Vec::new();
-        for _ in 0..a.repeat {
+        for _ in 0..repeat {
             let t = Instant::now();
             f()?;
             times.push(t.elapsed().as_secs_f64() * 1e3);
@@ -583,7 +586,7 @@ fn bench(a: BenchArgs) -> Result<()> {
     };
     let mut records = Vec::new();
     let mut counts = Vec::new();
-    if matches!(a.backend, BenchBackend::Cpu | BenchBackend::All) {
+    if cpu {
         let name = cpu_name();
         // The CPU "kernels" are the twins of the GPU kernels: the work before keypoint selection.
         let (ms, _) = timed(&mut || {
@@ -601,45 +604,32 @@ fn bench(a: BenchArgs) -> Result<()> {
         records.push(record("cpu", &name, "end_to_end", ms));
         counts.push(("cpu", n));
     }
-    if matches!(a.backend, BenchBackend::Gpu | BenchBackend::All) {
-        let gpu = if a.backend == BenchBackend::All {
-            match GpuBackend::new(GpuOptions::default()) {
-                Ok(g) => Some(g),
-                Err(e) => {
-                    eprintln!("ogm-corners: bench: no GPU rows: {e}");
-                    None
-                }
+    if let Some(g) = gpu {
+        let name = format!(
+            "{} ({}, {})",
+            g.adapter().name,
+            g.adapter().backend,
+            g.adapter().device_type
+        );
+        let mut kernel = Vec::new();
+        let (ms, n) = timed(&mut || {
+            let n = run(&mut *g)?;
+            if let Some(k) = g.stats().kernel_time {
+                kernel.push(k.as_secs_f64() * 1e3);
             }
+            Ok(n)
+        })?;
+        // The warm-up's kernel time is the first entry; the median uses the timed runs only.
+        if kernel.len() > 1 {
+            records.push(record("gpu", &name, "kernel", median(kernel[1..].to_vec())));
         } else {
-            Some(GpuBackend::new(GpuOptions::default())?)
-        };
-        if let Some(mut g) = gpu {
-            let name = format!(
-                "{} ({}, {})",
-                g.adapter().name,
-                g.adapter().backend,
-                g.adapter().device_type
+            eprintln!(
+                "ogm-corners: bench: {} has no timestamp queries; no kernel-only row",
+                g.adapter().name
             );
-            let mut kernel = Vec::new();
-            let (ms, n) = timed(&mut || {
-                let n = run(&mut g)?;
-                if let Some(k) = g.stats().kernel_time {
-                    kernel.push(k.as_secs_f64() * 1e3);
-                }
-                Ok(n)
-            })?;
-            // The warm-up's kernel time is the first entry; the median uses the timed runs only.
-            if kernel.len() > 1 {
-                records.push(record("gpu", &name, "kernel", median(kernel[1..].to_vec())));
-            } else {
-                eprintln!(
-                    "ogm-corners: bench: {} has no timestamp queries; no kernel-only row",
-                    g.adapter().name
-                );
-            }
-            records.push(record("gpu", &name, "end_to_end", ms));
-            counts.push(("gpu", n));
         }
+        records.push(record("gpu", &name, "end_to_end", ms));
+        counts.push(("gpu", n));
     }
     if let Some(&(_, n0)) = counts.first() {
         if let Some(&(b, n)) = counts.iter().find(|c| c.1 != n0) {
@@ -649,7 +639,40 @@ fn bench(a: BenchArgs) -> Result<()> {
             )));
         }
     }
-    let keypoints = counts.first().map_or(0, |c| c.1);
+    Ok((records, counts.first().map_or(0, |c| c.1)))
+}
+
+fn bench(a: BenchArgs) -> Result<()> {
+    let (map, label) = match (&a.map, a.size) {
+        (Some(p), _) => (OccupancyMap::load(p)?, p.display().to_string()),
+        (None, size) => {
+            let (w, h) = size.unwrap_or((4096, 4096));
+            (
+                OccupancyMap::from_image(synth::office_map(w, h, 1)?),
+                format!("synthetic office map {w}x{h} (seed 1)"),
+            )
+        }
+    };
+    let (w, h) = (map.image.width(), map.image.height());
+    let mpx = f64::from(w) * f64::from(h) / 1e6;
+    let kind: DetectorKind = a.detector.into();
+    let detector = kind.name();
+    let mut gpu = match a.backend {
+        BenchBackend::Cpu => None,
+        BenchBackend::Gpu => Some(GpuBackend::new(GpuOptions::default())?),
+        BenchBackend::All => GpuBackend::new(GpuOptions::default())
+            .map_err(|e| eprintln!("ogm-corners: bench: no GPU rows: {e}"))
+            .ok(),
+    };
+    let (records, keypoints) = measure(
+        &map,
+        kind,
+        &a.baseline.params(),
+        a.rules.into(),
+        a.backend != BenchBackend::Gpu,
+        gpu.as_mut(),
+        a.repeat,
+    )?;
     write_stdout(|out| {
         if a.format == TextOrJson::Json {
             serde_json::to_writer_pretty(&mut *out, &records)?;
@@ -875,6 +898,256 @@ fn eval(a: EvalArgs) -> Result<()> {
                         out,
                         "| {} | {} | {} | {} | {rep} | {} |",
                         r.map, r.detector, r.condition, r.level, r.trials
+                    )?;
+                }
+            }
+        }
+        out.flush()
+    })
+}
+
+#[derive(Args, Debug)]
+struct CompareArgs {
+    /// Maps (yaml or image).
+    #[arg(required = true)]
+    maps: Vec<PathBuf>,
+    /// Which backends to time.
+    #[arg(long, value_enum, default_value = "cpu")]
+    backend: BenchBackend,
+    /// Folder for the table (compare.md) and the contact sheets.
+    #[arg(long, value_name = "DIR", default_value = "compare-out")]
+    out: PathBuf,
+    /// Format of the table on standard output.
+    #[arg(long, value_enum, default_value = "md")]
+    format: TableFormat,
+    /// Timed runs per measurement (after one warm-up); medians are reported.
+    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..))]
+    repeat: u32,
+}
+
+/// One row of `compare`: a detector on a map.
+#[derive(serde::Serialize, Debug)]
+struct CompareRecord {
+    map: String,
+    width: u32,
+    height: u32,
+    detector: &'static str,
+    keypoints: usize,
+    cpu_kernel_ms: Option<f64>,
+    cpu_end_to_end_ms: Option<f64>,
+    gpu_kernel_ms: Option<f64>,
+    gpu_end_to_end_ms: Option<f64>,
+}
+
+/// A short name for a map: its file stem, or its folder's name for ROS's usual `map.yaml`.
+fn map_name(p: &std::path::Path) -> String {
+    let stem = p.file_stem().and_then(|s| s.to_str()).unwrap_or("map");
+    match (
+        stem,
+        p.parent()
+            .and_then(|d| d.file_name())
+            .and_then(|d| d.to_str()),
+    ) {
+        ("map", Some(dir)) => dir.to_string(),
+        _ => stem.to_string(),
+    }
+}
+
+const ALL_DETECTORS: [DetectorKind; 4] = [
+    DetectorKind::Ogm,
+    DetectorKind::Baseline(Baseline::Harris),
+    DetectorKind::Baseline(Baseline::ShiTomasi),
+    DetectorKind::Baseline(Baseline::Trajkovic),
+];
+
+/// Side of one contact-sheet panel, pixels.
+const PANEL: u32 = 560;
+
+/// Four panels (one per detector) of the map's explored part with the keypoints marked, labelled.
+fn contact_sheet(
+    name: &str,
+    map: &OccupancyMap,
+    found: &[(DetectorKind, Vec<ogm_corners::Keypoint>)],
+) -> image::RgbImage {
+    use ogm_corners::plot::{draw_text, fill};
+    // Crop to what the robot saw (anything not unknown), with a margin: the rest is empty grey.
+    let classes = ClassTable::new(&map.thresholds);
+    let (w, h) = (map.image.width(), map.image.height());
+    let (mut x0, mut y0, mut x1, mut y1) = (w, h, 0, 0);
+    for y in 0..h {
+        for x in 0..w {
+            if classes.state(map.image.get(x, y)) != ogm_corners::CellState::Unknown {
+                (x0, y0, x1, y1) = (x0.min(x), y0.min(y), x1.max(x + 1), y1.max(y + 1));
+            }
+        }
+    }
+    if x1 <= x0 {
+        (x0, y0, x1, y1) = (0, 0, w, h);
+    }
+    let m = 8;
+    let (x0, y0, x1, y1) = (
+        x0.saturating_sub(m),
+        y0.saturating_sub(m),
+        (x1 + m).min(w),
+        (y1 + m).min(h),
+    );
+    let (cw, ch) = (x1 - x0, y1 - y0);
+    let px = (y0..y1)
+        .flat_map(|y| (x0..x1).map(move |x| (x, y)))
+        .map(|(x, y)| map.image.get(x, y))
+        .collect();
+    let crop = ogm_corners::MapImage::new(cw, ch, px).expect("non-empty crop");
+    let side = cw.max(ch);
+    let (zoom, shrink) = if side <= PANEL {
+        ((PANEL / side).clamp(1, 8), 1)
+    } else {
+        (1, side.div_ceil(PANEL))
+    };
+    let (label_h, title_h) = (22u32, 34u32);
+    let mut sheet = image::RgbImage::from_pixel(
+        2 * PANEL + 30,
+        title_h + 2 * (PANEL + label_h) + 30,
+        image::Rgb([255, 255, 255]),
+    );
+    let black = image::Rgb([0, 0, 0]);
+    draw_text(
+        &mut sheet,
+        10,
+        8,
+        &format!("{name}: {w}X{h}, CROPPED TO THE EXPLORED AREA"),
+        2,
+        black,
+    );
+    for (i, (kind, kps)) in found.iter().enumerate() {
+        let shifted: Vec<ogm_corners::Keypoint> = kps
+            .iter()
+            .filter(|k| k.x >= x0 && k.x < x1 && k.y >= y0 && k.y < y1)
+            .map(|k| ogm_corners::Keypoint {
+                x: k.x - x0,
+                y: k.y - y0,
+                ..*k
+            })
+            .collect();
+        let panel = overlay::render_overlay_at(&crop, &shifted, zoom, shrink);
+        let (ox, oy) = (
+            10 + (i as u32 % 2) * (PANEL + 10),
+            title_h + (i as u32 / 2) * (PANEL + label_h + 10),
+        );
+        draw_text(
+            &mut sheet,
+            i64::from(ox),
+            i64::from(oy) + 4,
+            &format!("{}: {} KEYPOINTS", kind.name(), kps.len()),
+            2,
+            black,
+        );
+        fill(
+            &mut sheet,
+            i64::from(ox),
+            i64::from(oy + label_h),
+            i64::from(PANEL),
+            i64::from(PANEL),
+            image::Rgb([205, 205, 205]),
+        );
+        image::imageops::overlay(&mut sheet, &panel, i64::from(ox), i64::from(oy + label_h));
+    }
+    sheet
+}
+
+fn compare(a: CompareArgs) -> Result<()> {
+    fs::create_dir_all(&a.out).map_err(|e| Error::output(&a.out, e))?;
+    let mut gpu = match a.backend {
+        BenchBackend::Cpu => None,
+        BenchBackend::Gpu => Some(GpuBackend::new(GpuOptions::default())?),
+        BenchBackend::All => GpuBackend::new(GpuOptions::default())
+            .map_err(|e| eprintln!("ogm-corners: compare: no GPU columns: {e}"))
+            .ok(),
+    };
+    let mut rows = Vec::new();
+    for p in &a.maps {
+        let map = OccupancyMap::load(p)?;
+        let name = map_name(p);
+        let mut found = Vec::new();
+        for kind in ALL_DETECTORS {
+            let (records, n) = measure(
+                &map,
+                kind,
+                &BaselineParams::default(),
+                RuleSet::Paper,
+                a.backend != BenchBackend::Gpu,
+                gpu.as_mut(),
+                a.repeat,
+            )?;
+            let pick = |b: &str, s: &str| {
+                records
+                    .iter()
+                    .find(|r| r.backend == b && r.stage == s)
+                    .map(|r| r.median_ms)
+            };
+            rows.push(CompareRecord {
+                map: name.clone(),
+                width: map.image.width(),
+                height: map.image.height(),
+                detector: kind.name(),
+                keypoints: n,
+                cpu_kernel_ms: pick("cpu", "kernel"),
+                cpu_end_to_end_ms: pick("cpu", "end_to_end"),
+                gpu_kernel_ms: pick("gpu", "kernel"),
+                gpu_end_to_end_ms: pick("gpu", "end_to_end"),
+            });
+            let opts = DetectOptions {
+                detector: kind,
+                ..DetectOptions::default()
+            };
+            found.push((kind, Detector::new(opts).detect(&map)?.keypoints));
+        }
+        let sheet_path = a.out.join(format!("{name}-contact-sheet.png"));
+        contact_sheet(&name, &map, &found)
+            .save_with_format(&sheet_path, image::ImageFormat::Png)
+            .map_err(|e| Error::output(&sheet_path, e))?;
+        eprintln!("ogm-corners: wrote {}", sheet_path.display());
+    }
+    let ms = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.2}"));
+    let mut md = String::from("| map | size | detector | keypoints | CPU kernel ms | CPU end-to-end ms | GPU kernel ms | GPU end-to-end ms |\n|---|---|---|---|---|---|---|---|\n");
+    for r in &rows {
+        md += &format!(
+            "| {} | {}x{} | {} | {} | {} | {} | {} | {} |\n",
+            r.map,
+            r.width,
+            r.height,
+            r.detector,
+            r.keypoints,
+            ms(r.cpu_kernel_ms),
+            ms(r.cpu_end_to_end_ms),
+            ms(r.gpu_kernel_ms),
+            ms(r.gpu_end_to_end_ms)
+        );
+    }
+    let md_path = a.out.join("compare.md");
+    fs::write(&md_path, &md).map_err(|e| Error::output(&md_path, e))?;
+    write_stdout(|out| {
+        match a.format {
+            TableFormat::Md => write!(out, "{md}")?,
+            TableFormat::Json => {
+                serde_json::to_writer_pretty(&mut *out, &rows)?;
+                writeln!(out)?;
+            }
+            TableFormat::Csv => {
+                writeln!(out, "map,width,height,detector,keypoints,cpu_kernel_ms,cpu_end_to_end_ms,gpu_kernel_ms,gpu_end_to_end_ms")?;
+                for r in &rows {
+                    let f = |v: Option<f64>| v.map_or(String::new(), |v| format!("{v:.3}"));
+                    writeln!(
+                        out,
+                        "{},{},{},{},{},{},{},{},{}",
+                        r.map,
+                        r.width,
+                        r.height,
+                        r.detector,
+                        r.keypoints,
+                        f(r.cpu_kernel_ms),
+                        f(r.cpu_end_to_end_ms),
+                        f(r.gpu_kernel_ms),
+                        f(r.gpu_end_to_end_ms)
                     )?;
                 }
             }

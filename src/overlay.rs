@@ -39,6 +39,12 @@ pub fn overlay_shrink(width: u32, height: u32) -> u32 {
 pub fn render_overlay(map: &MapImage, keypoints: &[Keypoint]) -> RgbImage {
     let s = overlay_scale(map.width(), map.height());
     let d = overlay_shrink(map.width(), map.height());
+    render_overlay_at(map, keypoints, s, d)
+}
+
+/// [`render_overlay`] with an explicit zoom `s` (>= 1) or shrink `d` (>= 1).
+pub fn render_overlay_at(map: &MapImage, keypoints: &[Keypoint], s: u32, d: u32) -> RgbImage {
+    let (s, d) = (s.max(1), d.max(1));
     let (w, h) = (map.width().div_ceil(d) * s, map.height().div_ceil(d) * s);
     let mut img = RgbImage::from_fn(w, h, |x, y| {
         let (bx, by) = ((x / s) * d, (y / s) * d);

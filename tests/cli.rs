@@ -577,3 +577,60 @@ fn eval_reports_every_detector_and_condition() {
         Some(2)
     );
 }
+
+#[test]
+fn compare_writes_the_table_and_a_contact_sheet_per_map() {
+    let d = tmpdir("compare");
+    let o = run(&[
+        "demo",
+        "-o",
+        d.to_str().unwrap(),
+        "--size",
+        "160x120",
+        "--backend",
+        "cpu",
+    ]);
+    assert!(o.status.success());
+    let yaml = d.join("demo-map.yaml");
+    let out = d.join("cmp");
+    let o = run(&[
+        "compare",
+        yaml.to_str().unwrap(),
+        "--repeat",
+        "1",
+        "--out",
+        out.to_str().unwrap(),
+        "--format",
+        "json",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    let rows = v.as_array().unwrap();
+    let dets: Vec<&str> = rows
+        .iter()
+        .map(|r| r["detector"].as_str().unwrap())
+        .collect();
+    assert_eq!(dets, ["ogm", "harris", "shi-tomasi", "trajkovic"]);
+    for r in rows {
+        assert_eq!(r["map"], "demo-map");
+        assert!(r["keypoints"].as_u64().unwrap() > 0);
+        assert!(r["cpu_end_to_end_ms"].as_f64().unwrap() > 0.0);
+        assert!(r["gpu_end_to_end_ms"].is_null(), "CPU only by default");
+    }
+    let md = fs::read_to_string(out.join("compare.md")).unwrap();
+    assert!(md.starts_with("| map | size | detector | keypoints |"));
+    assert_eq!(md.lines().count(), 2 + 4);
+    let sheet = image::open(out.join("demo-map-contact-sheet.png"))
+        .unwrap()
+        .to_rgb8();
+    assert!(sheet.width() > 1000 && sheet.height() > 1000);
+    assert!(
+        sheet.pixels().any(|p| p.0 == [200, 0, 200]),
+        "baseline keypoints drawn"
+    );
+    assert!(
+        sheet.pixels().any(|p| p.0 == [230, 0, 0]),
+        "OGM rule-5 keypoints drawn"
+    );
+    assert_eq!(run(&["compare"]).status.code(), Some(2));
+}
