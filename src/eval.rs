@@ -105,9 +105,9 @@ impl Pair {
                 // One clockwise quarter turn of a W x H map: (x, y) -> (H - y, x) in an H x W map.
                 let (mut x, mut y, mut ww, mut hh) = (x, y, w, h);
                 for _ in 0..k % 4 {
-                    (x, y, ww, hh) = (hh - y, x, hh, ww);
+                    (x, y) = (hh - y, x);
+                    std::mem::swap(&mut ww, &mut hh);
                 }
-                let _ = ww;
                 (x, y)
             }
             Transform::Mirror => (w - x, y),
