@@ -68,8 +68,10 @@ impl From<RulesArg> for RuleSet {
 enum BackendArg {
     /// A hardware GPU adapter when there is one, else the CPU (says which on standard error).
     Auto,
-    /// The CPU reference implementation.
+    /// The fast CPU path: all cores, bit-planes and SIMD.
     Cpu,
+    /// The plain single-threaded CPU reference, the oracle the other backends are tested against.
+    Reference,
     /// A GPU adapter through wgpu (software adapters such as lavapipe included); fails without one.
     Gpu,
 }
@@ -180,6 +182,7 @@ impl DetectOpts {
 fn detector_on(backend: BackendArg, options: DetectOptions) -> Result<Detector> {
     Ok(match backend {
         BackendArg::Cpu => Detector::new(options),
+        BackendArg::Reference => Detector::with_backend(options, Box::new(CpuBackend)),
         BackendArg::Gpu => {
             Detector::with_backend(options, Box::new(GpuBackend::new(GpuOptions::default())?))
         }

@@ -3,7 +3,7 @@
 use serde::Serialize;
 
 use crate::baselines::{self, Baseline, BaselineParams, ExactParams};
-use crate::cpu::CpuBackend;
+use crate::fast::FastCpuBackend;
 use crate::error::Result;
 use crate::map::{MapImage, OccupancyMap, Thresholds};
 use crate::rules::{RuleSet, RuleTable};
@@ -22,6 +22,19 @@ pub struct Keypoint {
     pub code: u8,
     /// The baselines' integer response (see [`crate::baselines`]); 0 for the OGM detector.
     pub score: i64,
+}
+
+impl Keypoint {
+    /// A baseline keypoint: position and score (rule and code 0).
+    pub fn scored(x: u32, y: u32, score: i64) -> Self {
+        Keypoint {
+            y,
+            x,
+            rule: 0,
+            code: 0,
+            score,
+        }
+    }
 }
 
 /// Which detector.
@@ -95,6 +108,25 @@ pub trait Backend {
         image: &MapImage,
         params: &ExactParams,
     ) -> Result<Vec<i64>>;
+
+    /// The keypoints of a baseline detector, sorted by (y, x). By default the score map from
+    /// [`Backend::baseline_scores`] goes through the shared selection ([`crate::baselines::select`]); a
+    /// backend may fuse the two as long as the result is identical.
+    fn baseline_keypoints(
+        &mut self,
+        kind: Baseline,
+        image: &MapImage,
+        params: &BaselineParams,
+    ) -> Result<Vec<Keypoint>> {
+        let exact = params.exact()?;
+        let scores = self.baseline_scores(kind, image, &exact)?;
+        Ok(
+            baselines::select(kind, &scores, image.width(), image.height(), params)
+                .into_iter()
+                .map(|(x, y, score)| Keypoint::scored(x, y, score))
+                .collect(),
+        )
+    }
 }
 
 /// Detects corners in maps; keep one and reuse it so backend set-up is paid once.
@@ -105,9 +137,9 @@ pub struct Detector {
 }
 
 impl Detector {
-    /// A detector on the CPU reference backend.
+    /// A detector on the fast CPU backend ([`FastCpuBackend`]).
     pub fn new(options: DetectOptions) -> Self {
-        Self::with_backend(options, Box::new(CpuBackend))
+        Self::with_backend(options, Box::new(FastCpuBackend))
     }
 
     /// A detector on the given backend.
@@ -160,24 +192,8 @@ impl Detector {
                 )?
             }
             DetectorKind::Baseline(kind) => {
-                let exact = self.options.baseline.exact()?;
-                let scores = self.backend.baseline_scores(kind, image, &exact)?;
-                baselines::select(
-                    kind,
-                    &scores,
-                    image.width(),
-                    image.height(),
-                    &self.options.baseline,
-                )
-                .into_iter()
-                .map(|(x, y, score)| Keypoint {
-                    y,
-                    x,
-                    rule: 0,
-                    code: 0,
-                    score,
-                })
-                .collect()
+                self.backend
+                    .baseline_keypoints(kind, image, &self.options.baseline)?
             }
         };
         Ok(Detection {

@@ -25,6 +25,7 @@ pub mod cpu;
 pub mod detector;
 pub mod error;
 pub mod eval;
+pub mod fast;
 pub mod gpu;
 pub mod map;
 pub mod output;

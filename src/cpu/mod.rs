@@ -23,7 +23,7 @@ pub struct CpuBackend;
 
 impl Backend for CpuBackend {
     fn name(&self) -> String {
-        "cpu".to_string()
+        "cpu-reference".to_string()
     }
 
     fn detect(

@@ -1,0 +1,139 @@
+//! Classification into bit-planes: one bit per pixel, 64 pixels a word, bit `i` of word `k` is pixel
+//! `64 k + i`. The fast twin of [`crate::cpu::classify`]: a plane holds the pixels whose state is in a set.
+//!
+//! The ROS thresholds make each state's set of pixel values an interval (the occupancy probability is
+//! monotonic in the value), so a plane is two SIMD compares per 16 pixels; any other set falls back to the
+//! 256-entry table, pixel by pixel.
+
+use crate::states::{CellState, ClassTable};
+
+/// Which pixel values set a plane's bit, derived once from a [`ClassTable`].
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum ValueSet {
+    /// No value.
+    Empty,
+    /// The values `lo..=lo + span`.
+    Interval {
+        /// Smallest value in the set.
+        lo: u8,
+        /// Largest value minus smallest.
+        span: u8,
+    },
+    /// Any other set, by value.
+    Table(Box<[bool; 256]>),
+}
+
+impl ValueSet {
+    /// The set of values whose state is in `states`, in its cheapest form.
+    pub fn of(classes: &ClassTable, states: &[CellState]) -> Self {
+        let member: Vec<bool> = (0..=255u8)
+            .map(|v| states.contains(&classes.state(v)))
+            .collect();
+        Self::from_members(&member)
+    }
+
+    /// The set given by membership of each of the 256 values (its cheapest form).
+    pub fn from_members(member: &[bool]) -> Self {
+        assert_eq!(member.len(), 256, "one flag per byte value");
+        let first = member.iter().position(|&m| m);
+        let last = member.iter().rposition(|&m| m);
+        match (first, last) {
+            (Some(lo), Some(hi)) if member[lo..=hi].iter().all(|&m| m) => ValueSet::Interval {
+                lo: lo as u8,
+                span: (hi - lo) as u8,
+            },
+            (Some(_), _) => {
+                let mut t = Box::new([false; 256]);
+                t.copy_from_slice(member);
+                ValueSet::Table(t)
+            }
+            _ => ValueSet::Empty,
+        }
+    }
+
+    /// Whether `v` is in the set.
+    #[inline]
+    pub fn contains(&self, v: u8) -> bool {
+        match self {
+            ValueSet::Empty => false,
+            ValueSet::Interval { lo, span } => v.wrapping_sub(*lo) <= *span,
+            ValueSet::Table(t) => t[v as usize],
+        }
+    }
+}
+
+/// Words needed for a row of `width` pixels.
+#[inline]
+pub fn words(width: usize) -> usize {
+    width.div_ceil(64)
+}
+
+/// Sets `out` (at least [`words`]`(row.len())` long) to the plane of `set` over `row`; bits past the row's
+/// end are zero.
+pub fn plane_row(set: &ValueSet, row: &[u8], out: &mut [u64]) {
+    let n = words(row.len());
+    let out = &mut out[..n];
+    match set {
+        ValueSet::Empty => out.fill(0),
+        ValueSet::Interval { lo, span } => interval_row(*lo, *span, row, out),
+        ValueSet::Table(t) => {
+            for (word, chunk) in out.iter_mut().zip(row.chunks(64)) {
+                *word = chunk
+                    .iter()
+                    .enumerate()
+                    .fold(0u64, |w, (i, &v)| w | (u64::from(t[v as usize]) << i));
+            }
+        }
+    }
+}
+
+/// The plane of `lo..=lo+span` over a row: SIMD on x86-64, portable elsewhere and for the tail.
+fn interval_row(lo: u8, span: u8, row: &[u8], out: &mut [u64]) {
+    let full = row.len() / 64;
+    #[cfg(target_arch = "x86_64")]
+    {
+        for (word, chunk) in out[..full].iter_mut().zip(row.chunks_exact(64)) {
+            *word = sse2::interval64(lo, span, chunk.try_into().expect("64 bytes"));
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        for (word, chunk) in out[..full].iter_mut().zip(row.chunks_exact(64)) {
+            *word = interval_scalar(lo, span, chunk);
+        }
+    }
+    if full < out.len() {
+        out[full] = interval_scalar(lo, span, &row[full * 64..]);
+    }
+}
+
+/// The portable form: one bit per byte of `chunk` (at most 64 bytes).
+#[inline]
+pub fn interval_scalar(lo: u8, span: u8, chunk: &[u8]) -> u64 {
+    chunk.iter().enumerate().fold(0u64, |w, (i, &v)| {
+        w | (u64::from(v.wrapping_sub(lo) <= span) << i)
+    })
+}
+
+#[cfg(target_arch = "x86_64")]
+mod sse2 {
+    use std::arch::x86_64::*;
+
+    /// 64 membership bits by unsigned range compare: (v - lo) <= span  <=>  min(v - lo, span) == v - lo.
+    #[inline]
+    pub fn interval64(lo: u8, span: u8, chunk: &[u8; 64]) -> u64 {
+        // SAFETY: SSE2 is part of the x86-64 baseline; the loads are unaligned loads inside `chunk`.
+        unsafe {
+            let lo = _mm_set1_epi8(lo as i8);
+            let span = _mm_set1_epi8(span as i8);
+            let mut bits = 0u64;
+            for q in 0..4 {
+                let v = _mm_loadu_si128(chunk.as_ptr().add(16 * q) as *const __m128i);
+                let t = _mm_sub_epi8(v, lo);
+                let m = _mm_cmpeq_epi8(_mm_min_epu8(t, span), t);
+                bits |= u64::from(_mm_movemask_epi8(m) as u16) << (16 * q);
+            }
+            bits
+        }
+    }
+}
