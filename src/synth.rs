@@ -241,28 +241,37 @@ fn furnish(c: &mut Canvas, rng: &mut Rng, room: Rect) {
     }
 }
 
-/// Sensor speckle in free space, bumps and gaps along walls.
+/// Sensor speckle in free space, bumps and gaps along walls. Each decision reads the map as it was
+/// before any noise; only the original of the rows above and at the current one is kept (the row below is
+/// still untouched), so a 16384^2 map does not need a second copy.
 fn add_noise(c: &mut Canvas, rng: &mut Rng, w: u32, h: u32) {
-    let before = c.px.clone();
-    let at = |x: u32, y: u32| before[(y * w + x) as usize];
+    if h < 3 {
+        return;
+    }
+    let wu = w as usize;
+    let mut above = c.px[..wu].to_vec();
+    let mut here = c.px[wu..2 * wu].to_vec();
     for y in 1..h - 1 {
-        for x in 1..w - 1 {
-            let i = (y * w + x) as usize;
-            let v = before[i];
-            let near = |s: u8| {
-                at(x - 1, y) == s || at(x + 1, y) == s || at(x, y - 1) == s || at(x, y + 1) == s
-            };
+        let row = y as usize * wu;
+        let (head, below) = c.px.split_at_mut(row + wu);
+        let out = &mut head[row..];
+        let below = &below[..wu];
+        for x in 1..wu - 1 {
+            let v = here[x];
+            let near = |s: u8| here[x - 1] == s || here[x + 1] == s || above[x] == s || below[x] == s;
             if v == FREE {
                 if near(OCCUPIED) && rng.chance(0.03) {
-                    c.px[i] = OCCUPIED; // a bump on a wall
+                    out[x] = OCCUPIED; // a bump on a wall
                 } else if rng.chance(0.001) {
-                    c.px[i] = OCCUPIED; // a spurious return
+                    out[x] = OCCUPIED; // a spurious return
                 } else if rng.chance(0.001) {
-                    c.px[i] = UNKNOWN; // a cell no beam crossed
+                    out[x] = UNKNOWN; // a cell no beam crossed
                 }
             } else if v == OCCUPIED && near(FREE) && rng.chance(0.01) {
-                c.px[i] = FREE; // a missed return in a wall
+                out[x] = FREE; // a missed return in a wall
             }
         }
+        std::mem::swap(&mut above, &mut here);
+        here.copy_from_slice(below);
     }
 }

@@ -488,6 +488,34 @@ impl GpuBackend {
         &self.adapter
     }
 
+    /// The time to upload `image` alone, tile by tile as [`Backend::detect`] does, and wait for it: the floor
+    /// that end-to-end times are compared with.
+    pub fn upload_time(&mut self, image: &MapImage) -> Result<Duration> {
+        self.check()?;
+        let (w, h) = (image.width(), image.height());
+        let (tw, th) = tiles::tile_size(w, h, self.max_binding, self.options.tile).ok_or_else(|| {
+            Error::Unavailable(format!(
+                "{}'s buffer limit ({} bytes) is too small for any tile",
+                self.adapter.name, self.max_binding
+            ))
+        })?;
+        let start = std::time::Instant::now();
+        for t in &tiles::plan(w, h, tw, th, 1) {
+            self.stage(image, t);
+            let pixels = self
+                .pixels
+                .get(&self.device, t.bytes(), self.max_binding)
+                .clone();
+            self.queue.write_buffer(&pixels, 0, &self.staging);
+            self.queue.submit([]);
+        }
+        self.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(|e| Error::Internal(format!("GPU poll failed: {e}")))?;
+        self.check()?;
+        Ok(start.elapsed())
+    }
+
     /// Statistics of the last call.
     pub fn stats(&self) -> GpuStats {
         self.stats

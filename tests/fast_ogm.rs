@@ -1,0 +1,232 @@
+//! The fast CPU path returns exactly the reference's OGM keypoints, in the same order, on every kind of map
+//! the GPU conformance suite uses, plus grey-level maps under several thresholds and the real shared maps.
+
+mod common;
+
+use ogm_corners::cpu::CpuBackend;
+use ogm_corners::fast::bitplanes::{interval_scalar, plane_row, words, ValueSet};
+use ogm_corners::fast::FastCpuBackend;
+use ogm_corners::synth::{office_map, Rng, FREE, OCCUPIED, UNKNOWN};
+use ogm_corners::{Backend, ClassTable, MapImage, OccupancyMap, RuleSet, RuleTable, Thresholds};
+use proptest::prelude::*;
+
+const VARIANTS: [(RuleSet, bool); 4] = [
+    (RuleSet::Paper, false),
+    (RuleSet::Paper, true),
+    (RuleSet::PaperMod2, false),
+    (RuleSet::PaperMod2, true),
+];
+
+/// Asserts fast == reference on `img` for every rule reading and unknown option; returns the count.
+fn assert_same(img: &MapImage, thresholds: &Thresholds, what: &str) -> usize {
+    let classes = ClassTable::new(thresholds);
+    let mut n = 0;
+    for (set, uao) in VARIANTS {
+        let rules = RuleTable::new(set);
+        let want = CpuBackend.detect(img, &classes, &rules, uao).unwrap();
+        let got = FastCpuBackend.detect(img, &classes, &rules, uao).unwrap();
+        if got != want {
+            let first = got.iter().zip(&want).position(|(a, b)| a != b);
+            panic!(
+                "{what} ({}x{}, {set}, unknown_as_occupied={uao}): fast {} keypoints, reference {}; \
+                 first difference at {first:?}",
+                img.width(),
+                img.height(),
+                got.len(),
+                want.len()
+            );
+        }
+        n += want.len();
+    }
+    n
+}
+
+/// Three-state maps whose density varies with the seed.
+fn random_map(w: u32, h: u32, seed: u64) -> MapImage {
+    let mut rng = Rng::new(seed);
+    let occ = 0.15 + 0.3 * (seed % 4) as f64 / 3.0;
+    let px = (0..w as usize * h as usize)
+        .map(|_| {
+            if rng.chance(occ) {
+                OCCUPIED
+            } else if rng.chance(0.15) {
+                UNKNOWN
+            } else {
+                FREE
+            }
+        })
+        .collect();
+    MapImage::new(w, h, px).unwrap()
+}
+
+/// Any grey level, so that thresholds decide the states.
+fn grey_map(w: u32, h: u32, seed: u64) -> MapImage {
+    let mut rng = Rng::new(seed);
+    let px = (0..w as usize * h as usize)
+        .map(|_| rng.range(0, 256) as u8)
+        .collect();
+    MapImage::new(w, h, px).unwrap()
+}
+
+fn thresholds() -> Vec<Thresholds> {
+    let t = |occupied_thresh, free_thresh, negate| Thresholds {
+        occupied_thresh,
+        free_thresh,
+        negate,
+    };
+    vec![
+        Thresholds::default(),
+        t(0.65, 0.196, true),
+        t(0.5, 0.5, false),
+        t(0.9, 0.05, false),
+        t(0.3, 0.25, true),
+        t(1.0, 0.0, false), // nothing free, nothing occupied
+    ]
+}
+
+#[test]
+fn every_three_state_3x3_configuration() {
+    // 3^9 configurations as adjacent 3x3 blocks: each block's centre sees exactly its own block.
+    let (cols, n) = (141u32, 3u32.pow(9));
+    let rows = n.div_ceil(cols);
+    let (w, h) = (cols * 3, rows * 3);
+    let mut px = vec![FREE; (w * h) as usize];
+    for c in 0..n {
+        let (bx, by) = ((c % cols) * 3, (c / cols) * 3);
+        let mut v = c;
+        for cell in 0..9 {
+            px[((by + cell / 3) * w + bx + cell % 3) as usize] =
+                [FREE, UNKNOWN, OCCUPIED][(v % 3) as usize];
+            v /= 3;
+        }
+    }
+    let img = MapImage::new(w, h, px).unwrap();
+    let total = assert_same(&img, &Thresholds::default(), "3^9 configurations");
+    assert!(total > 1000, "{total}");
+}
+
+#[test]
+fn random_maps_of_many_sizes_around_word_and_band_edges() {
+    let sizes = [
+        (1, 1),
+        (1, 2),
+        (2, 1),
+        (1, 9),
+        (9, 1),
+        (2, 2),
+        (3, 3),
+        (5, 3),
+        (13, 17),
+        (63, 5),
+        (64, 5),
+        (65, 5),
+        (127, 3),
+        (128, 3),
+        (129, 3),
+        (64, 1),
+        (1, 64),
+        (1, 300),
+        (191, 130),
+        (193, 129),
+        (257, 600), // several bands per thread
+        (1023, 5),
+    ];
+    for (i, (w, h)) in sizes.into_iter().enumerate() {
+        for seed in 0..3 {
+            let img = random_map(w, h, (i * 10 + seed) as u64);
+            assert_same(&img, &Thresholds::default(), "random map");
+        }
+    }
+}
+
+#[test]
+fn grey_maps_under_many_thresholds() {
+    for (i, t) in thresholds().iter().enumerate() {
+        for (w, h) in [(70, 70), (200, 131)] {
+            let img = grey_map(w, h, i as u64);
+            assert_same(&img, t, &format!("grey map, thresholds {t:?}"));
+        }
+    }
+}
+
+#[test]
+fn uniform_maps_and_a_rule_table_with_no_codes() {
+    for v in [FREE, UNKNOWN, OCCUPIED] {
+        let img = MapImage::filled(130, 70, v).unwrap();
+        assert_same(&img, &Thresholds::default(), "uniform map");
+    }
+}
+
+#[test]
+fn synthetic_office_maps() {
+    for (w, h, seed) in [(1024, 768, 1), (777, 1301, 7), (2048, 257, 3)] {
+        let img = office_map(w, h, seed).unwrap();
+        let n = assert_same(&img, &Thresholds::default(), "office map");
+        assert!(n > 0, "the office map has corners");
+    }
+}
+
+#[test]
+fn real_shared_maps() {
+    let Some(dir) = common::shared_maps() else {
+        return;
+    };
+    let maps = common::real_maps(&dir);
+    assert!(!maps.is_empty(), "no maps under {}", dir.display());
+    for path in maps {
+        let map = OccupancyMap::load(&path).unwrap();
+        assert_same(&map.image, &map.thresholds, &path.display().to_string());
+    }
+}
+
+#[test]
+fn planes_match_membership_for_intervals_tables_and_empty_sets() {
+    let mut rng = Rng::new(42);
+    let row: Vec<u8> = (0..300).map(|_| rng.range(0, 256) as u8).collect();
+    let mut sets = vec![
+        ValueSet::Empty,
+        ValueSet::from_members(&[true; 256]),
+        ValueSet::from_members(&(0..256).map(|v| v >= 250).collect::<Vec<_>>()),
+        ValueSet::from_members(&(0..256).map(|v| v <= 100).collect::<Vec<_>>()),
+        ValueSet::from_members(
+            &(0..256)
+                .map(|v| (17..=200).contains(&v))
+                .collect::<Vec<_>>(),
+        ),
+    ];
+    assert!(sets[2..]
+        .iter()
+        .all(|s| matches!(s, ValueSet::Interval { .. })));
+    let odd = ValueSet::from_members(&(0..256).map(|v| v % 3 == 0).collect::<Vec<_>>());
+    assert!(matches!(odd, ValueSet::Table(_)));
+    sets.push(odd);
+    for set in &sets {
+        for len in [0, 1, 15, 16, 63, 64, 65, 128, 300] {
+            let mut out = vec![!0u64; words(len) + 1];
+            plane_row(set, &row[..len], &mut out);
+            for x in 0..words(len) * 64 {
+                let bit = (out[x / 64] >> (x % 64)) & 1 == 1;
+                let want = x < len && set.contains(row[x]);
+                assert_eq!(bit, want, "{set:?}, len {len}, pixel {x}");
+            }
+        }
+    }
+}
+
+proptest! {
+    #[test]
+    fn simd_and_portable_interval_planes_agree(
+        bytes in proptest::collection::vec(any::<u8>(), 64),
+        lo in any::<u8>(),
+        span in any::<u8>(),
+    ) {
+        let mut out = [0u64; 1];
+        plane_row(&ValueSet::Interval { lo, span }, &bytes, &mut out);
+        prop_assert_eq!(out[0], interval_scalar(lo, span, &bytes));
+    }
+
+    #[test]
+    fn small_random_maps(w in 1u32..80, h in 1u32..80, seed in any::<u64>()) {
+        assert_same(&random_map(w, h, seed), &Thresholds::default(), "proptest map");
+    }
+}
