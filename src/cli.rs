@@ -7,15 +7,16 @@ use std::time::Instant;
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
 
-use ogm_corners::baselines;
-use ogm_corners::cpu::{classify::classify, ogm_corners::ogm_corners, CpuBackend};
+use crate::batch;
+
+use ogm_corners::cpu::CpuBackend;
 use ogm_corners::gpu::{self, GpuBackend, GpuOptions};
 use ogm_corners::output::{self, Format};
 use ogm_corners::overlay;
 use ogm_corners::rules::code_picture;
 use ogm_corners::synth;
 use ogm_corners::{
-    Backend, Baseline, BaselineParams, ClassTable, DetectOptions, Detector, DetectorKind, Error,
+    Baseline, BaselineParams, ClassTable, DetectOptions, Detector, DetectorKind, Error,
     OccupancyMap, Result, RuleSet, RuleTable,
 };
 
@@ -37,8 +38,9 @@ enum Command {
     Rules(RulesArgs),
     /// List the GPU adapters wgpu finds (WGPU_BACKEND and WGPU_ADAPTER_NAME select among them).
     Info(InfoArgs),
-    /// Measure throughput per backend: kernels alone and end to end, median of repeats.
-    Bench(BenchArgs),
+    /// Measure every detector on every backend (end to end, kernels, upload; peak memory of the CPU
+    /// backends), median of repeats, on synthetic maps of several sizes and on real maps.
+    Bench(bench::BenchArgs),
     /// Repeatability of every detector under known transforms: exact turns and mirror, rotations with
     /// translation, SLAM-like noise, partial overlap.
     Eval(EvalArgs),
@@ -210,18 +212,21 @@ fn detector_on(backend: BackendArg, options: DetectOptions) -> Result<Detector> 
 
 #[derive(Args, Debug)]
 struct DetectArgs {
-    /// The map: a ROS .yaml (loads its image too) or a PGM/PNG image (ROS default thresholds).
-    map: PathBuf,
+    /// The maps: ROS .yaml files (each loads its image too), PGM/PNG images (ROS default thresholds), or
+    /// folders of them. Several maps (or a folder) need --output DIR: one keypoint file per map.
+    #[arg(required = true, value_name = "MAP")]
+    maps: Vec<PathBuf>,
     #[command(flatten)]
     opts: DetectOpts,
     /// Output format.
     #[arg(long, value_enum, default_value = "csv")]
     format: FormatArg,
-    /// Write the keypoints to FILE instead of standard output.
-    #[arg(short, long, value_name = "FILE")]
+    /// Write the keypoints to FILE instead of standard output; with several maps, a folder that gets
+    /// NAME.csv (or .json) per map.
+    #[arg(short, long, value_name = "FILE|DIR")]
     output: Option<PathBuf>,
-    /// Also write a PNG of the map with the keypoints marked.
-    #[arg(long, value_name = "PNG")]
+    /// Also write a PNG of the map with the keypoints marked; with several maps, a folder of NAME.png.
+    #[arg(long, value_name = "PNG|DIR")]
     overlay: Option<PathBuf>,
 }
 
@@ -279,23 +284,35 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Demo(a) => demo(a),
         Command::Rules(a) => rules(a),
         Command::Info(a) => info(a),
-        Command::Bench(a) => bench(a),
+        Command::Bench(a) => bench::bench(a),
         Command::Eval(a) => eval(a),
         Command::Compare(a) => compare(a),
     }
 }
 
 fn detect(a: DetectArgs) -> Result<()> {
-    let map = OccupancyMap::load(&a.map)?;
+    let format = match a.format {
+        FormatArg::Csv => Format::Csv,
+        FormatArg::Json => Format::Json,
+    };
+    if a.maps.len() > 1 || a.maps[0].is_dir() {
+        let maps = ogm_corners::map::find_maps(&a.maps)?;
+        let Some(out) = a.output.as_deref() else {
+            return Err(Error::invalid(format!(
+                "{} maps: give --output DIR for one keypoint file per map",
+                maps.len()
+            )));
+        };
+        // Set-up (a GPU device and its pipelines) is paid once for the whole batch.
+        let mut detector = a.opts.detector()?;
+        return batch::detect_many(&maps, &mut detector, format, out, a.overlay.as_deref());
+    }
+    let map = OccupancyMap::load(&a.maps[0])?;
     for w in &map.warnings {
         eprintln!("ogm-corners: warning: {w}");
     }
     let mut detector = a.opts.detector()?;
     let det = detector.detect(&map)?;
-    let format = match a.format {
-        FormatArg::Csv => Format::Csv,
-        FormatArg::Json => Format::Json,
-    };
     let options = detector.options();
     let backend = detector.backend_name();
     let write = |out: &mut dyn Write| {
@@ -467,242 +484,7 @@ fn info(a: InfoArgs) -> Result<()> {
     })
 }
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-enum BenchBackend {
-    Cpu,
-    Gpu,
-    /// The CPU and every usable GPU adapter (the one wgpu picks).
-    All,
-}
-
-#[derive(Args, Debug)]
-struct BenchArgs {
-    /// A map to measure on (yaml or image); without it, a synthetic office map of --size.
-    map: Option<PathBuf>,
-    /// Size of the synthetic map, WIDTHxHEIGHT.
-    #[arg(long, value_name = "WxH", value_parser = parse_size, conflicts_with = "map")]
-    size: Option<(u32, u32)>,
-    /// Which detector.
-    #[arg(long, value_enum, default_value = "ogm")]
-    detector: DetectorArg,
-    /// Which backends.
-    #[arg(long, value_enum, default_value = "all")]
-    backend: BenchBackend,
-    /// Timed runs per measurement (after one warm-up run); the median is reported.
-    #[arg(long, default_value_t = 10, value_parser = clap::value_parser!(u32).range(1..))]
-    repeat: u32,
-    /// Rule reading (OGM detector).
-    #[arg(long, value_enum, default_value = "paper")]
-    rules: RulesArg,
-    #[command(flatten)]
-    baseline: BaselineArgs,
-    /// Output format.
-    #[arg(long, value_enum, default_value = "text")]
-    format: TextOrJson,
-}
-
-/// One measurement of `bench --format json`.
-#[derive(serde::Serialize, Debug)]
-struct BenchRecord {
-    detector: &'static str,
-    backend: &'static str,
-    adapter: String,
-    width: u32,
-    height: u32,
-    stage: &'static str,
-    median_ms: f64,
-    mpx_per_s: f64,
-}
-
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        (v[n / 2 - 1] + v[n / 2]) / 2.0
-    }
-}
-
-/// The CPU's model name, for naming the machine in benchmark records.
-fn cpu_name() -> String {
-    let model = std::fs::read_to_string("/proc/cpuinfo")
-        .ok()
-        .and_then(|s| {
-            s.lines()
-                .find(|l| l.starts_with("model name"))
-                .and_then(|l| l.split_once(':'))
-                .map(|(_, v)| v.trim().to_string())
-        })
-        .unwrap_or_else(|| std::env::consts::ARCH.to_string());
-    let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
-    format!("{model} ({threads} threads)")
-}
-
-/// Median times of one detector on one map: for the CPU (when `cpu`) and for `gpu` (when given), the
-/// kernels alone and end to end, after one warm-up run. Returns the records and the keypoint count; fails
-/// if the backends disagree on the count.
-fn measure(
-    map: &OccupancyMap,
-    kind: DetectorKind,
-    bparams: &BaselineParams,
-    rule_set: RuleSet,
-    cpu: bool,
-    gpu: Option<&mut GpuBackend>,
-    repeat: u32,
-) -> Result<(Vec<BenchRecord>, usize)> {
-    let (w, h) = (map.image.width(), map.image.height());
-    let mpx = f64::from(w) * f64::from(h) / 1e6;
-    let classes = ClassTable::new(&map.thresholds);
-    let rules = RuleTable::new(rule_set);
-    let detector = kind.name();
-    let exact = bparams.exact()?;
-    // End to end through the backend trait: map in memory to keypoints in memory.
-    let run = |b: &mut dyn Backend| -> Result<usize> {
-        Ok(match kind {
-            DetectorKind::Ogm => b.detect(&map.image, &classes, &rules, false)?.len(),
-            DetectorKind::Baseline(k) => {
-                let s = b.baseline_scores(k, &map.image, &exact)?;
-                baselines::select(k, &s, w, h, bparams).len()
-            }
-        })
-    };
-    let record = |backend, adapter: &str, stage, ms: f64| BenchRecord {
-        detector,
-        backend,
-        adapter: adapter.to_string(),
-        width: w,
-        height: h,
-        stage,
-        median_ms: ms,
-        mpx_per_s: mpx / (ms / 1e3),
-    };
-    let timed = |f: &mut dyn FnMut() -> Result<usize>| -> Result<(f64, usize)> {
-        let n = f()?; // warm-up: first-use costs (allocation, pipeline caches) stay out of the median
-        let mut times = Vec::new();
-        for _ in 0..repeat {
-            let t = Instant::now();
-            f()?;
-            times.push(t.elapsed().as_secs_f64() * 1e3);
-        }
-        Ok((median(times), n))
-    };
-    let mut records = Vec::new();
-    let mut counts = Vec::new();
-    if cpu {
-        let name = cpu_name();
-        // The CPU "kernels" are the twins of the GPU kernels: the work before keypoint selection.
-        let (ms, _) = timed(&mut || {
-            Ok(match kind {
-                DetectorKind::Ogm => {
-                    let states = classify(&map.image, &classes);
-                    ogm_corners(&states, w, h, &rules, false).len()
-                }
-                DetectorKind::Baseline(k) => baselines::cpu_scores(k, &map.image, &exact).len(),
-            })
-        })?;
-        records.push(record("cpu", &name, "kernel", ms));
-        let mut cpu = CpuBackend;
-        let (ms, n) = timed(&mut || run(&mut cpu))?;
-        records.push(record("cpu", &name, "end_to_end", ms));
-        counts.push(("cpu", n));
-    }
-    if let Some(g) = gpu {
-        let name = format!(
-            "{} ({}, {})",
-            g.adapter().name,
-            g.adapter().backend,
-            g.adapter().device_type
-        );
-        let mut kernel = Vec::new();
-        let (ms, n) = timed(&mut || {
-            let n = run(&mut *g)?;
-            if let Some(k) = g.stats().kernel_time {
-                kernel.push(k.as_secs_f64() * 1e3);
-            }
-            Ok(n)
-        })?;
-        // The warm-up's kernel time is the first entry; the median uses the timed runs only.
-        if kernel.len() > 1 {
-            records.push(record("gpu", &name, "kernel", median(kernel[1..].to_vec())));
-        } else {
-            eprintln!(
-                "ogm-corners: bench: {} has no timestamp queries; no kernel-only row",
-                g.adapter().name
-            );
-        }
-        records.push(record("gpu", &name, "end_to_end", ms));
-        counts.push(("gpu", n));
-    }
-    if let Some(&(_, n0)) = counts.first() {
-        if let Some(&(b, n)) = counts.iter().find(|c| c.1 != n0) {
-            return Err(Error::Internal(format!(
-                "backends disagree: {} found {n0} keypoints, {b} found {n}",
-                counts[0].0
-            )));
-        }
-    }
-    Ok((records, counts.first().map_or(0, |c| c.1)))
-}
-
-fn bench(a: BenchArgs) -> Result<()> {
-    let (map, label) = match (&a.map, a.size) {
-        (Some(p), _) => (OccupancyMap::load(p)?, p.display().to_string()),
-        (None, size) => {
-            let (w, h) = size.unwrap_or((4096, 4096));
-            (
-                OccupancyMap::from_image(synth::office_map(w, h, 1)?),
-                format!("synthetic office map {w}x{h} (seed 1)"),
-            )
-        }
-    };
-    let (w, h) = (map.image.width(), map.image.height());
-    let mpx = f64::from(w) * f64::from(h) / 1e6;
-    let kind: DetectorKind = a.detector.into();
-    let detector = kind.name();
-    let mut gpu = match a.backend {
-        BenchBackend::Cpu => None,
-        BenchBackend::Gpu => Some(GpuBackend::new(GpuOptions::default())?),
-        BenchBackend::All => GpuBackend::new(GpuOptions::default())
-            .map_err(|e| eprintln!("ogm-corners: bench: no GPU rows: {e}"))
-            .ok(),
-    };
-    let (records, keypoints) = measure(
-        &map,
-        kind,
-        &a.baseline.params(),
-        a.rules.into(),
-        a.backend != BenchBackend::Gpu,
-        gpu.as_mut(),
-        a.repeat,
-    )?;
-    write_stdout(|out| {
-        if a.format == TextOrJson::Json {
-            serde_json::to_writer_pretty(&mut *out, &records)?;
-            writeln!(out)?;
-            return out.flush();
-        }
-        writeln!(
-            out,
-            "{label}: {w}x{h} ({mpx:.2} Mpx), detector {detector}, rules {}, {keypoints} keypoints, median of {} runs",
-            RuleSet::from(a.rules),
-            a.repeat
-        )?;
-        writeln!(
-            out,
-            "{:<5} {:<11} {:>10} {:>10}  adapter",
-            "backend", "stage", "median ms", "Mpx/s"
-        )?;
-        for r in &records {
-            writeln!(
-                out,
-                "{:<7} {:<11} {:>10.3} {:>10.1}  {}",
-                r.backend, r.stage, r.median_ms, r.mpx_per_s, r.adapter
-            )?;
-        }
-        out.flush()
-    })
-}
+mod bench;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 enum TableFormat {
@@ -914,9 +696,9 @@ struct CompareArgs {
     /// Maps (yaml or image).
     #[arg(required = true)]
     maps: Vec<PathBuf>,
-    /// Which backends to time.
-    #[arg(long, value_enum, default_value = "cpu")]
-    backend: BenchBackend,
+    /// Which backends to time: cpu, reference, gpu or all; comma-separated or repeated.
+    #[arg(long, value_enum, value_delimiter = ',', default_values = ["cpu", "reference"])]
+    backend: Vec<bench::BenchBackend>,
     /// Folder for the table (compare.md) and the contact sheets.
     #[arg(long, value_name = "DIR", default_value = "compare-out")]
     out: PathBuf,
@@ -936,8 +718,11 @@ struct CompareRecord {
     height: u32,
     detector: &'static str,
     keypoints: usize,
-    cpu_kernel_ms: Option<f64>,
+    /// The fast CPU path, end to end.
     cpu_end_to_end_ms: Option<f64>,
+    /// The single-threaded reference: its work before keypoint selection, and end to end.
+    reference_kernel_ms: Option<f64>,
+    reference_end_to_end_ms: Option<f64>,
     gpu_kernel_ms: Option<f64>,
     gpu_end_to_end_ms: Option<f64>,
 }
@@ -1059,69 +844,60 @@ fn contact_sheet(
 
 fn compare(a: CompareArgs) -> Result<()> {
     fs::create_dir_all(&a.out).map_err(|e| Error::output(&a.out, e))?;
-    let mut gpu = match a.backend {
-        BenchBackend::Cpu => None,
-        BenchBackend::Gpu => Some(GpuBackend::new(GpuOptions::default())?),
-        BenchBackend::All => GpuBackend::new(GpuOptions::default())
-            .map_err(|e| eprintln!("ogm-corners: compare: no GPU columns: {e}"))
-            .ok(),
-    };
+    // The same measurement as `bench` (backends checked to agree keypoint for keypoint).
+    let mut runner = bench::Runner::new(
+        "compare",
+        &a.backend,
+        a.repeat,
+        RuleSet::Paper,
+        BaselineParams::default(),
+    )?;
     let mut rows = Vec::new();
     for p in &a.maps {
-        let map = OccupancyMap::load(p)?;
+        let bm = bench::BenchMap::from_file(p, OccupancyMap::load(p)?);
         let name = map_name(p);
         let mut found = Vec::new();
-        for kind in ALL_DETECTORS {
-            let (records, n) = measure(
-                &map,
-                kind,
-                &BaselineParams::default(),
-                RuleSet::Paper,
-                a.backend != BenchBackend::Gpu,
-                gpu.as_mut(),
-                a.repeat,
-            )?;
+        for m in runner.measure_map(&bm, &ALL_DETECTORS)? {
             let pick = |b: &str, s: &str| {
-                records
+                m.records
                     .iter()
                     .find(|r| r.backend == b && r.stage == s)
                     .map(|r| r.median_ms)
             };
             rows.push(CompareRecord {
                 map: name.clone(),
-                width: map.image.width(),
-                height: map.image.height(),
-                detector: kind.name(),
-                keypoints: n,
-                cpu_kernel_ms: pick("cpu", "kernel"),
+                width: bm.map.image.width(),
+                height: bm.map.image.height(),
+                detector: m.kind.name(),
+                keypoints: m.keypoints.len(),
                 cpu_end_to_end_ms: pick("cpu", "end_to_end"),
+                reference_kernel_ms: pick("reference", "kernel"),
+                reference_end_to_end_ms: pick("reference", "end_to_end"),
                 gpu_kernel_ms: pick("gpu", "kernel"),
                 gpu_end_to_end_ms: pick("gpu", "end_to_end"),
             });
-            let opts = DetectOptions {
-                detector: kind,
-                ..DetectOptions::default()
-            };
-            found.push((kind, Detector::new(opts).detect(&map)?.keypoints));
+            found.push((m.kind, m.keypoints));
         }
+        let map = &bm.map;
         let sheet_path = a.out.join(format!("{name}-contact-sheet.png"));
-        contact_sheet(&name, &map, &found)
+        contact_sheet(&name, map, &found)
             .save_with_format(&sheet_path, image::ImageFormat::Png)
             .map_err(|e| Error::output(&sheet_path, e))?;
         eprintln!("ogm-corners: wrote {}", sheet_path.display());
     }
     let ms = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.2}"));
-    let mut md = String::from("| map | size | detector | keypoints | CPU kernel ms | CPU end-to-end ms | GPU kernel ms | GPU end-to-end ms |\n|---|---|---|---|---|---|---|---|\n");
+    let mut md = String::from("| map | size | detector | keypoints | CPU end-to-end ms | reference kernel ms | reference end-to-end ms | GPU kernel ms | GPU end-to-end ms |\n|---|---|---|---|---|---|---|---|---|\n");
     for r in &rows {
         md += &format!(
-            "| {} | {}x{} | {} | {} | {} | {} | {} | {} |\n",
+            "| {} | {}x{} | {} | {} | {} | {} | {} | {} | {} |\n",
             r.map,
             r.width,
             r.height,
             r.detector,
             r.keypoints,
-            ms(r.cpu_kernel_ms),
             ms(r.cpu_end_to_end_ms),
+            ms(r.reference_kernel_ms),
+            ms(r.reference_end_to_end_ms),
             ms(r.gpu_kernel_ms),
             ms(r.gpu_end_to_end_ms)
         );
@@ -1136,19 +912,20 @@ fn compare(a: CompareArgs) -> Result<()> {
                 writeln!(out)?;
             }
             TableFormat::Csv => {
-                writeln!(out, "map,width,height,detector,keypoints,cpu_kernel_ms,cpu_end_to_end_ms,gpu_kernel_ms,gpu_end_to_end_ms")?;
+                writeln!(out, "map,width,height,detector,keypoints,cpu_end_to_end_ms,reference_kernel_ms,reference_end_to_end_ms,gpu_kernel_ms,gpu_end_to_end_ms")?;
                 for r in &rows {
                     let f = |v: Option<f64>| v.map_or(String::new(), |v| format!("{v:.3}"));
                     writeln!(
                         out,
-                        "{},{},{},{},{},{},{},{},{}",
+                        "{},{},{},{},{},{},{},{},{},{}",
                         r.map,
                         r.width,
                         r.height,
                         r.detector,
                         r.keypoints,
-                        f(r.cpu_kernel_ms),
                         f(r.cpu_end_to_end_ms),
+                        f(r.reference_kernel_ms),
+                        f(r.reference_end_to_end_ms),
                         f(r.gpu_kernel_ms),
                         f(r.gpu_end_to_end_ms)
                     )?;

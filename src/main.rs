@@ -1,5 +1,6 @@
 //! `ogm-corners`: the command-line tool. Exit status 0 on success, 2 on bad input or usage, 1 otherwise.
 
+mod batch;
 mod cli;
 
 use std::process::ExitCode;

@@ -415,3 +415,65 @@ pub fn decode_image(
     };
     MapImage::new(w, h, grey).map_err(|e| e.to_string())
 }
+
+/// The maps named by `inputs`: files as given, and for each folder (searched recursively, in path order)
+/// every ROS yaml plus every PGM/PNG image that no yaml in the folder tree names (broken yamls are kept, so
+/// that loading reports them). A folder with no map is an error rather than a silently empty batch.
+pub fn find_maps(inputs: &[PathBuf]) -> Result<Vec<PathBuf>> {
+    let mut maps = Vec::new();
+    for input in inputs {
+        if !input.is_dir() {
+            maps.push(input.clone());
+            continue;
+        }
+        let mut files = Vec::new();
+        let mut stack = vec![input.clone()];
+        while let Some(dir) = stack.pop() {
+            let entries = std::fs::read_dir(&dir)
+                .map_err(|e| Error::input(&dir, format!("cannot list the folder: {e}")))?;
+            for entry in entries {
+                let p = entry
+                    .map_err(|e| Error::input(&dir, format!("cannot list the folder: {e}")))?
+                    .path();
+                if p.is_dir() {
+                    stack.push(p);
+                } else {
+                    files.push(p);
+                }
+            }
+        }
+        files.sort();
+        let ext = |p: &Path| {
+            p.extension()
+                .and_then(|e| e.to_str())
+                .map(str::to_ascii_lowercase)
+                .unwrap_or_default()
+        };
+        let yamls: Vec<PathBuf> = files
+            .iter()
+            .filter(|p| matches!(ext(p).as_str(), "yaml" | "yml"))
+            .cloned()
+            .collect();
+        // The images the yamls name, compared as canonical paths.
+        let named: Vec<PathBuf> = yamls
+            .iter()
+            .filter_map(|y| {
+                let meta = MapYaml::parse(&std::fs::read_to_string(y).ok()?).ok()?;
+                y.parent()?.join(meta.image).canonicalize().ok()
+            })
+            .collect();
+        let before = maps.len();
+        maps.extend(yamls);
+        maps.extend(files.into_iter().filter(|p| {
+            matches!(ext(p).as_str(), "pgm" | "png")
+                && !p.canonicalize().is_ok_and(|c| named.contains(&c))
+        }));
+        if maps.len() == before {
+            return Err(Error::input(
+                input,
+                "no maps in this folder (looked for .yaml, .pgm and .png files)",
+            ));
+        }
+    }
+    Ok(maps)
+}

@@ -422,3 +422,28 @@ fn baselines_on_a_map_over_the_binding_limit_are_tiled() {
         assert!(gpu.stats().tiles > 1);
     }
 }
+
+#[test]
+fn maps_stream_through_in_bands_under_a_byte_budget() {
+    // Small budgets force many bands: the next band uploads while the current one runs, from the image's
+    // own rows when the width is a multiple of four, through the staging copy otherwise.
+    for (budget, w, h) in [
+        (4096u64, 256u32, 300u32),
+        (3000, 257, 211),
+        (1 << 14, 1024, 97),
+    ] {
+        let opts = GpuOptions {
+            max_tile_bytes: budget,
+            ..GpuOptions::default()
+        };
+        let Some(mut gpu) = common::gpu_backend(opts) else {
+            return;
+        };
+        let img = office_map(w, h, u64::from(w)).unwrap();
+        assert_same(&mut gpu, &img, &Thresholds::default(), "banded office map");
+        assert!(gpu.stats().tiles > 2, "{budget} bytes must split {w}x{h}");
+        let img = random_map(w, h, u64::from(h));
+        assert_same(&mut gpu, &img, &Thresholds::default(), "banded random map");
+        assert!(gpu.upload_time(&img).unwrap() > std::time::Duration::ZERO);
+    }
+}

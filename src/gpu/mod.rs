@@ -229,6 +229,10 @@ pub struct GpuOptions {
     pub max_keypoints_per_pass: Option<u32>,
     /// Use the exact 64-bit emulation even where the adapter has SHADER_INT64 (to test it).
     pub emulate_int64: bool,
+    /// Upload budget of one OGM tile, bytes: a large map streams through the GPU in bands of about this
+    /// size, the next band uploading while the current one is classified, instead of the whole map
+    /// sitting on the device (and in a host staging copy) at once.
+    pub max_tile_bytes: u64,
 }
 
 impl Default for GpuOptions {
@@ -238,6 +242,7 @@ impl Default for GpuOptions {
             initial_keypoint_capacity: 1 << 16,
             max_keypoints_per_pass: None,
             emulate_int64: false,
+            max_tile_bytes: 64 << 20,
         }
     }
 }
@@ -302,7 +307,8 @@ pub struct GpuBackend {
     params: wgpu::Buffer,
     class_table: wgpu::Buffer,
     rule_table: wgpu::Buffer,
-    pixels: Slot,
+    /// Two pixel buffers: one tile is classified from one while the next uploads into the other.
+    pixels: [Slot; 2],
     states: Slot,
     counts: Slot,
     offsets: Slot,
@@ -465,7 +471,7 @@ impl GpuBackend {
             params,
             class_table,
             rule_table,
-            pixels: Slot::new("pixels", storage),
+            pixels: [Slot::new("pixels", storage), Slot::new("pixels", storage)],
             states: Slot::new("states", wgpu::BufferUsages::STORAGE),
             counts: Slot::new("counts", copy_src),
             offsets: Slot::new("offsets", storage),
@@ -493,20 +499,10 @@ impl GpuBackend {
     pub fn upload_time(&mut self, image: &MapImage) -> Result<Duration> {
         self.check()?;
         let (w, h) = (image.width(), image.height());
-        let (tw, th) = tiles::tile_size(w, h, self.max_binding, self.options.tile).ok_or_else(|| {
-            Error::Unavailable(format!(
-                "{}'s buffer limit ({} bytes) is too small for any tile",
-                self.adapter.name, self.max_binding
-            ))
-        })?;
+        let plan = self.ogm_plan(w, h)?;
         let start = std::time::Instant::now();
-        for t in &tiles::plan(w, h, tw, th, 1) {
-            self.stage(image, t);
-            let pixels = self
-                .pixels
-                .get(&self.device, t.bytes(), self.max_binding)
-                .clone();
-            self.queue.write_buffer(&pixels, 0, &self.staging);
+        for (i, t) in plan.iter().enumerate() {
+            self.upload(image, t, i % 2);
             self.queue.submit([]);
         }
         self.device
@@ -533,13 +529,15 @@ impl GpuBackend {
         }
     }
 
-    /// Submits `encoder`, then copies the first `size` bytes of `src` back to the host.
+    /// Submits `encoder`, runs `meanwhile` (host work that overlaps the GPU's), then copies the first
+    /// `size` bytes of `src` back to the host.
     fn submit_and_read(
         &mut self,
         mut encoder: wgpu::CommandEncoder,
         src: &wgpu::Buffer,
         size: u64,
         timed: bool,
+        meanwhile: impl FnOnce(&mut Self),
     ) -> Result<Vec<u8>> {
         let size = size.next_multiple_of(4);
         let read = self.readback.get(&self.device, size, u64::MAX).clone();
@@ -549,6 +547,7 @@ impl GpuBackend {
             encoder.copy_buffer_to_buffer(resolve, 0, ts_read, 0, 16);
         }
         self.queue.submit([encoder.finish()]);
+        meanwhile(self);
         let data = self.map_read(&read, size)?;
         if let (true, Some((_, _, ts_read))) = (timed, &self.timestamps) {
             let ts_read = ts_read.clone();
@@ -581,6 +580,36 @@ impl GpuBackend {
             .to_vec();
         buf.unmap();
         Ok(data)
+    }
+
+    /// The OGM tiles of a `w` x `h` map: bands within the device's binding limit and the tile budget.
+    fn ogm_plan(&self, w: u32, h: u32) -> Result<Vec<tiles::Tile>> {
+        let budget = self.max_binding.min(self.options.max_tile_bytes.max(1));
+        let (tw, th) = tiles::tile_size(w, h, budget, self.options.tile).ok_or_else(|| {
+            Error::Unavailable(format!(
+                "{}'s buffer limit ({} bytes) is too small for any tile",
+                self.adapter.name, budget
+            ))
+        })?;
+        Ok(tiles::plan(w, h, tw, th, 1))
+    }
+
+    /// Queues the upload of the tile's pixels into pixel buffer `slot` (it reaches the GPU with the next
+    /// submission) and returns that buffer. Full-width tiles of a width divisible by four are the image's
+    /// own rows, so they go without a staging copy.
+    fn upload(&mut self, image: &MapImage, t: &tiles::Tile, slot: usize) -> wgpu::Buffer {
+        let buf = self.pixels[slot]
+            .get(&self.device, t.bytes(), self.max_binding)
+            .clone();
+        let iw = image.width() as usize;
+        if t.buf[0] == 0 && t.buf_w() as usize == iw && iw % 4 == 0 {
+            let rows = &image.pixels()[t.buf[1] as usize * iw..t.buf[3] as usize * iw];
+            self.queue.write_buffer(&buf, 0, rows);
+        } else {
+            self.stage(image, t);
+            self.queue.write_buffer(&buf, 0, &self.staging);
+        }
+        buf
     }
 
     /// Copies the tile's rectangle into the word-padded staging buffer.
@@ -662,11 +691,15 @@ impl GpuBackend {
         })
     }
 
-    /// Runs one tile; appends its keypoints (map coordinates) in (y, x) order.
+    /// Runs one tile, whose pixels are already queued in pixel buffer `slot`; appends its keypoints (map
+    /// coordinates) in (y, x) order. While the GPU classifies it, the `next` tile uploads into the other
+    /// buffer.
     fn run_tile(
         &mut self,
         image: &MapImage,
         t: &tiles::Tile,
+        slot: usize,
+        next: Option<&tiles::Tile>,
         unknown_as_occupied: bool,
         out: &mut Vec<Keypoint>,
     ) -> Result<()> {
@@ -694,10 +727,8 @@ impl GpuBackend {
             groups_x: gx,
             ..Params::default()
         };
-        self.stage(image, t);
         let bytes = t.bytes();
-        let pixels = self
-            .pixels
+        let pixels = self.pixels[slot]
             .get(&self.device, bytes, self.max_binding)
             .clone();
         let states = self
@@ -708,7 +739,6 @@ impl GpuBackend {
             .counts
             .get(&self.device, groups * 4, self.max_binding)
             .clone();
-        self.queue.write_buffer(&pixels, 0, &self.staging);
         self.queue
             .write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
 
@@ -735,7 +765,11 @@ impl GpuBackend {
             (&self.classify, &bg_classify, (gx, gy)),
             (&self.count, &bg_count, (gx, gy)),
         ]);
-        let raw = self.submit_and_read(encoder, &counts, groups * 4, true)?;
+        let raw = self.submit_and_read(encoder, &counts, groups * 4, true, |me| {
+            if let Some(n) = next {
+                me.upload(image, n, 1 - slot);
+            }
+        })?;
         // The groups that found keypoints, each with its first position in the list (an exclusive
         // prefix sum of the counts). Only these are dispatched in the write pass.
         let mut active: Vec<[u32; 2]> = Vec::new();
@@ -796,7 +830,7 @@ impl GpuBackend {
                 ],
             );
             let encoder = self.encode(&[(&self.write, &bg_write, (ax, ay))]);
-            let raw = self.submit_and_read(encoder, &kp, len * KEYPOINT_BYTES, true)?;
+            let raw = self.submit_and_read(encoder, &kp, len * KEYPOINT_BYTES, true, |_| ())?;
             self.stats.write_passes += 1;
             out.extend(raw.chunks_exact(16).take(len as usize).map(|c| {
                 let w =
@@ -902,12 +936,7 @@ impl GpuBackend {
             .write_buffer(&self.bp_buf, 0, bytemuck::bytes_of(&on_buf));
         self.queue
             .write_buffer(&self.bp_core, 0, bytemuck::bytes_of(&on_core));
-        self.stage(image, t);
-        let raw = self
-            .pixels
-            .get(&self.device, t.bytes(), self.max_binding)
-            .clone();
-        self.queue.write_buffer(&raw, 0, &self.staging);
+        let raw = self.upload(image, t, 0);
         let scores = self
             .scores
             .get(&self.device, core_px * 8, self.max_binding)
@@ -969,7 +998,7 @@ impl GpuBackend {
             .map(|(BaselinePass(pl, _, _, _, shape), bg)| (pl, bg, *shape))
             .collect();
         let encoder = self.encode(&dispatches);
-        let raw_scores = self.submit_and_read(encoder, &scores, core_px * 8, true)?;
+        let raw_scores = self.submit_and_read(encoder, &scores, core_px * 8, true, |_| ())?;
         let w = image.width() as usize;
         for (r, row) in raw_scores
             .chunks_exact(8 * cw as usize)
@@ -1042,20 +1071,23 @@ impl Backend for GpuBackend {
         self.queue
             .write_buffer(&self.rule_table, 0, bytemuck::cast_slice(&rule_words));
         let (w, h) = (image.width(), image.height());
-        let (tw, th) =
-            tiles::tile_size(w, h, self.max_binding, self.options.tile).ok_or_else(|| {
-                Error::Unavailable(format!(
-                    "{}'s buffer limit ({} bytes) is too small for any tile",
-                    self.adapter.name, self.max_binding
-                ))
-            })?;
-        let plan = tiles::plan(w, h, tw, th, 1);
+        let plan = self.ogm_plan(w, h)?;
         self.stats.tiles = plan.len();
         let mut out = Vec::new();
-        for t in &plan {
-            self.run_tile(image, t, unknown_as_occupied, &mut out)?;
+        if let Some(first) = plan.first() {
+            self.upload(image, first, 0);
         }
-        if tw < w {
+        for (i, t) in plan.iter().enumerate() {
+            self.run_tile(
+                image,
+                t,
+                i % 2,
+                plan.get(i + 1),
+                unknown_as_occupied,
+                &mut out,
+            )?;
+        }
+        if plan.iter().any(|t| t.core[2] - t.core[0] < w) {
             // Tiles side by side interleave rows; restore (y, x) order.
             out.sort_unstable();
         }
