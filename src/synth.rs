@@ -258,7 +258,8 @@ fn add_noise(c: &mut Canvas, rng: &mut Rng, w: u32, h: u32) {
         let below = &below[..wu];
         for x in 1..wu - 1 {
             let v = here[x];
-            let near = |s: u8| here[x - 1] == s || here[x + 1] == s || above[x] == s || below[x] == s;
+            let near =
+                |s: u8| here[x - 1] == s || here[x + 1] == s || above[x] == s || below[x] == s;
             if v == FREE {
                 if near(OCCUPIED) && rng.chance(0.03) {
                     out[x] = OCCUPIED; // a bump on a wall
