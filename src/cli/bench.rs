@@ -1,0 +1,952 @@
+//! `ogm-corners bench`: median times of every detector on every backend, on synthetic maps of several sizes
+//! and on real maps, with the peak memory of the CPU backends. `compare` shares the measurement
+//! ([`Runner::measure_map`]).
+
+use std::fs;
+use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use clap::{Args, ValueEnum};
+
+use ogm_corners::baselines;
+use ogm_corners::cpu::{classify::classify, ogm_corners::ogm_corners, CpuBackend};
+use ogm_corners::fast::FastCpuBackend;
+use ogm_corners::gpu::{GpuBackend, GpuOptions};
+use ogm_corners::map::MapYaml;
+use ogm_corners::synth;
+use ogm_corners::{
+    Backend, Baseline, BaselineParams, ClassTable, DetectorKind, Error, Keypoint, OccupancyMap,
+    Result, RuleSet, RuleTable,
+};
+
+use super::{
+    map_name, parse_size, write_stdout, BaselineArgs, RulesArg, TextOrJson, ALL_DETECTORS,
+};
+
+/// The git commit the binary was built from (build.rs; "unknown" without git).
+const GIT_COMMIT: &str = env!("OGM_GIT_COMMIT");
+
+/// Maps above this many pixels make the baselines on the reference or on a software GPU adapter take
+/// minutes per measurement (16384 x 16384 is 268 Mpx); `--backend all` skips those combinations, and naming
+/// the backend runs them. 32 Mi pixels lies between 4096 x 4096 (16.8 Mpx) and 8192 x 8192 (67 Mpx).
+pub(super) const SLOW_PIXELS: u64 = 32 << 20;
+
+/// Which backends `bench` and `compare` time; a comma-separated list, or the option repeated.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub(super) enum BenchBackend {
+    /// The fast CPU path (all cores), the default detection backend.
+    Cpu,
+    /// The plain single-threaded CPU reference.
+    Reference,
+    /// The GPU adapter wgpu picks, software ones included; fails without one.
+    Gpu,
+    /// cpu, reference and gpu (when an adapter opens; a note on standard error when not). Skips the
+    /// reference and software adapters for the baselines on maps over 32 Mi pixels: name them to run those.
+    All,
+}
+
+/// Which detectors `bench` times; a comma-separated list, or the option repeated.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub(super) enum DetectorChoice {
+    /// The OGM corner detector of the paper.
+    Ogm,
+    /// Harris.
+    Harris,
+    /// Shi-Tomasi.
+    ShiTomasi,
+    /// Trajkovic-Hedley.
+    Trajkovic,
+    /// The four.
+    All,
+}
+
+#[derive(Args, Debug)]
+pub(super) struct BenchArgs {
+    /// Maps to measure: .yaml or image files, or folders (searched recursively for every .yaml map and
+    /// every .pgm/.png image that no yaml there names).
+    maps: Vec<PathBuf>,
+    /// A synthetic office map of WIDTHxHEIGHT; repeat for several. Without maps or sizes: 4096x4096. The
+    /// full set: --size 1024x1024 --size 4096x4096 --size 16384x16384.
+    #[arg(long, value_name = "WxH", value_parser = parse_size)]
+    size: Vec<(u32, u32)>,
+    /// Seed of the synthetic maps.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Detectors: ogm, harris, shi-tomasi, trajkovic or all; comma-separated or repeated.
+    #[arg(long, value_enum, value_delimiter = ',', default_value = "ogm")]
+    detector: Vec<DetectorChoice>,
+    /// Backends: cpu, reference, gpu or all; comma-separated or repeated (e.g. --backend cpu,gpu).
+    #[arg(long, value_enum, value_delimiter = ',', default_value = "all")]
+    backend: Vec<BenchBackend>,
+    /// Timed runs per measurement (after one warm-up run); the median is reported.
+    #[arg(long, default_value_t = 10, value_parser = clap::value_parser!(u32).range(1..))]
+    repeat: u32,
+    /// Rule reading (OGM detector).
+    #[arg(long, value_enum, default_value = "paper")]
+    rules: RulesArg,
+    #[command(flatten)]
+    baseline: BaselineArgs,
+    /// Output format.
+    #[arg(long, value_enum, default_value = "text")]
+    format: TextOrJson,
+    /// Also write each synthetic map as a binary PGM, so other tools can time the same pixels: to PATH
+    /// itself when it ends in .pgm (one --size), else into the folder PATH as synthetic-WxH-seedN.pgm. The
+    /// records name the file (`image`).
+    #[arg(long, value_name = "PATH")]
+    save_map: Option<PathBuf>,
+}
+
+/// How a backend came into the run: not at all, through `all`, or by name. Named wins over `all`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+enum Want {
+    No,
+    All,
+    Named,
+}
+
+/// The three backends a measurement can run on.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Engine {
+    Cpu,
+    Reference,
+    Gpu,
+}
+
+impl Engine {
+    fn name(self) -> &'static str {
+        match self {
+            Engine::Cpu => "cpu",
+            Engine::Reference => "reference",
+            Engine::Gpu => "gpu",
+        }
+    }
+}
+
+/// One measurement: a detector on a map, on one backend, one stage.
+#[derive(serde::Serialize, Debug, Clone)]
+pub(super) struct BenchRecord {
+    /// Short name of the map ("synthetic", or the file's stem / folder).
+    pub(super) map: String,
+    /// The file the map was read from (yaml or image); null for synthetic maps.
+    pub(super) source: Option<String>,
+    /// The image file holding the pixels (a synthetic map's --save-map file); null when there is none.
+    pub(super) image: Option<String>,
+    pub(super) detector: &'static str,
+    pub(super) backend: &'static str,
+    /// The CPU model (CPU backends) or the GPU adapter.
+    pub(super) adapter: String,
+    pub(super) width: u32,
+    pub(super) height: u32,
+    /// `end_to_end` (image in memory to keypoints in memory), `kernel` (GPU timestamp queries; the
+    /// reference's work before keypoint selection) or `upload` (the GPU upload alone).
+    pub(super) stage: &'static str,
+    pub(super) median_ms: f64,
+    pub(super) mpx_per_s: f64,
+    pub(super) keypoints: usize,
+    /// Peak resident memory of the process while this stage ran (CPU backends, Linux), map included.
+    pub(super) peak_rss_mb: Option<f64>,
+    /// `peak_rss_mb` over the map's size in bytes (one byte a pixel).
+    pub(super) peak_rss_ratio: Option<f64>,
+    /// Resident memory when the stage started (the map, the program, what the allocator keeps).
+    pub(super) rss_before_mb: Option<f64>,
+}
+
+/// A map to measure, with the names that go into its records.
+pub(super) struct BenchMap {
+    pub(super) label: String,
+    pub(super) source: Option<PathBuf>,
+    pub(super) image_path: Option<PathBuf>,
+    pub(super) map: OccupancyMap,
+}
+
+impl BenchMap {
+    /// A map loaded from `path` (what the user named or a folder held).
+    pub(super) fn from_file(path: &Path, map: OccupancyMap) -> Self {
+        BenchMap {
+            label: map_name(path),
+            source: Some(path.to_path_buf()),
+            image_path: map.image_path.clone(),
+            map,
+        }
+    }
+}
+
+/// One detector's results on one map: its records on every backend, and the keypoints they agreed on.
+pub(super) struct Measured {
+    pub(super) kind: DetectorKind,
+    pub(super) keypoints: Vec<Keypoint>,
+    pub(super) records: Vec<BenchRecord>,
+}
+
+/// The GPU adapter found when the run started.
+struct GpuInfo {
+    label: String,
+    software: bool,
+}
+
+/// Peak resident memory over a stretch of work, from /proc/self (Linux).
+struct PeakRss {
+    before_kb: u64,
+}
+
+/// A field of /proc/self/status in kB (`VmRSS`, `VmHWM`).
+fn status_kb(field: &str) -> Option<u64> {
+    let s = fs::read_to_string("/proc/self/status").ok()?;
+    let line = s.lines().find(|l| l.starts_with(field))?;
+    line.split_whitespace().nth(1)?.parse().ok()
+}
+
+impl PeakRss {
+    /// Resets the high-water mark (writing 5 to clear_refs sets VmHWM to the current RSS, Linux 4.0+);
+    /// None where that is not possible, so that a lifetime peak is never reported as this stage's.
+    fn start() -> Option<Self> {
+        fs::write("/proc/self/clear_refs", "5").ok()?;
+        Some(PeakRss {
+            before_kb: status_kb("VmRSS")?,
+        })
+    }
+
+    /// Resident memory when started and the peak since.
+    fn finish(self) -> Option<Memory> {
+        let peak = status_kb("VmHWM")?;
+        Some(Memory {
+            before_mb: self.before_kb as f64 / 1e3,
+            peak_mb: peak as f64 / 1e3,
+        })
+    }
+}
+
+/// Resident memory over a stage, MB.
+#[derive(Clone, Copy, Debug)]
+struct Memory {
+    before_mb: f64,
+    peak_mb: f64,
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        (v[n / 2 - 1] + v[n / 2]) / 2.0
+    }
+}
+
+/// Runs `f` once to warm up (first-use costs stay out of the median), then `repeat` timed times. Returns
+/// the warm-up's result, the median time in ms, and the memory over all the runs.
+fn timed<T>(repeat: u32, mut f: impl FnMut() -> Result<T>) -> Result<(T, f64, Option<Memory>)> {
+    let rss = PeakRss::start();
+    let first = f()?;
+    let mut times = Vec::with_capacity(repeat as usize);
+    for _ in 0..repeat {
+        let t = Instant::now();
+        let r = f()?;
+        times.push(t.elapsed().as_secs_f64() * 1e3);
+        drop(r); // outside the timed span
+    }
+    Ok((first, median(times), rss.and_then(PeakRss::finish)))
+}
+
+/// The CPU's model name.
+fn cpu_model() -> String {
+    fs::read_to_string("/proc/cpuinfo")
+        .ok()
+        .and_then(|s| {
+            s.lines()
+                .find(|l| l.starts_with("model name"))
+                .and_then(|l| l.split_once(':'))
+                .map(|(_, v)| v.trim().to_string())
+        })
+        .unwrap_or_else(|| std::env::consts::ARCH.to_string())
+}
+
+fn threads() -> usize {
+    std::thread::available_parallelism().map_or(1, |n| n.get())
+}
+
+/// The first difference between two keypoint lists, for the disagreement error.
+fn first_difference(a: &[Keypoint], b: &[Keypoint]) -> String {
+    let show = |k: Option<&Keypoint>| {
+        k.map_or("nothing".to_string(), |k| {
+            format!(
+                "(x {}, y {}, rule {}, code {}, score {})",
+                k.x, k.y, k.rule, k.code, k.score
+            )
+        })
+    };
+    let i = a
+        .iter()
+        .zip(b)
+        .position(|(x, y)| x != y)
+        .unwrap_or(a.len().min(b.len()));
+    format!(
+        "first difference at index {i}: {} vs {}",
+        show(a.get(i)),
+        show(b.get(i))
+    )
+}
+
+/// Times detectors on maps on the chosen backends, checking that the backends agree.
+pub(super) struct Runner {
+    cmd: &'static str,
+    cpu: Want,
+    reference: Want,
+    gpu_want: Want,
+    gpu_info: Option<GpuInfo>,
+    gpu: Option<GpuBackend>,
+    repeat: u32,
+    rule_set: RuleSet,
+    params: BaselineParams,
+    progress: bool,
+}
+
+impl Runner {
+    /// A runner for `backends`; opens the GPU once to check it is there (`gpu` named: an error without
+    /// one; through `all`: a note on standard error, and no GPU rows). `cmd` names the subcommand in notes.
+    pub(super) fn new(
+        cmd: &'static str,
+        backends: &[BenchBackend],
+        repeat: u32,
+        rule_set: RuleSet,
+        params: BaselineParams,
+    ) -> Result<Self> {
+        params.exact()?; // bad baseline options fail before any measuring
+        let (mut cpu, mut reference, mut gpu_want) = (Want::No, Want::No, Want::No);
+        for b in backends {
+            match b {
+                BenchBackend::Cpu => cpu = Want::Named,
+                BenchBackend::Reference => reference = Want::Named,
+                BenchBackend::Gpu => gpu_want = Want::Named,
+                BenchBackend::All => {
+                    cpu = cpu.max(Want::All);
+                    reference = reference.max(Want::All);
+                    gpu_want = gpu_want.max(Want::All);
+                }
+            }
+        }
+        let gpu = match gpu_want {
+            Want::No => None,
+            Want::Named => Some(GpuBackend::new(GpuOptions::default())?),
+            Want::All => GpuBackend::new(GpuOptions::default())
+                .map_err(|e| eprintln!("ogm-corners: {cmd}: no GPU rows: {e}"))
+                .ok(),
+        };
+        let gpu_info = gpu.as_ref().map(|g| {
+            let a = g.adapter();
+            GpuInfo {
+                label: format!("{} ({}, {})", a.name, a.backend, a.device_type),
+                software: a.device_type == "Cpu",
+            }
+        });
+        Ok(Runner {
+            cmd,
+            cpu,
+            reference,
+            gpu_want,
+            gpu_info,
+            gpu,
+            repeat,
+            rule_set,
+            params,
+            progress: std::io::stderr().is_terminal(),
+        })
+    }
+
+    /// Whether `all` leaves this combination out as too slow (see [`SLOW_PIXELS`]).
+    fn too_slow(&self, engine: Engine, kind: DetectorKind, pixels: u64) -> bool {
+        let (want, slow) = match engine {
+            Engine::Cpu => (self.cpu, false),
+            Engine::Reference => (self.reference, true),
+            Engine::Gpu => (
+                self.gpu_want,
+                self.gpu_info.as_ref().is_some_and(|g| g.software),
+            ),
+        };
+        want == Want::All && slow && kind != DetectorKind::Ogm && pixels > SLOW_PIXELS
+    }
+
+    /// Times each of `kinds` on `m` on every chosen backend: the CPU ones first, then the GPU, which is
+    /// reopened per map when CPU backends run too, so that its buffers do not count in their peak memory.
+    /// Fails when two backends find different keypoint lists.
+    pub(super) fn measure_map(
+        &mut self,
+        m: &BenchMap,
+        kinds: &[DetectorKind],
+    ) -> Result<Vec<Measured>> {
+        let (w, h) = (m.map.image.width(), m.map.image.height());
+        let pixels = u64::from(w) * u64::from(h);
+        let cpu_side = self.cpu != Want::No || self.reference != Want::No;
+        if cpu_side {
+            self.gpu = None;
+        }
+        let mut out: Vec<Measured> = kinds
+            .iter()
+            .map(|&kind| Measured {
+                kind,
+                keypoints: Vec::new(),
+                records: Vec::new(),
+            })
+            .collect();
+        let mut first: Vec<Option<&'static str>> = vec![None; kinds.len()];
+        let mut skipped = Vec::new();
+        let mut engines = Vec::new();
+        if self.cpu != Want::No {
+            engines.push(Engine::Cpu);
+        }
+        if self.reference != Want::No {
+            engines.push(Engine::Reference);
+        }
+        if self.gpu_info.is_some() {
+            engines.push(Engine::Gpu);
+        }
+        for engine in engines {
+            if engine == Engine::Gpu && self.gpu.is_none() {
+                self.gpu = Some(GpuBackend::new(GpuOptions::default())?);
+            }
+            for (i, o) in out.iter_mut().enumerate() {
+                if self.too_slow(engine, o.kind, pixels) {
+                    skipped.push(format!("{} on {}", o.kind.name(), engine.name()));
+                    continue;
+                }
+                if self.progress {
+                    eprintln!(
+                        "ogm-corners: {}: {} {w}x{h} {} on {}",
+                        self.cmd,
+                        m.label,
+                        o.kind.name(),
+                        engine.name()
+                    );
+                }
+                let (records, kps) = self.measure(m, o.kind, engine)?;
+                match first[i] {
+                    None => {
+                        first[i] = Some(engine.name());
+                        o.keypoints = kps;
+                    }
+                    Some(a) if o.keypoints != kps => {
+                        return Err(Error::Internal(format!(
+                            "backends disagree on {} ({w}x{h}), detector {}: {a} found {} keypoints, {} found {}; {}",
+                            m.label,
+                            o.kind.name(),
+                            o.keypoints.len(),
+                            engine.name(),
+                            kps.len(),
+                            first_difference(&o.keypoints, &kps)
+                        )));
+                    }
+                    Some(_) => {}
+                }
+                o.records.extend(records);
+            }
+        }
+        if !skipped.is_empty() {
+            eprintln!(
+                "ogm-corners: {}: {} {w}x{h}: skipped {} (--backend all leaves out the reference and software \
+                 GPU adapters on baselines over {} Mpx: minutes each; name the backend to run them, e.g. \
+                 --backend cpu,reference,gpu)",
+                self.cmd,
+                m.label,
+                skipped.join(", "),
+                SLOW_PIXELS as f64 / 1e6
+            );
+        }
+        Ok(out)
+    }
+
+    /// The records of one detector on one backend, and its keypoints.
+    fn measure(
+        &mut self,
+        m: &BenchMap,
+        kind: DetectorKind,
+        engine: Engine,
+    ) -> Result<(Vec<BenchRecord>, Vec<Keypoint>)> {
+        let image = &m.map.image;
+        let (w, h) = (image.width(), image.height());
+        let mpx = f64::from(w) * f64::from(h) / 1e6;
+        let classes = ClassTable::new(&m.map.thresholds);
+        let rules = RuleTable::new(self.rule_set);
+        let params = self.params;
+        let exact = params.exact()?;
+        let repeat = self.repeat;
+        // End to end through the backend trait: image in memory to keypoints in memory.
+        let end_to_end = |b: &mut dyn Backend| -> Result<Vec<Keypoint>> {
+            match kind {
+                DetectorKind::Ogm => b.detect(image, &classes, &rules, false),
+                DetectorKind::Baseline(k) => b.baseline_keypoints(k, image, &params),
+            }
+        };
+        let adapter = match engine {
+            Engine::Cpu | Engine::Reference => cpu_model(),
+            Engine::Gpu => self
+                .gpu_info
+                .as_ref()
+                .map_or_else(String::new, |g| g.label.clone()),
+        };
+        let record = |stage, ms: f64, mem: Option<Memory>, n: usize| BenchRecord {
+            map: m.label.clone(),
+            source: m.source.as_ref().map(|p| p.display().to_string()),
+            image: m.image_path.as_ref().map(|p| p.display().to_string()),
+            detector: kind.name(),
+            backend: engine.name(),
+            adapter: adapter.clone(),
+            width: w,
+            height: h,
+            stage,
+            median_ms: ms,
+            mpx_per_s: mpx / (ms / 1e3),
+            keypoints: n,
+            peak_rss_mb: mem.map(|m| m.peak_mb),
+            peak_rss_ratio: mem.map(|m| m.peak_mb * 1e6 / (f64::from(w) * f64::from(h))),
+            rss_before_mb: mem.map(|m| m.before_mb),
+        };
+        let mut records = Vec::new();
+        let keypoints = match engine {
+            Engine::Cpu => {
+                let (kps, ms, mem) = timed(repeat, || end_to_end(&mut FastCpuBackend))?;
+                records.push(record("end_to_end", ms, mem, kps.len()));
+                kps
+            }
+            Engine::Reference => {
+                let (kps, ms, mem) = timed(repeat, || end_to_end(&mut CpuBackend))?;
+                records.push(record("end_to_end", ms, mem, kps.len()));
+                // The reference's "kernels" are the twins of the GPU kernels: the work before selection.
+                let (_, ms, mem) = timed(repeat, || {
+                    Ok(match kind {
+                        DetectorKind::Ogm => {
+                            let states = classify(image, &classes);
+                            ogm_corners(&states, w, h, &rules, false).len()
+                        }
+                        DetectorKind::Baseline(k) => baselines::cpu_scores(k, image, &exact).len(),
+                    })
+                })?;
+                records.push(record("kernel", ms, mem, kps.len()));
+                kps
+            }
+            Engine::Gpu => {
+                let g = self
+                    .gpu
+                    .as_mut()
+                    .ok_or_else(|| Error::Internal("GPU backend not open".into()))?;
+                let mut kernel = Vec::new();
+                let (kps, ms, _) = timed(repeat, || {
+                    let kps = end_to_end(&mut *g)?;
+                    if let Some(k) = g.stats().kernel_time {
+                        kernel.push(k.as_secs_f64() * 1e3);
+                    }
+                    Ok(kps)
+                })?;
+                records.push(record("end_to_end", ms, None, kps.len()));
+                // The warm-up's kernel time is the first entry; the median uses the timed runs only.
+                if kernel.len() > 1 {
+                    records.push(record(
+                        "kernel",
+                        median(kernel[1..].to_vec()),
+                        None,
+                        kps.len(),
+                    ));
+                } else {
+                    eprintln!(
+                        "ogm-corners: {}: {} has no timestamp queries; no kernel-only row",
+                        self.cmd,
+                        g.adapter().name
+                    );
+                }
+                g.upload_time(image)?; // warm-up
+                let mut up = Vec::with_capacity(repeat as usize);
+                for _ in 0..repeat {
+                    up.push(g.upload_time(image)?.as_secs_f64() * 1e3);
+                }
+                records.push(record("upload", median(up), None, kps.len()));
+                kps
+            }
+        };
+        Ok((records, keypoints))
+    }
+
+    /// Header lines naming the machine, the build and the backends.
+    fn header(&self, seed: Option<u64>) -> Vec<String> {
+        let mut lines = vec![format!(
+            "# ogm-corners {} (git {GIT_COMMIT}); {} ({} threads), {} {}; median of {} timed runs after a warm-up",
+            env!("CARGO_PKG_VERSION"),
+            cpu_model(),
+            threads(),
+            std::env::consts::OS,
+            std::env::consts::ARCH,
+            self.repeat
+        )];
+        let mut b = Vec::new();
+        if self.cpu != Want::No {
+            b.push(format!(
+                "cpu = fast CPU path on {} threads",
+                rayon::current_num_threads()
+            ));
+        }
+        if self.reference != Want::No {
+            b.push("reference = single-threaded CPU reference".to_string());
+        }
+        if let Some(g) = &self.gpu_info {
+            b.push(format!("gpu = {}", g.label));
+        }
+        lines.push(format!("# backends: {}", b.join("; ")));
+        if let Some(seed) = seed {
+            lines.push(format!(
+                "# synthetic: the office map of ogm_corners::synth, seed {seed}"
+            ));
+        }
+        if self.cpu != Want::No || self.reference != Want::No {
+            lines.push(
+                "# peak MB: the process's peak resident memory while that CPU stage ran, map included; \
+                 x map: peak over the map's bytes; start MB: resident when the stage started"
+                    .to_string(),
+            );
+        }
+        lines
+    }
+}
+
+/// A map to load when its turn comes (so only one is in memory at a time).
+enum Source {
+    Synthetic(u32, u32),
+    File(PathBuf),
+}
+
+fn ext_of(p: &Path) -> String {
+    p.extension()
+        .and_then(|e| e.to_str())
+        .unwrap_or("")
+        .to_ascii_lowercase()
+}
+
+/// The maps in a folder, recursively and sorted: each .yaml map, and each .pgm/.png image that no yaml
+/// there names. A yaml that is not a map is skipped with a note.
+fn maps_in(dir: &Path) -> Result<Vec<PathBuf>> {
+    let mut files = Vec::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        let entries =
+            fs::read_dir(&d).map_err(|e| Error::input(&d, format!("cannot read: {e}")))?;
+        for e in entries {
+            let p = e
+                .map_err(|e| Error::input(&d, format!("cannot read: {e}")))?
+                .path();
+            if p.file_name()
+                .and_then(|n| n.to_str())
+                .is_some_and(|n| n.starts_with('.'))
+            {
+                continue;
+            }
+            if p.is_dir() {
+                stack.push(p);
+            } else {
+                files.push(p);
+            }
+        }
+    }
+    files.sort();
+    let canon = |p: &Path| p.canonicalize().unwrap_or_else(|_| p.to_path_buf());
+    let mut maps = Vec::new();
+    let mut named = Vec::new();
+    for y in files
+        .iter()
+        .filter(|p| matches!(ext_of(p).as_str(), "yaml" | "yml"))
+    {
+        let text =
+            fs::read_to_string(y).map_err(|e| Error::input(y, format!("cannot read: {e}")))?;
+        match MapYaml::parse(&text) {
+            Ok(meta) => {
+                let img = y.parent().unwrap_or(Path::new("")).join(&meta.image);
+                named.push(canon(&img));
+                maps.push(y.clone());
+            }
+            Err(e) => eprintln!(
+                "ogm-corners: bench: skipped {}: not a map yaml: {e}",
+                y.display()
+            ),
+        }
+    }
+    for p in &files {
+        if matches!(ext_of(p).as_str(), "pgm" | "png") && !named.contains(&canon(p)) {
+            maps.push(p.clone());
+        }
+    }
+    if maps.is_empty() {
+        return Err(Error::input(
+            dir,
+            "no maps (.yaml, .pgm, .png) in this folder",
+        ));
+    }
+    Ok(maps)
+}
+
+/// Where `--save-map` writes each synthetic map.
+fn save_paths(
+    save: Option<&Path>,
+    sizes: &[(u32, u32)],
+    seed: u64,
+) -> Result<Vec<Option<PathBuf>>> {
+    let Some(save) = save else {
+        return Ok(vec![None; sizes.len()]);
+    };
+    if sizes.is_empty() {
+        return Err(Error::invalid(
+            "--save-map writes synthetic maps: give a --size",
+        ));
+    }
+    if ext_of(save) == "pgm" {
+        if sizes.len() > 1 {
+            return Err(Error::invalid(format!(
+                "--save-map {} names one file but there are {} sizes; give a folder",
+                save.display(),
+                sizes.len()
+            )));
+        }
+        return Ok(vec![Some(save.to_path_buf())]);
+    }
+    fs::create_dir_all(save).map_err(|e| Error::output(save, e))?;
+    Ok(sizes
+        .iter()
+        .map(|(w, h)| Some(save.join(format!("synthetic-{w}x{h}-seed{seed}.pgm"))))
+        .collect())
+}
+
+/// The detectors named, in the usual order, each once.
+fn detector_list(choice: &[DetectorChoice]) -> Vec<DetectorKind> {
+    ALL_DETECTORS
+        .into_iter()
+        .filter(|k| {
+            choice.iter().any(|c| match c {
+                DetectorChoice::All => true,
+                DetectorChoice::Ogm => *k == DetectorKind::Ogm,
+                DetectorChoice::Harris => *k == DetectorKind::Baseline(Baseline::Harris),
+                DetectorChoice::ShiTomasi => *k == DetectorKind::Baseline(Baseline::ShiTomasi),
+                DetectorChoice::Trajkovic => *k == DetectorKind::Baseline(Baseline::Trajkovic),
+            })
+        })
+        .collect()
+}
+
+/// What `bench --format json` prints: the machine and build, then the records.
+#[derive(serde::Serialize)]
+struct BenchReport<'a> {
+    version: &'static str,
+    commit: &'static str,
+    cpu: String,
+    threads: usize,
+    os: &'static str,
+    arch: &'static str,
+    gpu: Option<&'a str>,
+    repeat: u32,
+    records: &'a [BenchRecord],
+}
+
+pub(super) fn bench(a: BenchArgs) -> Result<()> {
+    let kinds = detector_list(&a.detector);
+    let sizes = if a.maps.is_empty() && a.size.is_empty() {
+        vec![(4096, 4096)]
+    } else {
+        a.size.clone()
+    };
+    // Every map is found (and every path checked) before the first measurement.
+    let mut sources: Vec<Source> = sizes
+        .iter()
+        .map(|&(w, h)| Source::Synthetic(w, h))
+        .collect();
+    for p in &a.maps {
+        if p.is_dir() {
+            sources.extend(maps_in(p)?.into_iter().map(Source::File));
+        } else if p.exists() {
+            sources.push(Source::File(p.clone()));
+        } else {
+            return Err(Error::input(p, "no such file or folder"));
+        }
+    }
+    let saves = save_paths(a.save_map.as_deref(), &sizes, a.seed)?;
+    let mut runner = Runner::new(
+        "bench",
+        &a.backend,
+        a.repeat,
+        a.rules.into(),
+        a.baseline.params(),
+    )?;
+    let label_w = sources
+        .iter()
+        .map(|s| match s {
+            Source::Synthetic(..) => "synthetic".len(),
+            Source::File(p) => map_name(p).len(),
+        })
+        .max()
+        .unwrap_or(0)
+        .max(3);
+    let text = a.format == TextOrJson::Text;
+    if text {
+        let mut lines = runner.header((!sizes.is_empty()).then_some(a.seed));
+        lines.push(format!(
+            "{:<label_w$}  {:<11}  {:<10}  {:<9}  {:<10}  {:>10}  {:>9}  {:>9}  {:>9}  {:>6}  {:>8}",
+            "map",
+            "size",
+            "detector",
+            "backend",
+            "stage",
+            "median ms",
+            "Mpx/s",
+            "keypoints",
+            "peak MB",
+            "x map",
+            "start MB"
+        ));
+        write_stdout(|out| {
+            for l in &lines {
+                writeln!(out, "{l}")?;
+            }
+            out.flush()
+        })?;
+    }
+    let mut all = Vec::new();
+    let mut synthetic = 0;
+    for src in sources {
+        let bm = match src {
+            Source::Synthetic(w, h) => {
+                let image = synth::office_map(w, h, a.seed)?;
+                let saved = saves[synthetic].clone();
+                synthetic += 1;
+                if let Some(p) = &saved {
+                    image.write_pgm(p)?;
+                    eprintln!("ogm-corners: bench: wrote {}", p.display());
+                }
+                BenchMap {
+                    label: "synthetic".to_string(),
+                    source: None,
+                    image_path: saved,
+                    map: OccupancyMap::from_image(image),
+                }
+            }
+            Source::File(p) => {
+                let map = OccupancyMap::load(&p)?;
+                BenchMap::from_file(&p, map)
+            }
+        };
+        let records: Vec<BenchRecord> = runner
+            .measure_map(&bm, &kinds)?
+            .into_iter()
+            .flat_map(|m| m.records)
+            .collect();
+        drop(bm); // only one map in memory at a time
+        if text {
+            write_stdout(|out| {
+                for r in &records {
+                    let f = |v: Option<f64>, p: usize| {
+                        v.map_or("-".to_string(), |v| format!("{v:.p$}"))
+                    };
+                    writeln!(
+                        out,
+                        "{:<label_w$}  {:<11}  {:<10}  {:<9}  {:<10}  {:>10.3}  {:>9.1}  {:>9}  {:>9}  {:>6}  {:>8}",
+                        r.map,
+                        format!("{}x{}", r.width, r.height),
+                        r.detector,
+                        r.backend,
+                        r.stage,
+                        r.median_ms,
+                        r.mpx_per_s,
+                        r.keypoints,
+                        f(r.peak_rss_mb, 1),
+                        f(r.peak_rss_ratio, 2),
+                        f(r.rss_before_mb, 1)
+                    )?;
+                }
+                out.flush()
+            })?;
+        } else {
+            all.extend(records);
+        }
+    }
+    if !text {
+        let report = BenchReport {
+            version: env!("CARGO_PKG_VERSION"),
+            commit: GIT_COMMIT,
+            cpu: cpu_model(),
+            threads: threads(),
+            os: std::env::consts::OS,
+            arch: std::env::consts::ARCH,
+            gpu: runner.gpu_info.as_ref().map(|g| g.label.as_str()),
+            repeat: a.repeat,
+            records: &all,
+        };
+        write_stdout(|out| {
+            serde_json::to_writer_pretty(&mut *out, &report)?;
+            writeln!(out)?;
+            out.flush()
+        })?;
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn runner(cpu: Want, reference: Want, gpu_want: Want, software: bool) -> Runner {
+        Runner {
+            cmd: "test",
+            cpu,
+            reference,
+            gpu_want,
+            gpu_info: Some(GpuInfo {
+                label: "test".into(),
+                software,
+            }),
+            gpu: None,
+            repeat: 1,
+            rule_set: RuleSet::Paper,
+            params: BaselineParams::default(),
+            progress: false,
+        }
+    }
+
+    #[test]
+    fn all_leaves_out_only_slow_backends_on_huge_baselines() {
+        let harris = DetectorKind::Baseline(Baseline::Harris);
+        let huge = 16384 * 16384;
+        let r = runner(Want::All, Want::All, Want::All, true);
+        assert!(r.too_slow(Engine::Reference, harris, huge));
+        assert!(r.too_slow(Engine::Gpu, harris, huge));
+        assert!(!r.too_slow(Engine::Cpu, harris, huge));
+        assert!(!r.too_slow(Engine::Reference, DetectorKind::Ogm, huge));
+        assert!(!r.too_slow(Engine::Reference, harris, 4096 * 4096));
+        // A hardware adapter, or a backend named on the command line, always runs.
+        assert!(!runner(Want::All, Want::All, Want::All, false).too_slow(
+            Engine::Gpu,
+            harris,
+            huge
+        ));
+        let named = runner(Want::All, Want::Named, Want::Named, true);
+        assert!(!named.too_slow(Engine::Reference, harris, huge));
+        assert!(!named.too_slow(Engine::Gpu, harris, huge));
+    }
+
+    #[test]
+    fn detector_list_is_ordered_and_unique() {
+        use DetectorChoice::*;
+        assert_eq!(detector_list(&[All, Ogm]), ALL_DETECTORS.to_vec());
+        assert_eq!(
+            detector_list(&[Trajkovic, Ogm, Trajkovic]),
+            [
+                DetectorKind::Ogm,
+                DetectorKind::Baseline(Baseline::Trajkovic)
+            ]
+        );
+    }
+
+    #[test]
+    fn first_difference_names_the_index_and_both_keypoints() {
+        let a = [Keypoint::scored(1, 2, 5), Keypoint::scored(3, 4, 6)];
+        let b = [Keypoint::scored(1, 2, 5), Keypoint::scored(3, 4, 7)];
+        let m = first_difference(&a, &b);
+        assert!(
+            m.contains("index 1") && m.contains("score 6") && m.contains("score 7"),
+            "{m}"
+        );
+        assert!(first_difference(&a, &a[..1]).contains("vs nothing"));
+    }
+}
