@@ -7,7 +7,7 @@ use std::time::Instant;
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
 
-use crate::batch;
+use crate::batch::{self, map_name};
 
 use ogm_corners::cpu::CpuBackend;
 use ogm_corners::gpu::{self, GpuBackend, GpuOptions};
@@ -296,7 +296,10 @@ fn detect(a: DetectArgs) -> Result<()> {
         FormatArg::Json => Format::Json,
     };
     if a.maps.len() > 1 || a.maps[0].is_dir() {
-        let maps = ogm_corners::map::find_maps(&a.maps)?;
+        let (maps, notes) = ogm_corners::map::find_maps(&a.maps)?;
+        for n in notes {
+            eprintln!("ogm-corners: note: {n}");
+        }
         let Some(out) = a.output.as_deref() else {
             return Err(Error::invalid(format!(
                 "{} maps: give --output DIR for one keypoint file per map",
@@ -727,19 +730,6 @@ struct CompareRecord {
     gpu_end_to_end_ms: Option<f64>,
 }
 
-/// A short name for a map: its file stem, or its folder's name for ROS's usual `map.yaml`.
-fn map_name(p: &std::path::Path) -> String {
-    let stem = p.file_stem().and_then(|s| s.to_str()).unwrap_or("map");
-    match (
-        stem,
-        p.parent()
-            .and_then(|d| d.file_name())
-            .and_then(|d| d.to_str()),
-    ) {
-        ("map", Some(dir)) => dir.to_string(),
-        _ => stem.to_string(),
-    }
-}
 
 const ALL_DETECTORS: [DetectorKind; 4] = [
     DetectorKind::Ogm,

@@ -416,11 +416,12 @@ pub fn decode_image(
     MapImage::new(w, h, grey).map_err(|e| e.to_string())
 }
 
-/// The maps named by `inputs`: files as given, and for each folder (searched recursively, in path order)
-/// every ROS yaml plus every PGM/PNG image that no yaml in the folder tree names (broken yamls are kept, so
-/// that loading reports them). A folder with no map is an error rather than a silently empty batch.
-pub fn find_maps(inputs: &[PathBuf]) -> Result<Vec<PathBuf>> {
-    let mut maps = Vec::new();
+/// The maps named by `inputs`: files as given, and for each folder (searched recursively, in path order,
+/// hidden entries left out) every ROS map yaml plus every PGM/PNG image that no yaml there names. A yaml
+/// that is not a map (ROS packages keep other yaml files beside their maps) is left out with a note in the
+/// second list. A folder with no map is an error rather than a silently empty batch.
+pub fn find_maps(inputs: &[PathBuf]) -> Result<(Vec<PathBuf>, Vec<String>)> {
+    let (mut maps, mut notes) = (Vec::new(), Vec::new());
     for input in inputs {
         if !input.is_dir() {
             maps.push(input.clone());
@@ -429,13 +430,17 @@ pub fn find_maps(inputs: &[PathBuf]) -> Result<Vec<PathBuf>> {
         let mut files = Vec::new();
         let mut stack = vec![input.clone()];
         while let Some(dir) = stack.pop() {
-            let entries = std::fs::read_dir(&dir)
-                .map_err(|e| Error::input(&dir, format!("cannot list the folder: {e}")))?;
-            for entry in entries {
-                let p = entry
-                    .map_err(|e| Error::input(&dir, format!("cannot list the folder: {e}")))?
-                    .path();
-                if p.is_dir() {
+            let list_err =
+                |e: std::io::Error| Error::input(&dir, format!("cannot list the folder: {e}"));
+            for entry in std::fs::read_dir(&dir).map_err(list_err)? {
+                let p = entry.map_err(list_err)?.path();
+                let hidden = p
+                    .file_name()
+                    .and_then(|n| n.to_str())
+                    .is_some_and(|n| n.starts_with('.'));
+                if hidden {
+                    continue;
+                } else if p.is_dir() {
                     stack.push(p);
                 } else {
                     files.push(p);
@@ -449,25 +454,29 @@ pub fn find_maps(inputs: &[PathBuf]) -> Result<Vec<PathBuf>> {
                 .map(str::to_ascii_lowercase)
                 .unwrap_or_default()
         };
-        let yamls: Vec<PathBuf> = files
+        let canon = |p: &Path| p.canonicalize().unwrap_or_else(|_| p.to_path_buf());
+        let before = maps.len();
+        // The images the yamls name, compared as canonical paths.
+        let mut named = Vec::new();
+        for y in files
             .iter()
             .filter(|p| matches!(ext(p).as_str(), "yaml" | "yml"))
-            .cloned()
-            .collect();
-        // The images the yamls name, compared as canonical paths.
-        let named: Vec<PathBuf> = yamls
-            .iter()
-            .filter_map(|y| {
-                let meta = MapYaml::parse(&std::fs::read_to_string(y).ok()?).ok()?;
-                y.parent()?.join(meta.image).canonicalize().ok()
-            })
-            .collect();
-        let before = maps.len();
-        maps.extend(yamls);
-        maps.extend(files.into_iter().filter(|p| {
-            matches!(ext(p).as_str(), "pgm" | "png")
-                && !p.canonicalize().is_ok_and(|c| named.contains(&c))
-        }));
+        {
+            let text = std::fs::read_to_string(y)
+                .map_err(|e| Error::input(y, format!("cannot read: {e}")))?;
+            match MapYaml::parse(&text) {
+                Ok(meta) => {
+                    named.push(canon(&y.parent().unwrap_or(Path::new("")).join(meta.image)));
+                    maps.push(y.clone());
+                }
+                Err(e) => notes.push(format!("skipped {}: not a map yaml: {e}", y.display())),
+            }
+        }
+        for p in &files {
+            if matches!(ext(p).as_str(), "pgm" | "png") && !named.contains(&canon(p)) {
+                maps.push(p.clone());
+            }
+        }
         if maps.len() == before {
             return Err(Error::input(
                 input,
@@ -475,5 +484,5 @@ pub fn find_maps(inputs: &[PathBuf]) -> Result<Vec<PathBuf>> {
             ));
         }
     }
-    Ok(maps)
+    Ok((maps, notes))
 }

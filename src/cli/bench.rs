@@ -13,7 +13,6 @@ use ogm_corners::baselines;
 use ogm_corners::cpu::{classify::classify, ogm_corners::ogm_corners, CpuBackend};
 use ogm_corners::fast::FastCpuBackend;
 use ogm_corners::gpu::{GpuBackend, GpuOptions};
-use ogm_corners::map::MapYaml;
 use ogm_corners::synth;
 use ogm_corners::{
     Backend, Baseline, BaselineParams, ClassTable, DetectorKind, Error, Keypoint, OccupancyMap,
@@ -619,67 +618,6 @@ fn ext_of(p: &Path) -> String {
         .to_ascii_lowercase()
 }
 
-/// The maps in a folder, recursively and sorted: each .yaml map, and each .pgm/.png image that no yaml
-/// there names. A yaml that is not a map is skipped with a note.
-fn maps_in(dir: &Path) -> Result<Vec<PathBuf>> {
-    let mut files = Vec::new();
-    let mut stack = vec![dir.to_path_buf()];
-    while let Some(d) = stack.pop() {
-        let entries =
-            fs::read_dir(&d).map_err(|e| Error::input(&d, format!("cannot read: {e}")))?;
-        for e in entries {
-            let p = e
-                .map_err(|e| Error::input(&d, format!("cannot read: {e}")))?
-                .path();
-            if p.file_name()
-                .and_then(|n| n.to_str())
-                .is_some_and(|n| n.starts_with('.'))
-            {
-                continue;
-            }
-            if p.is_dir() {
-                stack.push(p);
-            } else {
-                files.push(p);
-            }
-        }
-    }
-    files.sort();
-    let canon = |p: &Path| p.canonicalize().unwrap_or_else(|_| p.to_path_buf());
-    let mut maps = Vec::new();
-    let mut named = Vec::new();
-    for y in files
-        .iter()
-        .filter(|p| matches!(ext_of(p).as_str(), "yaml" | "yml"))
-    {
-        let text =
-            fs::read_to_string(y).map_err(|e| Error::input(y, format!("cannot read: {e}")))?;
-        match MapYaml::parse(&text) {
-            Ok(meta) => {
-                let img = y.parent().unwrap_or(Path::new("")).join(&meta.image);
-                named.push(canon(&img));
-                maps.push(y.clone());
-            }
-            Err(e) => eprintln!(
-                "ogm-corners: bench: skipped {}: not a map yaml: {e}",
-                y.display()
-            ),
-        }
-    }
-    for p in &files {
-        if matches!(ext_of(p).as_str(), "pgm" | "png") && !named.contains(&canon(p)) {
-            maps.push(p.clone());
-        }
-    }
-    if maps.is_empty() {
-        return Err(Error::input(
-            dir,
-            "no maps (.yaml, .pgm, .png) in this folder",
-        ));
-    }
-    Ok(maps)
-}
-
 /// Where `--save-map` writes each synthetic map.
 fn save_paths(
     save: Option<&Path>,
@@ -755,7 +693,11 @@ pub(super) fn bench(a: BenchArgs) -> Result<()> {
         .collect();
     for p in &a.maps {
         if p.is_dir() {
-            sources.extend(maps_in(p)?.into_iter().map(Source::File));
+            let (maps, notes) = ogm_corners::map::find_maps(std::slice::from_ref(p))?;
+            for n in notes {
+                eprintln!("ogm-corners: bench: {n}");
+            }
+            sources.extend(maps.into_iter().map(Source::File));
         } else if p.exists() {
             sources.push(Source::File(p.clone()));
         } else {
