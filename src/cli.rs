@@ -730,7 +730,6 @@ struct CompareRecord {
     gpu_end_to_end_ms: Option<f64>,
 }
 
-
 const ALL_DETECTORS: [DetectorKind; 4] = [
     DetectorKind::Ogm,
     DetectorKind::Baseline(Baseline::Harris),

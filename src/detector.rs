@@ -3,8 +3,8 @@
 use serde::Serialize;
 
 use crate::baselines::{self, Baseline, BaselineParams, ExactParams};
-use crate::fast::FastCpuBackend;
 use crate::error::Result;
+use crate::fast::FastCpuBackend;
 use crate::map::{MapImage, OccupancyMap, Thresholds};
 use crate::rules::{RuleSet, RuleTable};
 use crate::states::ClassTable;

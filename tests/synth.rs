@@ -62,6 +62,10 @@ fn the_generator_is_stable_across_versions() {
         (1000, 333, 7, 0x5761_aa81_aae1_3beb),
     ] {
         let m = office_map(w, h, seed).unwrap();
-        assert_eq!(fnv(m.pixels()), want, "office_map({w}, {h}, {seed}) changed");
+        assert_eq!(
+            fnv(m.pixels()),
+            want,
+            "office_map({w}, {h}, {seed}) changed"
+        );
     }
 }

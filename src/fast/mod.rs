@@ -5,6 +5,8 @@
 //! The reference stays the oracle: the conformance tests compare this backend with it on every map they
 //! cover.
 
+mod baseline_tensor;
+mod baseline_trajkovic;
 pub mod baselines;
 pub mod bitplanes;
 pub mod ogm;
