@@ -41,24 +41,6 @@ fn assert_same(img: &MapImage, thresholds: &Thresholds, what: &str) -> usize {
     n
 }
 
-/// Three-state maps whose density varies with the seed.
-fn random_map(w: u32, h: u32, seed: u64) -> MapImage {
-    let mut rng = Rng::new(seed);
-    let occ = 0.15 + 0.3 * (seed % 4) as f64 / 3.0;
-    let px = (0..w as usize * h as usize)
-        .map(|_| {
-            if rng.chance(occ) {
-                OCCUPIED
-            } else if rng.chance(0.15) {
-                UNKNOWN
-            } else {
-                FREE
-            }
-        })
-        .collect();
-    MapImage::new(w, h, px).unwrap()
-}
-
 /// Any grey level, so that thresholds decide the states.
 fn grey_map(w: u32, h: u32, seed: u64) -> MapImage {
     let mut rng = Rng::new(seed);
@@ -86,21 +68,7 @@ fn thresholds() -> Vec<Thresholds> {
 
 #[test]
 fn every_three_state_3x3_configuration() {
-    // 3^9 configurations as adjacent 3x3 blocks: each block's centre sees exactly its own block.
-    let (cols, n) = (141u32, 3u32.pow(9));
-    let rows = n.div_ceil(cols);
-    let (w, h) = (cols * 3, rows * 3);
-    let mut px = vec![FREE; (w * h) as usize];
-    for c in 0..n {
-        let (bx, by) = ((c % cols) * 3, (c / cols) * 3);
-        let mut v = c;
-        for cell in 0..9 {
-            px[((by + cell / 3) * w + bx + cell % 3) as usize] =
-                [FREE, UNKNOWN, OCCUPIED][(v % 3) as usize];
-            v /= 3;
-        }
-    }
-    let img = MapImage::new(w, h, px).unwrap();
+    let img = common::all_3x3_configurations();
     let total = assert_same(&img, &Thresholds::default(), "3^9 configurations");
     assert!(total > 1000, "{total}");
 }
@@ -133,7 +101,7 @@ fn random_maps_of_many_sizes_around_word_and_band_edges() {
     ];
     for (i, (w, h)) in sizes.into_iter().enumerate() {
         for seed in 0..3 {
-            let img = random_map(w, h, (i * 10 + seed) as u64);
+            let img = common::random_map(w, h, (i * 10 + seed) as u64);
             assert_same(&img, &Thresholds::default(), "random map");
         }
     }
@@ -227,6 +195,6 @@ proptest! {
 
     #[test]
     fn small_random_maps(w in 1u32..80, h in 1u32..80, seed in any::<u64>()) {
-        assert_same(&random_map(w, h, seed), &Thresholds::default(), "proptest map");
+        assert_same(&common::random_map(w, h, seed), &Thresholds::default(), "proptest map");
     }
 }

@@ -6,7 +6,7 @@ mod common;
 use ogm_corners::baselines;
 use ogm_corners::cpu::CpuBackend;
 use ogm_corners::gpu::{GpuBackend, GpuOptions};
-use ogm_corners::synth::{office_map, Rng, FREE, OCCUPIED, UNKNOWN};
+use ogm_corners::synth::{office_map, Rng};
 use ogm_corners::{
     Backend, Baseline, BaselineParams, ClassTable, MapImage, OccupancyMap, RuleSet, RuleTable,
     Thresholds,
@@ -42,44 +42,12 @@ fn assert_same(gpu: &mut GpuBackend, img: &MapImage, thresholds: &Thresholds, wh
     n
 }
 
-fn random_map(w: u32, h: u32, seed: u64) -> MapImage {
-    let mut rng = Rng::new(seed);
-    // Densities vary with the seed so that sparse and dense maps both occur.
-    let occ = 0.15 + 0.3 * (seed % 4) as f64 / 3.0;
-    let px = (0..w as usize * h as usize)
-        .map(|_| {
-            if rng.chance(occ) {
-                OCCUPIED
-            } else if rng.chance(0.15) {
-                UNKNOWN
-            } else {
-                FREE
-            }
-        })
-        .collect();
-    MapImage::new(w, h, px).unwrap()
-}
-
 #[test]
 fn every_three_state_3x3_configuration() {
     let Some(mut gpu) = common::gpu_backend(GpuOptions::default()) else {
         return;
     };
-    // 3^9 configurations as adjacent 3x3 blocks: each block's centre sees exactly its own block.
-    let (cols, n) = (141u32, 3u32.pow(9));
-    let rows = n.div_ceil(cols);
-    let (w, h) = (cols * 3, rows * 3);
-    let mut px = vec![FREE; (w * h) as usize];
-    for c in 0..n {
-        let (bx, by) = ((c % cols) * 3, (c / cols) * 3);
-        let mut v = c;
-        for cell in 0..9 {
-            px[((by + cell / 3) * w + bx + cell % 3) as usize] =
-                [FREE, UNKNOWN, OCCUPIED][(v % 3) as usize];
-            v /= 3;
-        }
-    }
-    let img = MapImage::new(w, h, px).unwrap();
+    let img = common::all_3x3_configurations();
     let total = assert_same(&mut gpu, &img, &Thresholds::default(), "3^9 configurations");
     assert!(total > 1000, "{total}");
 }
@@ -113,7 +81,7 @@ fn random_maps_of_many_sizes() {
     ];
     for (i, (w, h)) in sizes.into_iter().enumerate() {
         for seed in 0..3 {
-            let img = random_map(w, h, (i * 10 + seed) as u64);
+            let img = common::random_map(w, h, (i * 10 + seed) as u64);
             assert_same(&mut gpu, &img, &Thresholds::default(), "random map");
         }
     }
@@ -170,7 +138,7 @@ fn tiled_runs_match_untiled() {
         };
         let mut tiled = common::gpu_backend(opts).unwrap();
         for (w, h) in [(11, 7), (1, 13), (13, 1)] {
-            let img = random_map(w, h, u64::from(w * h));
+            let img = common::random_map(w, h, u64::from(w * h));
             assert_same(&mut tiled, &img, &Thresholds::default(), "tiled random");
         }
     }
@@ -178,7 +146,7 @@ fn tiled_runs_match_untiled() {
 
 #[test]
 fn output_grows_and_splits_instead_of_truncating() {
-    let img = random_map(200, 150, 2);
+    let img = common::random_map(200, 150, 2);
     let opts = GpuOptions {
         initial_keypoint_capacity: 1,
         max_keypoints_per_pass: Some(7),
@@ -224,7 +192,7 @@ fn the_backend_is_reused_across_maps() {
     for (w, h, seed) in [(400, 300, 1), (5, 5, 2), (37, 3, 3), (400, 300, 4)] {
         assert_same(
             &mut gpu,
-            &random_map(w, h, seed),
+            &common::random_map(w, h, seed),
             &Thresholds::default(),
             "reuse",
         );
@@ -331,7 +299,7 @@ fn baselines_on_random_maps_of_many_sizes() {
         (120, 90),
     ];
     for (i, (w, h)) in sizes.into_iter().enumerate() {
-        assert_same_scores(&mut gpu, &random_map(w, h, i as u64), "ternary map");
+        assert_same_scores(&mut gpu, &common::random_map(w, h, i as u64), "ternary map");
         assert_same_scores(&mut gpu, &grey_map(w, h, i as u64 + 100), "grey map");
     }
     assert_same_scores(&mut gpu, &office_map(300, 200, 5).unwrap(), "office map");
@@ -442,7 +410,7 @@ fn maps_stream_through_in_bands_under_a_byte_budget() {
         let img = office_map(w, h, u64::from(w)).unwrap();
         assert_same(&mut gpu, &img, &Thresholds::default(), "banded office map");
         assert!(gpu.stats().tiles > 2, "{budget} bytes must split {w}x{h}");
-        let img = random_map(w, h, u64::from(h));
+        let img = common::random_map(w, h, u64::from(h));
         assert_same(&mut gpu, &img, &Thresholds::default(), "banded random map");
         assert!(gpu.upload_time(&img).unwrap() > std::time::Duration::ZERO);
     }

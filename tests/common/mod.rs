@@ -25,6 +25,43 @@ pub fn art(rows: &[&str]) -> MapImage {
     MapImage::new(w, h, px).unwrap()
 }
 
+/// Three-state maps whose occupied density varies with the seed, so sparse and dense maps both occur.
+pub fn random_map(w: u32, h: u32, seed: u64) -> MapImage {
+    let mut rng = ogm_corners::synth::Rng::new(seed);
+    let occ = 0.15 + 0.3 * (seed % 4) as f64 / 3.0;
+    let px = (0..w as usize * h as usize)
+        .map(|_| {
+            if rng.chance(occ) {
+                OCCUPIED
+            } else if rng.chance(0.15) {
+                UNKNOWN
+            } else {
+                FREE
+            }
+        })
+        .collect();
+    MapImage::new(w, h, px).unwrap()
+}
+
+/// All 3^9 three-state 3x3 neighbourhoods as adjacent 3x3 blocks: each block's centre sees exactly its own
+/// block.
+pub fn all_3x3_configurations() -> MapImage {
+    let (cols, n) = (141u32, 3u32.pow(9));
+    let rows = n.div_ceil(cols);
+    let (w, h) = (cols * 3, rows * 3);
+    let mut px = vec![FREE; (w * h) as usize];
+    for c in 0..n {
+        let (bx, by) = ((c % cols) * 3, (c / cols) * 3);
+        let mut v = c;
+        for cell in 0..9 {
+            px[((by + cell / 3) * w + bx + cell % 3) as usize] =
+                [FREE, UNKNOWN, OCCUPIED][(v % 3) as usize];
+            v /= 3;
+        }
+    }
+    MapImage::new(w, h, px).unwrap()
+}
+
 /// CPU keypoints of an image with the ROS default thresholds.
 pub fn detect(img: &MapImage, rules: RuleSet, unknown_as_occupied: bool) -> Vec<Keypoint> {
     let mut d = Detector::new(DetectOptions {
