@@ -2,7 +2,6 @@
 //! decoded on another thread while the current one is detected, and a progress bar runs on standard error.
 
 use std::collections::HashSet;
-use std::fs;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 use std::sync::mpsc;
@@ -10,6 +9,8 @@ use std::time::Instant;
 
 use indicatif::{ProgressBar, ProgressStyle};
 
+use ogm_corners::files::{self, FileId, Inputs};
+use ogm_corners::memory::Budget;
 use ogm_corners::output::{self, Format};
 use ogm_corners::{overlay, Detector, Error, OccupancyMap, Result};
 
@@ -49,24 +50,55 @@ pub fn map_name(p: &Path) -> String {
     }
 }
 
-/// Detects corners in every map, writing `out_dir/NAME.csv|json` (and `overlay_dir/NAME.png`), and a
-/// line per map on standard output. A map that fails is reported and skipped; the call fails at the end
-/// if any did.
-pub fn detect_many(
-    maps: &[PathBuf],
-    detector: &mut Detector,
-    format: Format,
-    out_dir: &Path,
-    overlay_dir: Option<&Path>,
-) -> Result<()> {
-    for dir in std::iter::once(out_dir).chain(overlay_dir) {
-        fs::create_dir_all(dir).map_err(|e| Error::output(dir, e))?;
-    }
+/// Where and how a batch writes.
+pub struct Plan<'a> {
+    /// Keypoint file format.
+    pub format: Format,
+    /// Folder of the keypoint files, `NAME.csv|json`.
+    pub out_dir: &'a Path,
+    /// Folder of the overlays, `NAME.png`, if wanted.
+    pub overlay_dir: Option<&'a Path>,
+    /// Memory budget per map (the map, the decoder, the detector, the overlay).
+    pub budget: &'a Budget,
+}
+
+/// Detects corners in every map, writing `out_dir/NAME.csv|json` (and `overlay_dir/NAME.png`), each
+/// atomically, and a line per map on standard output. No output may overwrite an input (a map, its yaml or
+/// its image): that is checked for every file before the first map is read. A map that fails is reported
+/// and skipped; the call fails at the end if any did, saying what failed.
+pub fn detect_many(maps: &[PathBuf], detector: &mut Detector, plan: &Plan) -> Result<()> {
+    crate::cli::check_stdout()?;
     let names = output_names(maps);
-    let ext = match format {
+    let ext = match plan.format {
         Format::Csv => "csv",
         Format::Json => "json",
     };
+    let outputs: Vec<(PathBuf, Option<PathBuf>)> = names
+        .iter()
+        .map(|n| {
+            (
+                plan.out_dir.join(format!("{n}.{ext}")),
+                plan.overlay_dir.map(|d| d.join(format!("{n}.png"))),
+            )
+        })
+        .collect();
+    let mut inputs = Inputs::new();
+    for p in maps {
+        inputs.add(p);
+        // A yaml's image too; the yaml is read again (bounded, small) when the map loads.
+        if let Some(img) = yaml_image(p) {
+            inputs.add(&img);
+        }
+    }
+    for (file, png) in &outputs {
+        inputs.claim_output(file, "--output")?;
+        if let Some(png) = png {
+            inputs.claim_output(png, "--overlay")?;
+        }
+    }
+    for dir in std::iter::once(plan.out_dir).chain(plan.overlay_dir) {
+        files::create_dir(dir)?;
+    }
     let bar = ProgressBar::new(maps.len() as u64);
     bar.set_style(
         ProgressStyle::with_template("{bar:30} {pos}/{len} maps, {elapsed} (eta {eta}) {msg}")
@@ -75,41 +107,55 @@ pub fn detect_many(
     let backend = detector.backend_name();
     let options = detector.options();
     let started = Instant::now();
-    let (mut failed, mut input_failures, mut keypoints, mut pixels) =
-        (0usize, 0usize, 0usize, 0f64);
+    let (mut keypoints, mut pixels) = (0usize, 0f64);
+    // What failed, by kind: unreadable maps (bad input) and outputs that could not be written.
+    let (mut bad_maps, mut unwritten, mut other) = (0usize, Vec::new(), 0usize);
     let stdout = std::io::stdout();
     let mut summary = BufWriter::new(stdout.lock());
+    let want_overlay = plan.overlay_dir.is_some();
+    // Each map's budget counts the detector's buffers and the overlay as well as the map.
+    let extra = |detector: &Detector, w: u32, h: u32| {
+        detector
+            .working_bytes(w, h)
+            .saturating_add(if want_overlay {
+                overlay::overlay_bytes(w, h)
+            } else {
+                0
+            })
+    };
     std::thread::scope(|s| -> Result<()> {
         let (tx, rx) = mpsc::sync_channel(READ_AHEAD);
+        let budget = plan.budget;
         s.spawn(move || {
             for path in maps {
+                // The map alone is checked here; with the detector's buffers before detection below.
+                let loaded = OccupancyMap::load_within(path, budget, &|_, _| 0);
                 // The receiver hangs up only when the main loop stops early; then stop reading.
-                if tx.send(OccupancyMap::load(path)).is_err() {
+                if tx.send(loaded).is_err() {
                     break;
                 }
             }
         });
-        for ((path, name), loaded) in maps.iter().zip(&names).zip(rx) {
+        for (((path, name), loaded), (file, png)) in maps.iter().zip(&names).zip(rx).zip(&outputs) {
             bar.set_message(name.clone());
             let result = loaded.and_then(|map| {
                 for w in &map.warnings {
                     bar.suspend(|| eprintln!("ogm-corners: warning: {w}"));
                 }
+                let (w, h) = (map.image.width(), map.image.height());
+                let need = (map.image.len() as u64).saturating_add(extra(detector, w, h));
+                budget.check(
+                    format_args!("{}: a {w}x{h} map and the detector", path.display()),
+                    need,
+                )?;
                 let t = Instant::now();
                 let det = detector.detect(&map)?;
                 let ms = t.elapsed().as_secs_f64() * 1e3;
-                let file = out_dir.join(format!("{name}.{ext}"));
-                let f = fs::File::create(&file).map_err(|e| Error::output(&file, e))?;
-                let mut w = BufWriter::new(f);
-                output::write_keypoints(&mut w, format, &map, &det, &options, &backend)
-                    .and_then(|_| w.flush())
-                    .map_err(|e| Error::output(&file, e))?;
-                if let Some(dir) = overlay_dir {
-                    overlay::write_overlay(
-                        &dir.join(format!("{name}.png")),
-                        &map.image,
-                        &det.keypoints,
-                    )?;
+                files::write_atomic(file, |w| {
+                    output::write_keypoints(w, plan.format, &map, &det, &options, &backend)
+                })?;
+                if let Some(png) = png {
+                    overlay::write_overlay(png, &map.image, &det.keypoints)?;
                 }
                 keypoints += det.keypoints.len();
                 pixels += f64::from(det.width) * f64::from(det.height);
@@ -128,8 +174,11 @@ pub fn detect_many(
                         .map_err(|e| Error::output("<stdout>", e))?;
                 }
                 Err(e) => {
-                    failed += 1;
-                    input_failures += usize::from(matches!(e, Error::Input { .. }));
+                    match &e {
+                        Error::Input { .. } => bad_maps += 1,
+                        Error::Output { .. } => unwritten.push(e.to_string()),
+                        _ => other += 1,
+                    }
                     bar.suspend(|| eprintln!("ogm-corners: error: {e}"));
                 }
             }
@@ -139,6 +188,7 @@ pub fn detect_many(
     })?;
     bar.finish_and_clear();
     let secs = started.elapsed().as_secs_f64();
+    let failed = bad_maps + unwritten.len() + other;
     eprintln!(
         "ogm-corners: {} of {} maps done on {backend}, {keypoints} keypoints, {:.2} s ({:.0} Mpx/s \
          including reading and writing)",
@@ -147,15 +197,45 @@ pub fn detect_many(
         secs,
         pixels / 1e6 / secs.max(1e-9)
     );
-    match failed {
-        0 => Ok(()),
-        n if n == input_failures => Err(Error::Input {
-            path: None,
-            message: format!("{n} of {} maps could not be read (see above)", maps.len()),
-        }),
-        n => Err(Error::Internal(format!(
-            "{n} of {} maps failed (see above)",
-            maps.len()
-        ))),
+    if failed == 0 {
+        return Ok(());
     }
+    let n = maps.len();
+    let mut parts = Vec::new();
+    if bad_maps > 0 {
+        parts.push(format!("{bad_maps} could not be read"));
+    }
+    if let Some(first) = unwritten.first() {
+        parts.push(format!(
+            "{} could not be written (first: {first})",
+            unwritten.len()
+        ));
+    }
+    if other > 0 {
+        parts.push(format!("{other} failed in the detector"));
+    }
+    let message = format!(
+        "{failed} of {n} maps failed: {} (see above)",
+        parts.join(", ")
+    );
+    // Bad maps alone are the input's fault (exit 2); anything else is not.
+    Err(if failed == bad_maps {
+        Error::invalid(message)
+    } else if unwritten.len() == failed {
+        Error::output(plan.out_dir, message)
+    } else {
+        Error::Internal(message)
+    })
+}
+
+/// The image a map yaml names, if `p` is a readable map yaml.
+fn yaml_image(p: &Path) -> Option<PathBuf> {
+    let ext = p.extension()?.to_str()?.to_ascii_lowercase();
+    if ext != "yaml" && ext != "yml" {
+        return None;
+    }
+    let text = files::read_small_text(p, ogm_corners::map::MAX_YAML_BYTES, "a map yaml").ok()?;
+    let meta = ogm_corners::map::MapYaml::parse(&text).ok()?;
+    let img = p.parent().unwrap_or(Path::new("")).join(meta.image);
+    FileId::of(&img).map(|_| img)
 }

@@ -4,10 +4,19 @@
 //! keypoints within `tolerance` pixels of a keypoint of the second set, over the region both maps see,
 //! divided by the smaller of the two counts in that region.
 
-use crate::detector::{Detector, Keypoint};
-use crate::error::Result;
+use std::io::{self, Write};
+
+use image::{Rgb, RgbImage};
+use serde::Serialize;
+
+use crate::detector::{DetectOptions, Detector, DetectorKind, Keypoint};
+use crate::error::{Error, Result};
 use crate::map::{MapImage, OccupancyMap};
+use crate::output::TableFormat;
 use crate::synth::{Rng, FREE, OCCUPIED, UNKNOWN};
+
+/// Most random trials per condition `evaluate` runs (each trial is a transformed copy of the map).
+pub const MAX_TRIALS: u32 = 1000;
 
 /// A known change of a map.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -333,4 +342,188 @@ impl Condition {
             },
         }
     }
+}
+
+/// One row of the evaluation: a detector's mean repeatability on a map under one condition.
+#[derive(Serialize, Debug, Clone, PartialEq)]
+pub struct EvalRecord {
+    /// The map, as named by the caller.
+    pub map: String,
+    /// The detector's name.
+    pub detector: &'static str,
+    /// The condition's name ([`Condition::name`]).
+    pub condition: &'static str,
+    /// The condition's level ([`Condition::level`]).
+    pub level: f64,
+    /// Mean over the trials that had keypoints in the shared region; None when none had.
+    pub repeatability: Option<f64>,
+    /// Trials run.
+    pub trials: u32,
+}
+
+/// Every detector of `kinds` (with default options otherwise) on `map` under every condition: `trials`
+/// random trials per random condition, one per exact one. One transformed pair is in memory at a time.
+pub fn evaluate(
+    detector: &mut Detector,
+    name: &str,
+    map: &MapImage,
+    kinds: &[DetectorKind],
+    trials: u32,
+    seed: u64,
+    tolerance: f64,
+) -> Result<Vec<EvalRecord>> {
+    if !(1..=MAX_TRIALS).contains(&trials) {
+        return Err(Error::invalid(format!(
+            "trials must lie in 1..={MAX_TRIALS}, got {trials}"
+        )));
+    }
+    if !(tolerance.is_finite() && tolerance >= 0.0) {
+        return Err(Error::invalid(format!(
+            "tolerance must be >= 0, got {tolerance}"
+        )));
+    }
+    let (w, h) = (map.width(), map.height());
+    let mut rows = Vec::new();
+    for cond in conditions() {
+        let trials = if cond.is_exact() { 1 } else { trials };
+        let mut scores: Vec<Vec<f64>> = vec![Vec::new(); kinds.len()];
+        for t in 0..trials {
+            let pair = Pair::new(map, cond.transform(w, h, seed, u64::from(t)))?;
+            for (kind, s) in kinds.iter().zip(&mut scores) {
+                detector.set_options(DetectOptions {
+                    detector: *kind,
+                    ..DetectOptions::default()
+                });
+                s.extend(repeatability(detector, &pair, tolerance)?);
+            }
+        }
+        for (kind, s) in kinds.iter().zip(scores) {
+            rows.push(EvalRecord {
+                map: name.to_string(),
+                detector: kind.name(),
+                condition: cond.name,
+                level: cond.level,
+                repeatability: (!s.is_empty()).then(|| s.iter().sum::<f64>() / s.len() as f64),
+                trials,
+            });
+        }
+    }
+    Ok(rows)
+}
+
+/// Bytes [`evaluate`] allocates for a `width` x `height` map beyond the map and the detector: a pair of
+/// transformed maps and the copies the detector reads.
+pub fn evaluate_bytes(width: u32, height: u32) -> u64 {
+    (u64::from(width) * u64::from(height)).saturating_mul(4)
+}
+
+/// Writes the rows as a Markdown table, CSV or JSON.
+pub fn write_table(
+    out: &mut dyn Write,
+    format: TableFormat,
+    rows: &[EvalRecord],
+) -> io::Result<()> {
+    match format {
+        TableFormat::Json => {
+            serde_json::to_writer_pretty(&mut *out, &rows)?;
+            writeln!(out)?;
+        }
+        TableFormat::Csv => {
+            writeln!(out, "map,detector,condition,level,repeatability,trials")?;
+            for r in rows {
+                let rep = r.repeatability.map_or(String::new(), |v| format!("{v:.4}"));
+                writeln!(
+                    out,
+                    "{},{},{},{},{rep},{}",
+                    r.map, r.detector, r.condition, r.level, r.trials
+                )?;
+            }
+        }
+        TableFormat::Md => {
+            writeln!(
+                out,
+                "| map | detector | condition | level | repeatability | trials |"
+            )?;
+            writeln!(out, "|---|---|---|---|---|---|")?;
+            for r in rows {
+                let rep = r
+                    .repeatability
+                    .map_or("n/a".to_string(), |v| format!("{:.1}%", 100.0 * v));
+                writeln!(
+                    out,
+                    "| {} | {} | {} | {} | {rep} | {} |",
+                    r.map, r.detector, r.condition, r.level, r.trials
+                )?;
+            }
+        }
+    }
+    out.flush()
+}
+
+/// The files [`repeatability_plots`] makes.
+pub const PLOT_FILES: [&str; 2] = ["repeatability-noise.png", "repeatability-rotation.png"];
+
+/// Plots of repeatability against noise and rotation, averaged over the maps, a line per detector:
+/// `(file name, picture)` for `repeatability-noise.png` and `repeatability-rotation.png`.
+pub fn repeatability_plots(rows: &[EvalRecord]) -> Vec<(&'static str, RgbImage)> {
+    use crate::plot::{line_plot, Series};
+    let mut plots = Vec::new();
+    let colours = [
+        ("ogm", Rgb([220, 20, 20])),
+        ("harris", Rgb([30, 90, 220])),
+        ("shi-tomasi", Rgb([20, 160, 60])),
+        ("trajkovic", Rgb([240, 140, 0])),
+    ];
+    for (cond, file, x_label, x_scale) in [
+        (
+            "noise",
+            PLOT_FILES[0],
+            "NOISE % (SPECKLE AND WALL JITTER)",
+            100.0,
+        ),
+        (
+            "rotation",
+            PLOT_FILES[1],
+            "ROTATION (DEGREES) WITH RANDOM SHIFT",
+            1.0,
+        ),
+    ] {
+        let series: Vec<Series> = colours
+            .iter()
+            .map(|(det, colour)| {
+                let mut levels: Vec<f64> = rows
+                    .iter()
+                    .filter(|r| r.condition == cond && r.detector == *det)
+                    .map(|r| r.level)
+                    .collect();
+                levels.sort_by(f64::total_cmp);
+                levels.dedup();
+                let points = levels
+                    .into_iter()
+                    .filter_map(|lv| {
+                        let v: Vec<f64> = rows
+                            .iter()
+                            .filter(|r| r.condition == cond && r.detector == *det && r.level == lv)
+                            .filter_map(|r| r.repeatability)
+                            .collect();
+                        (!v.is_empty())
+                            .then(|| (lv * x_scale, v.iter().sum::<f64>() / v.len() as f64))
+                    })
+                    .collect();
+                Series {
+                    label: det.to_uppercase(),
+                    colour: *colour,
+                    points,
+                }
+            })
+            .collect();
+        let maps = rows
+            .iter()
+            .map(|r| &r.map)
+            .collect::<std::collections::BTreeSet<_>>()
+            .len();
+        let title = format!("REPEATABILITY VS {} ({maps} MAPS)", cond.to_uppercase());
+        plots.push((file, line_plot(&title, x_label, &series, 900, 520)));
+    }
+    plots
 }

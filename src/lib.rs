@@ -20,14 +20,19 @@
 //! assert_eq!(corners, vec![(1, 1), (6, 1), (1, 6), (6, 6)]);
 //! ```
 
+pub mod backend;
 pub mod baselines;
+pub mod compare;
 pub mod cpu;
+pub mod decode;
 pub mod detector;
 pub mod error;
 pub mod eval;
 pub mod fast;
+pub mod files;
 pub mod gpu;
 pub mod map;
+pub mod memory;
 pub mod output;
 pub mod overlay;
 pub mod plot;

@@ -1,4 +1,5 @@
-//! `ogm-corners`: the command-line tool. Exit status 0 on success, 2 on bad input or usage, 1 otherwise.
+//! `ogm-corners`: the command-line tool. Exit status 0 on success, 2 on bad input or usage, 1 otherwise;
+//! 130 when interrupted (SIGINT, SIGTERM, SIGHUP), with no half-written output left behind.
 
 mod batch;
 mod cli;
@@ -8,12 +9,24 @@ use std::process::ExitCode;
 use clap::Parser;
 
 fn main() -> ExitCode {
+    cli::guard_standard_descriptors();
+    // Outputs are written to temporary files renamed into place when complete; an interrupted run removes
+    // the ones in progress, so neither a partial output nor a stray temporary file is left.
+    let _ = ctrlc::set_handler(|| {
+        ogm_corners::files::remove_pending();
+        eprintln!("ogm-corners: interrupted; outputs in progress removed");
+        std::process::exit(130);
+    });
     let parsed = match cli::Cli::try_parse() {
         Ok(c) => c,
-        Err(e) => {
-            // Help and version go to stdout with status 0; usage errors exit with 2.
+        Err(e) if !e.use_stderr() => {
+            // Help and version go to standard output with status 0.
             let _ = e.print();
-            return ExitCode::from(if e.use_stderr() { 2 } else { 0 });
+            return ExitCode::SUCCESS;
+        }
+        Err(e) => {
+            eprint!("{}", usage_error(&e.render().to_string()));
+            return ExitCode::from(2);
         }
     };
     // A panic is a bug; report it as an internal failure (status 1), not Rust's default 101.
@@ -21,11 +34,41 @@ fn main() -> ExitCode {
         Ok(Ok(())) => ExitCode::SUCCESS,
         Ok(Err(e)) => {
             eprintln!("ogm-corners: error: {e}");
-            ExitCode::from(cli::exit_code(&e) as u8)
+            ExitCode::from(e.exit_code() as u8)
         }
         Err(_) => {
             eprintln!("ogm-corners: internal error: the tool panicked (a bug; please report it)");
             ExitCode::from(1)
         }
+    }
+}
+
+/// clap's usage error with its first paragraph on one line, led like every other error of the tool
+/// (`ogm-corners: error: ...`), then the usage and the hint as clap writes them.
+fn usage_error(rendered: &str) -> String {
+    let (first, rest) = rendered.split_once("\n\n").unwrap_or((rendered, ""));
+    let first = first.trim().trim_start_matches("error:").trim();
+    let line = first.split_whitespace().collect::<Vec<_>>().join(" ");
+    if rest.trim().is_empty() {
+        format!("ogm-corners: error: {line}\n")
+    } else {
+        format!("ogm-corners: error: {line}\n\n{}\n", rest.trim_end())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn usage_errors_lead_with_one_line() {
+        let clap = "error: the following required arguments were not provided:\n  <MAP>...\n\nUsage: ogm-corners detect <MAP>...\n\nFor more information, try '--help'.\n";
+        let got = super::usage_error(clap);
+        let mut lines = got.lines();
+        assert_eq!(
+            lines.next(),
+            Some(
+                "ogm-corners: error: the following required arguments were not provided: <MAP>..."
+            )
+        );
+        assert!(got.contains("Usage: ogm-corners detect"));
     }
 }

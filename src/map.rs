@@ -2,17 +2,28 @@
 //!
 //! Pixel row 0 is the top of the map. The yaml origin is the pose of the lower-left pixel, as in ROS.
 
-use std::io::Cursor;
+use std::collections::HashSet;
+use std::io::BufReader;
 use std::path::{Path, PathBuf};
 
-use image::{DynamicImage, ImageFormat, ImageReader, Limits};
 use serde_yaml::Value;
 
+use crate::decode::{self, Decoder, ImageKind};
 use crate::error::{Error, Result};
+use crate::files::{self, FileId};
+use crate::memory::Budget;
 
 /// Largest decoded image the loader accepts, in bytes: a 65536 x 65536 8-bit map. Guards against a
 /// header that claims an absurd size, which would otherwise abort the process when allocating.
 pub const MAX_IMAGE_BYTES: u64 = 1 << 32;
+
+/// Largest map yaml read, in bytes. A map yaml is a few hundred bytes; the bound keeps a hostile file
+/// from being read whole or parsed for minutes.
+pub const MAX_YAML_BYTES: u64 = 64 << 10;
+
+/// Deepest nesting of `[` and `{` a map yaml may have (a real one has 1: the origin list). The yaml
+/// parser is quadratic in nesting depth, so deeper files are refused before parsing.
+pub const MAX_YAML_NESTING: usize = 16;
 
 /// An 8-bit greyscale map image, row-major, row 0 at the top.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -84,11 +95,13 @@ impl MapImage {
         self.pixels.is_empty()
     }
 
-    /// Writes the map as a binary PGM (P5).
+    /// Writes the map as a binary PGM (P5), atomically ([`files::write_atomic`]), without a second copy
+    /// of the pixels.
     pub fn write_pgm(&self, path: &Path) -> Result<()> {
-        let mut out = format!("P5\n{} {}\n255\n", self.width, self.height).into_bytes();
-        out.extend_from_slice(&self.pixels);
-        std::fs::write(path, out).map_err(|e| Error::output(path, e))
+        files::write_atomic(path, |out| {
+            write!(out, "P5\n{} {}\n255\n", self.width, self.height)?;
+            out.write_all(&self.pixels)
+        })
     }
 }
 
@@ -156,6 +169,31 @@ impl GeoRef {
         let (s, c) = yaw.sin_cos();
         (ox + c * mx - s * my, oy + s * mx + c * my)
     }
+
+    /// Checks that every pixel of a `width` x `height` map has finite world coordinates (a resolution of
+    /// 1e308 or an origin of 1e308 would make them infinite or NaN).
+    pub fn check_finite(&self, width: u32, height: u32) -> std::result::Result<(), String> {
+        let extent = self.resolution * f64::from(width.max(height));
+        let corners = [
+            (0, 0),
+            (width - 1, 0),
+            (0, height - 1),
+            (width - 1, height - 1),
+        ];
+        let finite = extent.is_finite()
+            && corners.iter().all(|&(x, y)| {
+                let (wx, wy) = self.pixel_to_world(x, y, height);
+                wx.is_finite() && wy.is_finite()
+            });
+        if finite {
+            Ok(())
+        } else {
+            Err(format!(
+                "resolution {} and origin [{}, {}] give non-finite world coordinates for a {width}x{height} map",
+                self.resolution, self.origin[0], self.origin[1]
+            ))
+        }
+    }
 }
 
 /// A map ready for detection: the image, how to read its pixels, and (from a yaml) where it lies.
@@ -188,29 +226,46 @@ impl OccupancyMap {
         }
     }
 
-    /// Loads a `.yaml` (and the image it names) or an image alone (with the ROS default thresholds).
+    /// Loads a `.yaml` (and the image it names) or an image alone (with the ROS default thresholds), within
+    /// the machine's memory budget ([`Budget::machine`]).
     pub fn load(path: impl AsRef<Path>) -> Result<Self> {
-        let path = path.as_ref();
+        Self::load_within(path.as_ref(), &Budget::default(), &|_, _| 0)
+    }
+
+    /// [`OccupancyMap::load`], refusing before the pixels are allocated when the map (`width * height`
+    /// bytes, plus the decoder's buffers, plus `extra(width, height)`: what the caller will allocate for
+    /// it, such as a detector's working memory) would exceed `budget`.
+    pub fn load_within(
+        path: &Path,
+        budget: &Budget,
+        extra: &dyn Fn(u32, u32) -> u64,
+    ) -> Result<Self> {
         let ext = path
             .extension()
             .and_then(|e| e.to_str())
             .map(|e| e.to_ascii_lowercase());
-        match ext.as_deref() {
-            Some("yaml") | Some("yml") => Self::load_yaml(path),
-            _ => {
-                let image = load_image(path)?;
-                Ok(OccupancyMap {
-                    image_path: Some(path.to_path_buf()),
-                    ..Self::from_image(image)
-                })
-            }
+        if matches!(ext.as_deref(), Some("yaml") | Some("yml")) {
+            return Self::load_yaml_within(path, budget, extra);
         }
+        let (image, warnings) = load_image_within(path, budget, extra, None)?;
+        Ok(OccupancyMap {
+            image_path: Some(path.to_path_buf()),
+            warnings,
+            ..Self::from_image(image)
+        })
     }
 
     /// Loads a ROS `map_server` yaml and the image it names (relative to the yaml's folder).
     pub fn load_yaml(path: &Path) -> Result<Self> {
-        let text = std::fs::read_to_string(path)
-            .map_err(|e| Error::input(path, format!("cannot read: {e}")))?;
+        Self::load_yaml_within(path, &Budget::default(), &|_, _| 0)
+    }
+
+    fn load_yaml_within(
+        path: &Path,
+        budget: &Budget,
+        extra: &dyn Fn(u32, u32) -> u64,
+    ) -> Result<Self> {
+        let text = files::read_small_text(path, MAX_YAML_BYTES, "a map yaml")?;
         let meta = MapYaml::parse(&text).map_err(|m| Error::input(path, m))?;
         let image_path = if Path::new(&meta.image).is_absolute() {
             PathBuf::from(&meta.image)
@@ -219,8 +274,12 @@ impl OccupancyMap {
                 .unwrap_or_else(|| Path::new(""))
                 .join(&meta.image)
         };
-        let image = load_image(&image_path)?;
-        let mut warnings = Vec::new();
+        let georef = GeoRef {
+            resolution: meta.resolution,
+            origin: meta.origin,
+        };
+        let check = |w: u32, h: u32| georef.check_finite(w, h).map_err(|m| Error::input(path, m));
+        let (image, mut warnings) = load_image_within(&image_path, budget, extra, Some(&check))?;
         if !meta.origin[2].is_finite() {
             warnings.push(format!(
                 "{}: origin yaw is {}; world coordinates use yaw 0",
@@ -231,10 +290,7 @@ impl OccupancyMap {
         Ok(OccupancyMap {
             image,
             thresholds: meta.thresholds,
-            georef: Some(GeoRef {
-                resolution: meta.resolution,
-                origin: meta.origin,
-            }),
+            georef: Some(georef),
             image_path: Some(image_path),
             yaml_path: Some(path.to_path_buf()),
             warnings,
@@ -263,6 +319,20 @@ pub struct MapYaml {
 impl MapYaml {
     /// Parses the yaml text; the error is a one-line description of the first problem found.
     pub fn parse(text: &str) -> std::result::Result<Self, String> {
+        // Editors on Windows start UTF-8 files with a byte-order mark; it is not part of the yaml.
+        let text = text.strip_prefix('\u{feff}').unwrap_or(text);
+        if text.len() as u64 > MAX_YAML_BYTES {
+            return Err(format!(
+                "{} bytes is too large for a map yaml (at most {MAX_YAML_BYTES})",
+                text.len()
+            ));
+        }
+        let depth = nesting_depth(text);
+        if depth > MAX_YAML_NESTING {
+            return Err(format!(
+                "nested {depth} levels deep; a map yaml is a flat list of keys (at most {MAX_YAML_NESTING} levels)"
+            ));
+        }
         let doc: Value =
             serde_yaml::from_str(text).map_err(|e| format!("broken yaml: {}", one_line(&e)))?;
         let map = match &doc {
@@ -356,133 +426,272 @@ fn one_line(e: &impl std::fmt::Display) -> String {
     e.to_string().replace('\n', " ")
 }
 
-/// Loads a PGM (P2/P5, 8 or 16 bit) or PNG (grey, grey+alpha, RGB, RGBA) as 8-bit grey.
-///
-/// 16-bit images are scaled to 8 bits; colour images are converted by luminance; alpha is ignored, as
-/// ROS does for trinary maps.
-pub fn load_image(path: &Path) -> Result<MapImage> {
-    let bytes = std::fs::read(path).map_err(|e| Error::input(path, format!("cannot read: {e}")))?;
-    decode_image(&bytes, ImageFormat::from_path(path).ok()).map_err(|m| Error::input(path, m))
+/// The deepest nesting of flow collections (`[`, `{`) in yaml text, outside quotes and comments: an upper
+/// bound of what the parser will recurse into.
+fn nesting_depth(text: &str) -> usize {
+    let (mut depth, mut max) = (0usize, 0usize);
+    let mut quote: Option<char> = None;
+    let mut comment = false;
+    let mut prev = '\n';
+    for c in text.chars() {
+        if comment {
+            comment = c != '\n';
+        } else if let Some(q) = quote {
+            if c == q {
+                quote = None;
+            }
+        } else {
+            match c {
+                '"' | '\'' => quote = Some(c),
+                '#' if prev.is_whitespace() => comment = true,
+                '[' | '{' => {
+                    depth += 1;
+                    max = max.max(depth);
+                }
+                ']' | '}' => depth = depth.saturating_sub(1),
+                _ => {}
+            }
+        }
+        prev = c;
+    }
+    max
 }
 
-/// Decodes image bytes; `hint` is the format the file name suggests, used when the content does not say.
+/// Loads a PGM (P2/P5, 8 or 16 bit) or PNG (grey, grey+alpha, RGB, RGBA, palette) as 8-bit grey, within
+/// the machine's memory budget.
+///
+/// 16-bit images are scaled to 8 bits; colour images are converted by luminance; alpha is ignored, as
+/// ROS does for trinary maps. See [`crate::decode`] for what is refused.
+pub fn load_image(path: &Path) -> Result<MapImage> {
+    load_image_within(path, &Budget::default(), &|_, _| 0, None).map(|(img, _)| img)
+}
+
+/// The image kind a file name suggests.
+fn kind_hint(path: &Path) -> Option<ImageKind> {
+    match path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase)
+        .as_deref()
+    {
+        Some("png") => Some(ImageKind::Png),
+        Some("pgm" | "pnm") => Some(ImageKind::Pgm),
+        _ => None,
+    }
+}
+
+/// A check of the header's size before any pixel is read (the yaml's world coordinates).
+type SizeCheck<'a> = &'a dyn Fn(u32, u32) -> Result<()>;
+
+/// Reads the header, checks the size against `budget` (map + decoder buffers + `extra`) and `check`,
+/// then decodes row by row into one buffer: about 1x the map in memory. Returns the image and warnings
+/// (such as trailing bytes ignored).
+pub fn load_image_within(
+    path: &Path,
+    budget: &Budget,
+    extra: &dyn Fn(u32, u32) -> u64,
+    check: Option<SizeCheck>,
+) -> Result<(MapImage, Vec<String>)> {
+    let (file, len) = files::open_regular(path)?;
+    let input = |m: String| Error::input(path, m);
+    let mut dec = Decoder::new(
+        BufReader::with_capacity(1 << 16, file),
+        Some(len),
+        kind_hint(path),
+        budget.limit(),
+    )
+    .map_err(input)?;
+    let (w, h) = (dec.header().width, dec.header().height);
+    if let Some(check) = check {
+        check(w, h)?;
+    }
+    let need = (u64::from(w) * u64::from(h))
+        .saturating_add(dec.header().decoder_bytes)
+        .saturating_add(extra(w, h));
+    budget.check(format_args!("{}: a {w}x{h} map", path.display()), need)?;
+    let mut pixels = vec![0u8; w as usize * h as usize];
+    for row in pixels.chunks_exact_mut(w as usize) {
+        dec.read_row(row).map_err(input)?;
+    }
+    let warnings = dec
+        .finish()
+        .map_err(input)?
+        .into_iter()
+        .map(|m| format!("{}: {m}", path.display()))
+        .collect();
+    Ok((MapImage::new(w, h, pixels)?, warnings))
+}
+
+/// Decodes image bytes in memory; `hint` is the format the file name suggests, used when the content
+/// does not say. Refuses images over [`MAX_IMAGE_BYTES`].
 pub fn decode_image(
     bytes: &[u8],
-    hint: Option<ImageFormat>,
+    hint: Option<ImageKind>,
 ) -> std::result::Result<MapImage, String> {
-    if bytes.is_empty() {
-        return Err("empty file".into());
-    }
-    let mut reader = ImageReader::new(Cursor::new(bytes))
-        .with_guessed_format()
-        .map_err(|e| format!("cannot read: {e}"))?;
-    if reader.format().is_none() {
-        if let Some(h) = hint {
-            reader.set_format(h);
-        }
-    }
-    let format = match reader.format() {
-        Some(f @ (ImageFormat::Png | ImageFormat::Pnm)) => f,
-        Some(f) => {
-            return Err(format!(
-                "unsupported image format {f:?}: expected PGM (P2/P5) or PNG"
-            ))
-        }
-        None => return Err("unknown image format: expected PGM (P2/P5) or PNG".into()),
-    };
-    let mut limits = Limits::default();
-    limits.max_alloc = Some(MAX_IMAGE_BYTES);
-    reader.limits(limits);
-    let img = reader.decode().map_err(|e| {
-        let name = if format == ImageFormat::Png {
-            "PNG"
-        } else {
-            "PGM"
-        };
-        format!(
-            "cannot decode {name} image (truncated or corrupt?): {}",
-            one_line(&e)
-        )
-    })?;
-    let (w, h) = (img.width(), img.height());
-    if w == 0 || h == 0 {
-        return Err(format!("zero-size image ({w}x{h})"));
-    }
-    let grey = match img {
-        DynamicImage::ImageLuma8(g) => g.into_raw(),
-        // to_luma8 scales 16-bit values and takes luminance of colour; it drops alpha.
-        other => other.to_luma8().into_raw(),
-    };
-    MapImage::new(w, h, grey).map_err(|e| e.to_string())
+    let (w, h, pixels, _) = decode::decode_bytes(bytes, hint, MAX_IMAGE_BYTES)?;
+    MapImage::new(w, h, pixels).map_err(|e| e.to_string())
+}
+
+/// What [`find_maps`] found.
+#[derive(Debug, Default)]
+pub struct FoundMaps {
+    /// The maps, files as given and then each folder's in path order.
+    pub maps: Vec<PathBuf>,
+    /// Things left out on purpose, for information: yaml files that are not maps, links back into a
+    /// folder already searched.
+    pub notes: Vec<String>,
+    /// Entries that could not be read (an unreadable folder or yaml, a fifo named like a map, a folder
+    /// with no map): skipped so the rest is processed, but the run should end with an error.
+    pub problems: Vec<String>,
 }
 
 /// The maps named by `inputs`: files as given, and for each folder (searched recursively, in path order,
-/// hidden entries left out) every ROS map yaml plus every PGM/PNG image that no yaml there names. A yaml
-/// that is not a map (ROS packages keep other yaml files beside their maps) is left out with a note in the
-/// second list. A folder with no map is an error rather than a silently empty batch.
-pub fn find_maps(inputs: &[PathBuf]) -> Result<(Vec<PathBuf>, Vec<String>)> {
-    let (mut maps, mut notes) = (Vec::new(), Vec::new());
+/// hidden entries left out, each real folder once however many links lead to it) every ROS map yaml plus
+/// every PGM/PNG image that no yaml there names. A yaml that is not a map (ROS packages keep other yaml
+/// files beside their maps) is left out with a note. Unreadable entries are reported in
+/// [`FoundMaps::problems`] and skipped; they never stop the search.
+pub fn find_maps(inputs: &[PathBuf]) -> FoundMaps {
+    let mut found = FoundMaps::default();
+    let mut seen_dirs: HashSet<FileId> = HashSet::new();
+    let mut seen_files: HashSet<FileId> = HashSet::new();
     for input in inputs {
         if !input.is_dir() {
-            maps.push(input.clone());
+            found.maps.push(input.clone());
             continue;
         }
-        let mut files = Vec::new();
-        let mut stack = vec![input.clone()];
-        while let Some(dir) = stack.pop() {
-            let list_err =
-                |e: std::io::Error| Error::input(&dir, format!("cannot list the folder: {e}"));
-            for entry in std::fs::read_dir(&dir).map_err(list_err)? {
-                let p = entry.map_err(list_err)?.path();
-                let hidden = p
-                    .file_name()
-                    .and_then(|n| n.to_str())
-                    .is_some_and(|n| n.starts_with('.'));
-                if hidden {
-                    continue;
-                } else if p.is_dir() {
-                    stack.push(p);
-                } else {
-                    files.push(p);
-                }
-            }
-        }
-        files.sort();
+        let before = found.maps.len();
+        let files = walk(input, &mut seen_dirs, &mut seen_files, &mut found);
         let ext = |p: &Path| {
             p.extension()
                 .and_then(|e| e.to_str())
                 .map(str::to_ascii_lowercase)
                 .unwrap_or_default()
         };
-        let canon = |p: &Path| p.canonicalize().unwrap_or_else(|_| p.to_path_buf());
-        let before = maps.len();
-        // The images the yamls name, compared as canonical paths.
-        let mut named = Vec::new();
+        // The images the yamls name, compared as file identities (links and spellings alike).
+        let mut named = HashSet::new();
         for y in files
             .iter()
             .filter(|p| matches!(ext(p).as_str(), "yaml" | "yml"))
         {
-            let text = std::fs::read_to_string(y)
-                .map_err(|e| Error::input(y, format!("cannot read: {e}")))?;
+            let text = match files::read_small_text(y, MAX_YAML_BYTES, "a map yaml") {
+                Ok(t) => t,
+                Err(e) if e.to_string().contains("too large") => {
+                    found
+                        .notes
+                        .push(format!("skipped {}: not a map yaml: {e}", y.display()));
+                    continue;
+                }
+                Err(e) => {
+                    found.problems.push(format!("skipped {e}"));
+                    continue;
+                }
+            };
             match MapYaml::parse(&text) {
                 Ok(meta) => {
-                    named.push(canon(&y.parent().unwrap_or(Path::new("")).join(meta.image)));
-                    maps.push(y.clone());
+                    let img = y.parent().unwrap_or(Path::new("")).join(meta.image);
+                    named.extend(FileId::of(&img));
+                    found.maps.push(y.clone());
                 }
-                Err(e) => notes.push(format!("skipped {}: not a map yaml: {e}", y.display())),
+                Err(e) => found
+                    .notes
+                    .push(format!("skipped {}: not a map yaml: {e}", y.display())),
             }
         }
         for p in &files {
-            if matches!(ext(p).as_str(), "pgm" | "png") && !named.contains(&canon(p)) {
-                maps.push(p.clone());
+            if matches!(ext(p).as_str(), "pgm" | "png")
+                && !FileId::of(p).is_some_and(|id| named.contains(&id))
+            {
+                found.maps.push(p.clone());
             }
         }
-        if maps.len() == before {
-            return Err(Error::input(
-                input,
-                "no maps in this folder (looked for .yaml, .pgm and .png files)",
+        if found.maps.len() == before {
+            found.problems.push(format!(
+                "{}: no maps in this folder (looked for .yaml, .pgm and .png files)",
+                input.display()
             ));
         }
     }
-    Ok((maps, notes))
+    found
+}
+
+/// The regular files under `root`, sorted, each real folder and file visited once.
+fn walk(
+    root: &Path,
+    seen_dirs: &mut HashSet<FileId>,
+    seen_files: &mut HashSet<FileId>,
+    found: &mut FoundMaps,
+) -> Vec<PathBuf> {
+    let mut files = Vec::new();
+    let mut stack = vec![root.to_path_buf()];
+    while let Some(dir) = stack.pop() {
+        let Some(id) = FileId::of(&dir) else {
+            found
+                .problems
+                .push(format!("skipped {}: cannot read the folder", dir.display()));
+            continue;
+        };
+        if !seen_dirs.insert(id) {
+            if dir != root {
+                found.notes.push(format!(
+                    "skipped {}: a link to a folder already searched",
+                    dir.display()
+                ));
+            }
+            continue;
+        }
+        let entries = match std::fs::read_dir(&dir) {
+            Ok(e) => e,
+            Err(e) => {
+                found.problems.push(format!(
+                    "skipped {}: cannot list the folder: {e}",
+                    dir.display()
+                ));
+                continue;
+            }
+        };
+        for entry in entries {
+            let p = match entry {
+                Ok(e) => e.path(),
+                Err(e) => {
+                    found
+                        .problems
+                        .push(format!("skipped an entry of {}: {e}", dir.display()));
+                    continue;
+                }
+            };
+            let hidden = p
+                .file_name()
+                .and_then(|n| n.to_str())
+                .is_some_and(|n| n.starts_with('.'));
+            if hidden {
+                continue;
+            }
+            let is_map_name = p
+                .extension()
+                .and_then(|e| e.to_str())
+                .map(str::to_ascii_lowercase)
+                .is_some_and(|e| matches!(e.as_str(), "yaml" | "yml" | "pgm" | "png"));
+            match std::fs::metadata(&p) {
+                Ok(m) if m.is_dir() => stack.push(p),
+                Ok(m) if m.is_file() => {
+                    if seen_files.insert(FileId::from_meta(&p, &m)) {
+                        files.push(p);
+                    }
+                }
+                Ok(m) if is_map_name => found.problems.push(format!(
+                    "skipped {}: not a regular file ({})",
+                    p.display(),
+                    files::kind_of(&m)
+                )),
+                Ok(_) => {}
+                Err(e) if is_map_name => found
+                    .problems
+                    .push(format!("skipped {}: cannot read: {e}", p.display())),
+                // A broken link or unreadable entry that is no map is none of our business.
+                Err(_) => {}
+            }
+        }
+    }
+    files.sort();
+    files
 }

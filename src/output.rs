@@ -7,6 +7,17 @@ use serde::Serialize;
 use crate::detector::{DetectOptions, Detection, DetectorKind};
 use crate::map::OccupancyMap;
 
+/// Formats of the tables `eval` and `compare` print.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TableFormat {
+    /// A Markdown table.
+    Md,
+    /// CSV with a header line.
+    Csv,
+    /// Pretty-printed JSON.
+    Json,
+}
+
 /// Output formats of `detect`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Format {

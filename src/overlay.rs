@@ -4,8 +4,8 @@ use std::path::Path;
 
 use image::{Rgb, RgbImage};
 
-use crate::detector::Keypoint;
-use crate::error::{Error, Result};
+use crate::backend::Keypoint;
+use crate::error::Result;
 use crate::map::MapImage;
 
 /// Marker colour of each rule: 4 orange, 5 red, 6 blue; the baselines' keypoints (rule 0) magenta.
@@ -90,9 +90,17 @@ fn ring(img: &mut RgbImage, cx2: i64, cy2: i64, radius: i64, colour: Rgb<u8>) {
     }
 }
 
-/// Renders and writes the overlay as a PNG.
+/// Bytes [`render_overlay`] allocates for a `width` x `height` map (the RGB picture), for memory budgets.
+pub fn overlay_bytes(width: u32, height: u32) -> u64 {
+    let (s, d) = (
+        u64::from(overlay_scale(width, height)),
+        u64::from(overlay_shrink(width, height)),
+    );
+    let side = |n: u32| u64::from(n).div_ceil(d) * s;
+    3 * side(width) * side(height)
+}
+
+/// Renders and writes the overlay as a PNG, atomically ([`crate::files::write_atomic`]).
 pub fn write_overlay(path: &Path, map: &MapImage, keypoints: &[Keypoint]) -> Result<()> {
-    render_overlay(map, keypoints)
-        .save_with_format(path, image::ImageFormat::Png)
-        .map_err(|e| Error::output(path, e))
+    crate::files::write_png(path, &render_overlay(map, keypoints))
 }

@@ -83,22 +83,29 @@ impl Canvas {
 /// Room sizes in pixels (about 1.2 m to 9 m at 0.05 m/px).
 const MIN_ROOM: u32 = 24;
 
-/// A synthetic office floor as a SLAM map would show it: rooms from recursive splits, corridors, doors,
-/// walls 1-3 px thick, furniture, a few unexplored rooms, sensor speckle and ragged walls, and unknown space
-/// outside the building. The same (size, seed) always gives the same map.
-pub fn office_map(width: u32, height: u32, seed: u64) -> Result<MapImage> {
+/// Checks that [`office_map`] can make a `width` x `height` map: each side at least [`MIN_OFFICE_SIDE`],
+/// at most [`crate::map::MAX_IMAGE_BYTES`] pixels. (It allocates the map once, `width * height` bytes.)
+pub fn check_office_size(width: u32, height: u32) -> Result<()> {
     if width < MIN_OFFICE_SIDE || height < MIN_OFFICE_SIDE {
         return Err(Error::invalid(format!(
             "synthetic office map of {width}x{height} is too small: each side needs at least {MIN_OFFICE_SIDE} px"
         )));
     }
-    let n = width as u64 * height as u64;
-    if n > crate::map::MAX_IMAGE_BYTES {
+    if width as u64 * height as u64 > crate::map::MAX_IMAGE_BYTES {
         return Err(Error::invalid(format!(
             "synthetic map of {width}x{height} exceeds {} pixels",
             crate::map::MAX_IMAGE_BYTES
         )));
     }
+    Ok(())
+}
+
+/// A synthetic office floor as a SLAM map would show it: rooms from recursive splits, corridors, doors,
+/// walls 1-3 px thick, furniture, a few unexplored rooms, sensor speckle and ragged walls, and unknown space
+/// outside the building. The same (size, seed) always gives the same map.
+pub fn office_map(width: u32, height: u32, seed: u64) -> Result<MapImage> {
+    check_office_size(width, height)?;
+    let n = width as u64 * height as u64;
     let mut rng = Rng::new(seed);
     let mut c = Canvas {
         w: width,

@@ -104,7 +104,10 @@ fn a_bad_map_is_reported_and_the_rest_still_run() {
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     let err = stderr(&o);
     assert!(err.contains("broken.pgm"), "{err}");
-    assert!(err.contains("1 of 3 maps could not be read"), "{err}");
+    assert!(
+        err.contains("1 of 3 maps failed: 1 could not be read"),
+        "{err}"
+    );
     for name in ["a", "b"] {
         assert!(out.join(format!("{name}.csv")).is_file(), "{name}.csv");
         assert!(d.join(format!("png/{name}.png")).is_file(), "{name}.png");

@@ -9,19 +9,22 @@ use std::time::Instant;
 
 use clap::{Args, ValueEnum};
 
+use ogm_corners::backend::reference_working_bytes;
 use ogm_corners::baselines;
 use ogm_corners::cpu::{classify::classify, ogm_corners::ogm_corners, CpuBackend};
 use ogm_corners::fast::FastCpuBackend;
+use ogm_corners::files::{self, Inputs};
 use ogm_corners::gpu::{GpuBackend, GpuOptions};
+use ogm_corners::memory::Budget;
 use ogm_corners::synth;
 use ogm_corners::{
-    Backend, Baseline, BaselineParams, ClassTable, DetectorKind, Error, Keypoint, OccupancyMap,
-    Result, RuleSet, RuleTable,
+    Backend, Baseline, BaselineParams, ClassTable, DetectOptions, DetectorKind, Error, Keypoint,
+    OccupancyMap, Result, RuleSet, RuleTable,
 };
 
-use super::{
-    map_name, parse_size, write_stdout, BaselineArgs, RulesArg, TextOrJson, ALL_DETECTORS,
-};
+use crate::batch::map_name;
+
+use super::{parse_size, write_stdout, BaselineArgs, RulesArg, TextOrJson, ALL_DETECTORS};
 
 /// The git commit the binary was built from (build.rs; "unknown" without git).
 const GIT_COMMIT: &str = env!("OGM_GIT_COMMIT");
@@ -78,8 +81,8 @@ pub(super) struct BenchArgs {
     /// Backends: cpu, reference, gpu or all; comma-separated or repeated (e.g. --backend cpu,gpu).
     #[arg(long, value_enum, value_delimiter = ',', default_value = "all")]
     backend: Vec<BenchBackend>,
-    /// Timed runs per measurement (after one warm-up run); the median is reported.
-    #[arg(long, default_value_t = 10, value_parser = clap::value_parser!(u32).range(1..))]
+    /// Timed runs per measurement (after one warm-up run), at most 1000; the median is reported.
+    #[arg(long, default_value_t = 10, value_parser = clap::value_parser!(u32).range(1..=1000))]
     repeat: u32,
     /// Rule reading (OGM detector).
     #[arg(long, value_enum, default_value = "paper")]
@@ -642,7 +645,7 @@ fn save_paths(
         }
         return Ok(vec![Some(save.to_path_buf())]);
     }
-    fs::create_dir_all(save).map_err(|e| Error::output(save, e))?;
+    files::create_dir(save)?;
     Ok(sizes
         .iter()
         .map(|(w, h)| Some(save.join(format!("synthetic-{w}x{h}-seed{seed}.pgm"))))
@@ -679,32 +682,74 @@ struct BenchReport<'a> {
     records: &'a [BenchRecord],
 }
 
-pub(super) fn bench(a: BenchArgs) -> Result<()> {
+/// The most any detector of `kinds` allocates on any backend for a `w` x `h` map, beyond the map: the
+/// reference's full-size buffers, and a GPU's score readback (8 bytes a pixel) for the baselines.
+fn bench_bytes(kinds: &[DetectorKind], w: u32, h: u32) -> u64 {
+    let px = u64::from(w) * u64::from(h);
+    kinds
+        .iter()
+        .map(|&detector| {
+            let options = DetectOptions {
+                detector,
+                ..DetectOptions::default()
+            };
+            reference_working_bytes(&options, w, h).saturating_add(match detector {
+                DetectorKind::Ogm => 0,
+                DetectorKind::Baseline(_) => px.saturating_mul(8),
+            })
+        })
+        .max()
+        .unwrap_or(0)
+}
+
+pub(super) fn bench(a: BenchArgs, budget: &Budget) -> Result<()> {
     let kinds = detector_list(&a.detector);
     let sizes = if a.maps.is_empty() && a.size.is_empty() {
         vec![(4096, 4096)]
     } else {
         a.size.clone()
     };
-    // Every map is found (and every path checked) before the first measurement.
+    super::check_stdout()?;
+    // Every size and path is checked before anything is printed or measured.
+    for &(w, h) in &sizes {
+        synth::check_office_size(w, h)?;
+        let px = u64::from(w) * u64::from(h);
+        budget.check(
+            format_args!("bench --size {w}x{h}"),
+            px.saturating_add(bench_bytes(&kinds, w, h)),
+        )?;
+    }
     let mut sources: Vec<Source> = sizes
         .iter()
         .map(|&(w, h)| Source::Synthetic(w, h))
         .collect();
+    let mut problems = 0;
+    let mut inputs = Inputs::new();
     for p in &a.maps {
         if p.is_dir() {
-            let (maps, notes) = ogm_corners::map::find_maps(std::slice::from_ref(p))?;
-            for n in notes {
-                eprintln!("ogm-corners: bench: {n}");
+            let found = ogm_corners::map::find_maps(std::slice::from_ref(p));
+            for n in found.notes {
+                eprintln!("ogm-corners: bench: note: {n}");
             }
-            sources.extend(maps.into_iter().map(Source::File));
+            for n in &found.problems {
+                eprintln!("ogm-corners: bench: error: {n}");
+            }
+            problems += found.problems.len();
+            for m in &found.maps {
+                inputs.add(m);
+            }
+            sources.extend(found.maps.into_iter().map(Source::File));
         } else if p.exists() {
+            inputs.add(p);
             sources.push(Source::File(p.clone()));
         } else {
             return Err(Error::input(p, "no such file or folder"));
         }
     }
     let saves = save_paths(a.save_map.as_deref(), &sizes, a.seed)?;
+    for s in saves.iter().flatten() {
+        inputs.claim_output(s, "--save-map")?;
+    }
     let mut runner = Runner::new(
         "bench",
         &a.backend,
@@ -765,7 +810,7 @@ pub(super) fn bench(a: BenchArgs) -> Result<()> {
                 }
             }
             Source::File(p) => {
-                let map = OccupancyMap::load(&p)?;
+                let map = OccupancyMap::load_within(&p, budget, &|w, h| bench_bytes(&kinds, w, h))?;
                 BenchMap::from_file(&p, map)
             }
         };
@@ -820,6 +865,11 @@ pub(super) fn bench(a: BenchArgs) -> Result<()> {
             writeln!(out)?;
             out.flush()
         })?;
+    }
+    if problems > 0 {
+        return Err(Error::invalid(format!(
+            "{problems} entries could not be read and were skipped (see above)"
+        )));
     }
     Ok(())
 }

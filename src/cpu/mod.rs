@@ -10,8 +10,8 @@ pub mod shi_tomasi;
 pub mod structure_tensor;
 pub mod trajkovic;
 
+use crate::backend::{Backend, Keypoint};
 use crate::baselines::{self, Baseline, ExactParams};
-use crate::detector::{Backend, Keypoint};
 use crate::error::Result;
 use crate::map::MapImage;
 use crate::rules::RuleTable;

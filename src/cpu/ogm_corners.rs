@@ -1,6 +1,6 @@
 //! CPU twin of the corner kernel: the 8-neighbour code of every free pixel, looked up in the rule table.
 
-use crate::detector::Keypoint;
+use crate::backend::Keypoint;
 use crate::rules::{RuleTable, NEIGHBOUR_OFFSETS};
 use crate::states::CellState;
 

@@ -19,8 +19,8 @@ use rayon::prelude::*;
 
 use super::baseline_tensor::{kernel_supported, TensorRows, TensorScore};
 use super::baseline_trajkovic::TrajkovicRows;
+use crate::backend::Keypoint;
 use crate::baselines::{self, Baseline, BaselineParams, ExactParams};
-use crate::detector::Keypoint;
 use crate::error::Result;
 use crate::map::MapImage;
 
@@ -64,6 +64,11 @@ impl<'a> Scorer<'a> {
 /// hand-made kernels go to the reference.
 fn supported(kind: Baseline, p: &ExactParams) -> bool {
     kind == Baseline::Trajkovic || kernel_supported(p.blur)
+}
+
+/// Whether the fast path computes `kind` with `p` itself (otherwise the reference does).
+pub fn covers(kind: Baseline, p: &ExactParams) -> bool {
+    supported(kind, p)
 }
 
 /// Rows per band for a map `h` rows high.

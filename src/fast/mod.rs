@@ -11,8 +11,8 @@ pub mod baselines;
 pub mod bitplanes;
 pub mod ogm;
 
+use crate::backend::{reference_working_bytes, Backend, DetectOptions, DetectorKind, Keypoint};
 use crate::baselines::{Baseline, BaselineParams, ExactParams};
-use crate::detector::{Backend, Keypoint};
 use crate::error::Result;
 use crate::map::MapImage;
 use crate::rules::RuleTable;
@@ -53,5 +53,28 @@ impl Backend for FastCpuBackend {
         params: &BaselineParams,
     ) -> Result<Vec<Keypoint>> {
         baselines::keypoints(kind, image, params)
+    }
+
+    /// Per band in flight (one per thread at most): OGM keeps 7 rows of bit-planes; the baselines keep
+    /// their rolling rows (blur 3 x i16, horizontal sums 9 x i32, products 3 x i32, scratch, and 3 rows of
+    /// i64 scores: under 96 bytes a column). Baseline options the fast path does not cover fall back to
+    /// the reference.
+    fn working_bytes(&self, options: &DetectOptions, width: u32, height: u32) -> u64 {
+        let (w, h) = (u64::from(width), u64::from(height));
+        let per_band = match options.detector {
+            DetectorKind::Ogm => 7 * 8 * w.div_ceil(64),
+            DetectorKind::Baseline(kind) => {
+                let covered = options
+                    .baseline
+                    .exact()
+                    .is_ok_and(|p| baselines::covers(kind, &p));
+                if !covered {
+                    return reference_working_bytes(options, width, height);
+                }
+                96 * (w + 2)
+            }
+        };
+        let bands = (rayon::current_num_threads() as u64).clamp(1, h.max(1));
+        per_band.saturating_mul(bands)
     }
 }

@@ -11,7 +11,7 @@
 use rayon::prelude::*;
 
 use super::bitplanes::{plane_row, words, ValueSet};
-use crate::detector::Keypoint;
+use crate::backend::Keypoint;
 use crate::map::MapImage;
 use crate::rules::RuleTable;
 use crate::states::{CellState, ClassTable};

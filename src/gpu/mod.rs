@@ -11,8 +11,8 @@ use std::time::Duration;
 
 use wgpu::util::DeviceExt;
 
+use crate::backend::{Backend, DetectOptions, DetectorKind, Keypoint};
 use crate::baselines::{Baseline, ExactParams};
-use crate::detector::{Backend, Keypoint};
 use crate::error::{Error, Result};
 use crate::map::MapImage;
 use crate::rules::RuleTable;
@@ -1017,6 +1017,23 @@ impl GpuBackend {
     }
 }
 
+/// [`Backend::working_bytes`] of a GPU backend opened with `gpu`, known before opening it: two tiles'
+/// staging and readback, and for the baselines the score map read back for selection (8 bytes a pixel).
+pub fn gpu_working_bytes(
+    gpu: &GpuOptions,
+    options: &DetectOptions,
+    width: u32,
+    height: u32,
+) -> u64 {
+    let tiles = gpu.max_tile_bytes.saturating_mul(2);
+    match options.detector {
+        DetectorKind::Ogm => tiles,
+        DetectorKind::Baseline(_) => (u64::from(width) * u64::from(height))
+            .saturating_mul(8)
+            .saturating_add(tiles),
+    }
+}
+
 impl Backend for GpuBackend {
     fn baseline_scores(
         &mut self,
@@ -1050,6 +1067,12 @@ impl Backend for GpuBackend {
 
     fn name(&self) -> String {
         format!("gpu ({}, {})", self.adapter.name, self.adapter.backend)
+    }
+
+    /// The host side: two tiles' staging and readback (bounded by [`GpuOptions::max_tile_bytes`]), and for
+    /// the baselines the score map read back for selection (8 bytes a pixel).
+    fn working_bytes(&self, options: &DetectOptions, width: u32, height: u32) -> u64 {
+        gpu_working_bytes(&self.options, options, width, height)
     }
 
     fn detect(

@@ -1,0 +1,142 @@
+//! What every backend implements and shares: keypoints, detection options and the [`Backend`] trait.
+//!
+//! This is the lower layer: the CPU reference ([`crate::cpu`]), the fast CPU path ([`crate::fast`]) and
+//! the GPU ([`crate::gpu`]) implement it, and [`crate::detector`] drives them.
+
+use serde::Serialize;
+
+use crate::baselines::{self, Baseline, BaselineParams, ExactParams};
+use crate::error::Result;
+use crate::map::MapImage;
+use crate::rules::{RuleSet, RuleTable};
+use crate::states::ClassTable;
+
+/// A corner: pixel coordinates (origin top-left, x right, y down), the rule that fired and the code.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize)]
+pub struct Keypoint {
+    /// Row, counted down from the top. First so that the derived order is (y, x).
+    pub y: u32,
+    /// Column, counted right from the left edge.
+    pub x: u32,
+    /// The rule that accepted the neighbourhood: 4, 5 or 6 occupied neighbours.
+    pub rule: u8,
+    /// The 8-neighbour code (bit order in [`crate::rules`]); 0 for the baselines.
+    pub code: u8,
+    /// The baselines' integer response (see [`crate::baselines`]); 0 for the OGM detector.
+    pub score: i64,
+}
+
+impl Keypoint {
+    /// A baseline keypoint: position and score (rule and code 0).
+    pub fn scored(x: u32, y: u32, score: i64) -> Self {
+        Keypoint {
+            y,
+            x,
+            rule: 0,
+            code: 0,
+            score,
+        }
+    }
+}
+
+/// Which detector.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum DetectorKind {
+    /// The OGM corner detector of the paper (the default).
+    #[default]
+    Ogm,
+    /// One of the paper's baselines.
+    Baseline(Baseline),
+}
+
+impl DetectorKind {
+    /// The name used on the command line and in outputs.
+    pub fn name(self) -> &'static str {
+        match self {
+            DetectorKind::Ogm => "ogm",
+            DetectorKind::Baseline(Baseline::Harris) => "harris",
+            DetectorKind::Baseline(Baseline::ShiTomasi) => "shi-tomasi",
+            DetectorKind::Baseline(Baseline::Trajkovic) => "trajkovic",
+        }
+    }
+}
+
+/// How to detect.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct DetectOptions {
+    /// Which detector.
+    pub detector: DetectorKind,
+    /// The baselines' options (ignored by the OGM detector).
+    pub baseline: BaselineParams,
+    /// Which reading of the paper's rules.
+    pub rules: RuleSet,
+    /// Count unknown neighbours as occupied (by default they count as not occupied).
+    pub unknown_as_occupied: bool,
+}
+
+/// Something that runs the classification and corner kernels: the CPU reference, or a GPU.
+///
+/// Implementations keep whatever set-up they need (devices, pipelines, buffers) between calls.
+pub trait Backend {
+    /// A short name for messages and benchmark records.
+    fn name(&self) -> String;
+
+    /// Classifies `image` with `classes`, then returns every free pixel whose neighbour code `rules`
+    /// accepts, sorted by (y, x).
+    fn detect(
+        &mut self,
+        image: &MapImage,
+        classes: &ClassTable,
+        rules: &RuleTable,
+        unknown_as_occupied: bool,
+    ) -> Result<Vec<Keypoint>>;
+
+    /// The score map of a baseline detector: one integer per pixel, row-major, exactly as
+    /// [`crate::baselines::cpu_scores`] computes it.
+    fn baseline_scores(
+        &mut self,
+        kind: Baseline,
+        image: &MapImage,
+        params: &ExactParams,
+    ) -> Result<Vec<i64>>;
+
+    /// The keypoints of a baseline detector, sorted by (y, x). By default the score map from
+    /// [`Backend::baseline_scores`] goes through the shared selection ([`crate::baselines::select`]); a
+    /// backend may fuse the two as long as the result is identical.
+    fn baseline_keypoints(
+        &mut self,
+        kind: Baseline,
+        image: &MapImage,
+        params: &BaselineParams,
+    ) -> Result<Vec<Keypoint>> {
+        let exact = params.exact()?;
+        let scores = self.baseline_scores(kind, image, &exact)?;
+        Ok(
+            baselines::select(kind, &scores, image.width(), image.height(), params)
+                .into_iter()
+                .map(|(x, y, score)| Keypoint::scored(x, y, score))
+                .collect(),
+        )
+    }
+
+    /// Bytes this backend allocates on the host to detect with `options` in a `width` x `height` map,
+    /// beyond the map itself and the keypoints it returns (24 bytes each, data-dependent): what a caller
+    /// adds to the map's size before checking a memory budget. An upper bound of the buffers that grow
+    /// with the map; the default is the plain reference's full-size buffers.
+    fn working_bytes(&self, options: &DetectOptions, width: u32, height: u32) -> u64 {
+        reference_working_bytes(options, width, height)
+    }
+}
+
+/// The reference's buffers: one state per pixel (OGM); the blurred map, the structure tensor and the score
+/// map (Harris, Shi-Tomasi: 1 + 12 + 8 bytes a pixel), or the low-resolution and full score maps
+/// (Trajkovic: 2 + 8).
+pub fn reference_working_bytes(options: &DetectOptions, width: u32, height: u32) -> u64 {
+    let px = u64::from(width) * u64::from(height);
+    let per_px = match options.detector {
+        DetectorKind::Ogm => 1,
+        DetectorKind::Baseline(Baseline::Harris | Baseline::ShiTomasi) => 21,
+        DetectorKind::Baseline(Baseline::Trajkovic) => 10,
+    };
+    px.saturating_mul(per_px)
+}

@@ -1,0 +1,111 @@
+//! `ogm-corners compare`: the paper's Table I with timings, and a contact sheet per map
+//! (see [`ogm_corners::compare`]).
+
+use std::path::PathBuf;
+
+use clap::Args;
+
+use crate::batch::map_name;
+
+use ogm_corners::backend::reference_working_bytes;
+use ogm_corners::compare::{self, CompareRecord};
+use ogm_corners::files::{self, Inputs};
+use ogm_corners::memory::Budget;
+use ogm_corners::{
+    Baseline, BaselineParams, DetectOptions, DetectorKind, Error, OccupancyMap, Result, RuleSet,
+};
+
+use super::{bench, write_stdout, TableFormat, ALL_DETECTORS};
+
+#[derive(Args, Debug)]
+pub(super) struct CompareArgs {
+    /// Maps (yaml or image).
+    #[arg(required = true)]
+    maps: Vec<PathBuf>,
+    /// Which backends to time: cpu, reference, gpu or all; comma-separated or repeated.
+    #[arg(long, value_enum, value_delimiter = ',', default_values = ["cpu", "reference"])]
+    backend: Vec<bench::BenchBackend>,
+    /// Folder for the table (compare.md) and the contact sheets.
+    #[arg(long, value_name = "DIR", default_value = "compare-out")]
+    out: PathBuf,
+    /// Format of the table on standard output.
+    #[arg(long, value_enum, default_value = "md")]
+    format: TableFormat,
+    /// Timed runs per measurement (after one warm-up), at most 1000; medians are reported.
+    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..=1000))]
+    repeat: u32,
+}
+
+pub(super) fn run(a: CompareArgs, budget: &Budget) -> Result<()> {
+    super::check_stdout()?;
+    // Every path is checked, and no output may overwrite an input, before the first measurement.
+    let mut inputs = Inputs::new();
+    for p in &a.maps {
+        if !p.is_file() {
+            return Err(Error::input(p, "no such file (give map files)"));
+        }
+        inputs.add(p);
+    }
+    let table_path = a.out.join("compare.md");
+    inputs.claim_output(&table_path, "--out")?;
+    let sheets: Vec<PathBuf> = a
+        .maps
+        .iter()
+        .map(|p| a.out.join(format!("{}-contact-sheet.png", map_name(p))))
+        .collect();
+    for s in &sheets {
+        inputs.claim_output(s, "--out")?;
+    }
+    // The same measurement as `bench` (backends checked to agree keypoint for keypoint).
+    let mut runner = bench::Runner::new(
+        "compare",
+        &a.backend,
+        a.repeat,
+        RuleSet::Paper,
+        BaselineParams::default(),
+    )?;
+    files::create_dir(&a.out)?;
+    let mut rows = Vec::new();
+    for (p, sheet_path) in a.maps.iter().zip(&sheets) {
+        // The largest buffers: the reference's for Harris, plus a GPU's score readback, plus the sheet.
+        let harris = DetectOptions {
+            detector: DetectorKind::Baseline(Baseline::Harris),
+            ..DetectOptions::default()
+        };
+        let map = OccupancyMap::load_within(p, budget, &|w, h| {
+            let px = u64::from(w) * u64::from(h);
+            reference_working_bytes(&harris, w, h)
+                .saturating_add(px.saturating_mul(8))
+                .saturating_add(compare::SHEET_BYTES)
+        })?;
+        let bm = bench::BenchMap::from_file(p, map);
+        let name = map_name(p);
+        let mut found = Vec::new();
+        for m in runner.measure_map(&bm, &ALL_DETECTORS)? {
+            let pick = |b: &str, s: &str| {
+                m.records
+                    .iter()
+                    .find(|r| r.backend == b && r.stage == s)
+                    .map(|r| r.median_ms)
+            };
+            rows.push(CompareRecord {
+                map: name.clone(),
+                width: bm.map.image.width(),
+                height: bm.map.image.height(),
+                detector: m.kind.name(),
+                keypoints: m.keypoints.len(),
+                cpu_end_to_end_ms: pick("cpu", "end_to_end"),
+                reference_kernel_ms: pick("reference", "kernel"),
+                reference_end_to_end_ms: pick("reference", "end_to_end"),
+                gpu_kernel_ms: pick("gpu", "kernel"),
+                gpu_end_to_end_ms: pick("gpu", "end_to_end"),
+            });
+            found.push((m.kind, m.keypoints));
+        }
+        files::write_png(sheet_path, &compare::contact_sheet(&name, &bm.map, &found))?;
+        eprintln!("ogm-corners: wrote {}", sheet_path.display());
+    }
+    let md = compare::markdown(&rows);
+    files::write_atomic(&table_path, |out| out.write_all(md.as_bytes()))?;
+    write_stdout(|out| compare::write_table(out, a.format.into(), &rows))
+}

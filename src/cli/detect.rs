@@ -1,0 +1,130 @@
+//! `ogm-corners detect`: keypoints of one map to a file or standard output, or of many maps to a folder.
+
+use std::io::Write;
+use std::path::PathBuf;
+
+use clap::Args;
+
+use crate::batch;
+
+use ogm_corners::files::{self, Inputs};
+use ogm_corners::map::find_maps;
+use ogm_corners::memory::Budget;
+use ogm_corners::output::{self, Format};
+use ogm_corners::{overlay, Error, OccupancyMap, Result};
+
+use super::{write_stdout, DetectOpts, FormatArg};
+
+#[derive(Args, Debug)]
+pub(super) struct DetectArgs {
+    /// The maps: ROS .yaml files (each loads its image too), PGM/PNG images (ROS default thresholds), or
+    /// folders of them. Several maps (or a folder) need --output DIR: one keypoint file per map.
+    #[arg(required = true, value_name = "MAP")]
+    maps: Vec<PathBuf>,
+    #[command(flatten)]
+    opts: DetectOpts,
+    /// Output format.
+    #[arg(long, value_enum, default_value = "csv")]
+    format: FormatArg,
+    /// Write the keypoints to FILE instead of standard output; with several maps, a folder that gets
+    /// NAME.csv (or .json) per map.
+    #[arg(short, long, value_name = "FILE|DIR")]
+    output: Option<PathBuf>,
+    /// Also write a PNG of the map with the keypoints marked; with several maps, a folder of NAME.png.
+    #[arg(long, value_name = "PNG|DIR")]
+    overlay: Option<PathBuf>,
+}
+
+pub(super) fn run(a: DetectArgs, budget: &Budget) -> Result<()> {
+    let format = match a.format {
+        FormatArg::Csv => Format::Csv,
+        FormatArg::Json => Format::Json,
+    };
+    if a.maps.len() > 1 || a.maps[0].is_dir() {
+        return run_batch(a, format, budget);
+    }
+    let path = &a.maps[0];
+    if a.output.is_none() {
+        super::check_stdout()?;
+    }
+    // The map before the backend, so a bad map is the only message; the map, the backend's buffers and
+    // the overlay are counted from the header, before the pixels are read.
+    let overlay_bytes = |w, h| {
+        if a.overlay.is_some() {
+            overlay::overlay_bytes(w, h)
+        } else {
+            0
+        }
+    };
+    let map = OccupancyMap::load_within(path, budget, &|w, h| {
+        a.opts
+            .working_bytes(w, h)
+            .saturating_add(overlay_bytes(w, h))
+    })?;
+    for w in &map.warnings {
+        eprintln!("ogm-corners: warning: {w}");
+    }
+    // Outputs are checked against the map's files before anything is computed or written.
+    let mut inputs = Inputs::new();
+    inputs.add(path);
+    inputs.add_map(&map);
+    if let Some(o) = &a.output {
+        inputs.claim_output(o, "--output")?;
+    }
+    if let Some(o) = &a.overlay {
+        inputs.claim_output(o, "--overlay")?;
+    }
+    let mut detector = a.opts.detector()?;
+    let det = detector.detect(&map)?;
+    let options = detector.options();
+    let backend = detector.backend_name();
+    let write =
+        |out: &mut dyn Write| output::write_keypoints(out, format, &map, &det, &options, &backend);
+    match &a.output {
+        Some(path) => files::write_atomic(path, write)?,
+        None => write_stdout(write)?,
+    }
+    if let Some(png) = &a.overlay {
+        overlay::write_overlay(png, &map.image, &det.keypoints)?;
+    }
+    Ok(())
+}
+
+/// Many maps (or folders) into the folder `--output`: unreadable entries are reported and skipped, and make
+/// the run fail at the end.
+fn run_batch(a: DetectArgs, format: Format, budget: &Budget) -> Result<()> {
+    let Some(out) = a.output.as_deref() else {
+        return Err(Error::invalid(format!(
+            "{} maps: give --output DIR for one keypoint file per map",
+            a.maps.len()
+        )));
+    };
+    let found = find_maps(&a.maps);
+    for n in &found.notes {
+        eprintln!("ogm-corners: note: {n}");
+    }
+    for p in &found.problems {
+        eprintln!("ogm-corners: error: {p}");
+    }
+    if found.maps.is_empty() {
+        return Err(Error::invalid("no maps to detect in (see above)"));
+    }
+    // Set-up (a GPU device and its pipelines) is paid once for the whole batch.
+    let mut detector = a.opts.detector()?;
+    let plan = batch::Plan {
+        format,
+        out_dir: out,
+        overlay_dir: a.overlay.as_deref(),
+        budget,
+    };
+    let done = batch::detect_many(&found.maps, &mut detector, &plan);
+    match (done, found.problems.len()) {
+        (Err(e), _) => Err(e),
+        (Ok(()), 0) => Ok(()),
+        (Ok(()), n) => Err(Error::invalid(format!(
+            "{n} {} could not be read and {} skipped (see above); the other maps are done",
+            if n == 1 { "entry" } else { "entries" },
+            if n == 1 { "was" } else { "were" }
+        ))),
+    }
+}

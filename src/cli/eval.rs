@@ -1,0 +1,99 @@
+//! `ogm-corners eval`: repeatability of every detector under known transforms (see [`ogm_corners::eval`]).
+
+use std::path::PathBuf;
+
+use clap::Args;
+
+use ogm_corners::eval::{self, MAX_TRIALS};
+use ogm_corners::files::{self, Inputs};
+use ogm_corners::memory::Budget;
+use ogm_corners::{DetectOptions, Error, OccupancyMap, Result};
+
+use super::{detector_on, write_stdout, BackendArg, TableFormat, ALL_DETECTORS};
+
+#[derive(Args, Debug)]
+pub(super) struct EvalArgs {
+    /// Maps (yaml or image).
+    #[arg(required = true)]
+    maps: Vec<PathBuf>,
+    /// Random trials per condition (exact transforms run once), at most 1000.
+    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..=i64::from(MAX_TRIALS)))]
+    trials: u32,
+    /// Seed of the random transforms.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Match distance, pixels.
+    #[arg(long, default_value_t = 2.0)]
+    tolerance: f64,
+    /// Output format.
+    #[arg(long, value_enum, default_value = "md")]
+    format: TableFormat,
+    /// Where to run the detectors.
+    #[arg(long, value_enum, default_value = "auto")]
+    backend: BackendArg,
+    /// Also write plots of repeatability against noise and rotation (averaged over the maps) to DIR.
+    #[arg(long, value_name = "DIR")]
+    plot: Option<PathBuf>,
+}
+
+pub(super) fn run(a: EvalArgs, budget: &Budget) -> Result<()> {
+    if !(a.tolerance.is_finite() && a.tolerance >= 0.0) {
+        return Err(Error::invalid(format!(
+            "--tolerance must be a number >= 0, got {}",
+            a.tolerance
+        )));
+    }
+    super::check_stdout()?;
+    // Every path is checked before the first (long) evaluation; the plots must not overwrite a map.
+    let mut inputs = Inputs::new();
+    for p in &a.maps {
+        if !p.is_file() {
+            return Err(Error::input(p, "no such file (give map files)"));
+        }
+        inputs.add(p);
+    }
+    if let Some(dir) = &a.plot {
+        for file in eval::PLOT_FILES {
+            inputs.claim_output(&dir.join(file), "--plot")?;
+        }
+    }
+    // Every detector with its default (the paper's) options.
+    let mut detector = detector_on(a.backend, DetectOptions::default())?;
+    let mut rows = Vec::new();
+    // One map in memory at a time.
+    for p in &a.maps {
+        let map = OccupancyMap::load_within(p, budget, &|w, h| {
+            eval::evaluate_bytes(w, h).saturating_add(
+                ALL_DETECTORS
+                    .iter()
+                    .map(|&d| {
+                        let options = DetectOptions {
+                            detector: d,
+                            ..DetectOptions::default()
+                        };
+                        detector.working_bytes_with(&options, w, h)
+                    })
+                    .max()
+                    .unwrap_or(0),
+            )
+        })?;
+        rows.extend(eval::evaluate(
+            &mut detector,
+            &p.display().to_string(),
+            &map.image,
+            &ALL_DETECTORS,
+            a.trials,
+            a.seed,
+            a.tolerance,
+        )?);
+    }
+    if let Some(dir) = &a.plot {
+        files::create_dir(dir)?;
+        for (file, picture) in eval::repeatability_plots(&rows) {
+            let path = dir.join(file);
+            files::write_png(&path, &picture)?;
+            eprintln!("ogm-corners: wrote {}", path.display());
+        }
+    }
+    write_stdout(|out| eval::write_table(out, a.format.into(), &rows))
+}

@@ -1,0 +1,340 @@
+//! The `ogm-corners` command line: argument parsing and the options shared by the subcommands, one file
+//! per subcommand beside this one. The work itself (detection, pictures, tables) is library code.
+
+mod bench;
+mod compare;
+mod demo;
+mod detect;
+mod eval;
+mod info;
+mod rules;
+
+use std::io::{BufWriter, Write};
+use std::sync::atomic::{AtomicBool, Ordering};
+
+use clap::{Args, Parser, Subcommand, ValueEnum};
+
+use ogm_corners::cpu::CpuBackend;
+use ogm_corners::fast::FastCpuBackend;
+use ogm_corners::gpu::{GpuBackend, GpuOptions};
+use ogm_corners::memory::{self, Budget};
+use ogm_corners::{
+    Backend, Baseline, BaselineParams, DetectOptions, Detector, DetectorKind, Error, Result,
+    RuleSet,
+};
+
+/// Finds corners in robot occupancy grid maps with the OGM corner detector.
+#[derive(Parser, Debug)]
+#[command(name = "ogm-corners", version, about, long_about = None)]
+pub struct Cli {
+    #[command(subcommand)]
+    command: Command,
+    /// Most memory a run may allocate (e.g. 512M, 16G); what a command needs is estimated from the image
+    /// headers and options before anything large is allocated. Default: the OGM_MAX_MEMORY variable, else
+    /// 80% of the machine's memory.
+    #[arg(long, global = true, value_name = "SIZE", value_parser = memory::parse_bytes)]
+    max_memory: Option<u64>,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// Detect corners in a map (a ROS map_server .yaml, or a PGM/PNG image).
+    Detect(detect::DetectArgs),
+    /// Generate a synthetic office map, detect its corners, write map, overlay and keypoints.
+    Demo(demo::DemoArgs),
+    /// Print the rule table: the accepted 8-neighbour codes and the rule that accepts each.
+    Rules(rules::RulesArgs),
+    /// List the GPU adapters wgpu finds (WGPU_BACKEND and WGPU_ADAPTER_NAME select among them).
+    Info(info::InfoArgs),
+    /// Measure every detector on every backend (end to end, kernels, upload; peak memory of the CPU
+    /// backends), median of repeats, on synthetic maps of several sizes and on real maps.
+    Bench(bench::BenchArgs),
+    /// Repeatability of every detector under known transforms: exact turns and mirror, rotations with
+    /// translation, SLAM-like noise, partial overlap.
+    Eval(eval::EvalArgs),
+    /// The paper's Table I with timings: every detector's keypoint count and median times per backend on
+    /// each map, and a contact sheet PNG per map.
+    Compare(compare::CompareArgs),
+}
+
+#[derive(Clone, Copy, Debug, ValueEnum)]
+enum RulesArg {
+    /// The paper's "mod(...) = 0" read as mod 3 (44 codes).
+    Paper,
+    /// The same read as mod 2 (36 codes).
+    PaperMod2,
+}
+
+impl From<RulesArg> for RuleSet {
+    fn from(r: RulesArg) -> Self {
+        match r {
+            RulesArg::Paper => RuleSet::Paper,
+            RulesArg::PaperMod2 => RuleSet::PaperMod2,
+        }
+    }
+}
+
+#[derive(Clone, Copy, Debug, ValueEnum)]
+enum BackendArg {
+    /// A hardware GPU adapter when there is one, else the CPU (says which on standard error).
+    Auto,
+    /// The fast CPU path: all cores, bit-planes and SIMD.
+    Cpu,
+    /// The plain single-threaded CPU reference, the oracle the other backends are tested against.
+    Reference,
+    /// A GPU adapter through wgpu (software adapters such as lavapipe included); fails without one.
+    Gpu,
+}
+
+#[derive(Clone, Copy, Debug, ValueEnum)]
+enum FormatArg {
+    Csv,
+    Json,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+enum DetectorArg {
+    /// The OGM corner detector of the paper.
+    Ogm,
+    /// Harris (Gaussian blur, Sobel, structure tensor, k; OpenCV's cornerHarris).
+    Harris,
+    /// Shi-Tomasi (minimum eigenvalue, OpenCV's goodFeaturesToTrack selection).
+    ShiTomasi,
+    /// Trajkovic-Hedley, 4-neighbour, two resolutions.
+    Trajkovic,
+}
+
+impl From<DetectorArg> for DetectorKind {
+    fn from(d: DetectorArg) -> Self {
+        match d {
+            DetectorArg::Ogm => DetectorKind::Ogm,
+            DetectorArg::Harris => DetectorKind::Baseline(Baseline::Harris),
+            DetectorArg::ShiTomasi => DetectorKind::Baseline(Baseline::ShiTomasi),
+            DetectorArg::Trajkovic => DetectorKind::Baseline(Baseline::Trajkovic),
+        }
+    }
+}
+
+/// The baselines' options; defaults are the paper's configuration.
+#[derive(Args, Debug, Clone)]
+struct BaselineArgs {
+    /// Gaussian sigma of the 3x3 blur before Harris and Shi-Tomasi.
+    #[arg(long, default_value_t = 1.0)]
+    sigma: f64,
+    /// Harris k (at most three decimals).
+    #[arg(long, default_value_t = 0.04)]
+    harris_k: f64,
+    /// Harris and Shi-Tomasi quality level (fraction of the strongest response).
+    #[arg(long, default_value_t = 0.01)]
+    quality: f64,
+    /// Shi-Tomasi minimum distance between keypoints, pixels.
+    #[arg(long, default_value_t = 3.0)]
+    min_distance: f64,
+    /// Shi-Tomasi maximum number of keypoints, strongest first (default: all).
+    #[arg(long)]
+    max_corners: Option<usize>,
+    /// Trajkovic low-resolution threshold T1 (squared grey levels).
+    #[arg(long, default_value_t = 10_000)]
+    t1: u32,
+    /// Trajkovic full-resolution threshold T2 (squared grey levels).
+    #[arg(long, default_value_t = 20_000)]
+    t2: u32,
+}
+
+impl BaselineArgs {
+    fn params(&self) -> BaselineParams {
+        BaselineParams {
+            sigma: self.sigma,
+            harris_k: self.harris_k,
+            quality: self.quality,
+            min_distance: self.min_distance,
+            max_corners: self.max_corners,
+            t1: self.t1,
+            t2: self.t2,
+        }
+    }
+}
+
+#[derive(Args, Debug)]
+struct DetectOpts {
+    /// Which detector.
+    #[arg(long, value_enum, default_value = "ogm")]
+    detector: DetectorArg,
+    #[command(flatten)]
+    baseline: BaselineArgs,
+    /// Which reading of the paper's rules to use (OGM detector).
+    #[arg(long, value_enum, default_value = "paper")]
+    rules: RulesArg,
+    /// Count unknown neighbours as occupied.
+    #[arg(long)]
+    unknown_as_occupied: bool,
+    /// Where to run the detector.
+    #[arg(long, value_enum, default_value = "auto")]
+    backend: BackendArg,
+}
+
+impl DetectOpts {
+    fn options(&self) -> DetectOptions {
+        DetectOptions {
+            detector: self.detector.into(),
+            baseline: self.baseline.params(),
+            rules: self.rules.into(),
+            unknown_as_occupied: self.unknown_as_occupied,
+        }
+    }
+
+    fn detector(&self) -> Result<Detector> {
+        detector_on(self.backend, self.options())
+    }
+
+    /// What the chosen backend will allocate for a `w` x `h` map (with `auto`, the larger of the GPU's
+    /// and the CPU's), known before the backend is opened, so a map can be refused from its header.
+    fn working_bytes(&self, w: u32, h: u32) -> u64 {
+        let o = self.options();
+        let gpu = || ogm_corners::gpu::gpu_working_bytes(&GpuOptions::default(), &o, w, h);
+        match self.backend {
+            BackendArg::Cpu => FastCpuBackend.working_bytes(&o, w, h),
+            BackendArg::Reference => CpuBackend.working_bytes(&o, w, h),
+            BackendArg::Gpu => gpu(),
+            BackendArg::Auto => FastCpuBackend.working_bytes(&o, w, h).max(gpu()),
+        }
+    }
+}
+
+/// A detector with `options` on the backend the user chose (auto says which on standard error).
+fn detector_on(backend: BackendArg, options: DetectOptions) -> Result<Detector> {
+    Ok(match backend {
+        BackendArg::Cpu => Detector::new(options),
+        BackendArg::Reference => Detector::with_backend(options, Box::new(CpuBackend)),
+        BackendArg::Gpu => {
+            Detector::with_backend(options, Box::new(GpuBackend::new(GpuOptions::default())?))
+        }
+        BackendArg::Auto => match GpuBackend::open(true, GpuOptions::default()) {
+            Ok(Some(g)) => {
+                eprintln!(
+                    "ogm-corners: backend: gpu ({}, {})",
+                    g.adapter().name,
+                    g.adapter().backend
+                );
+                Detector::with_backend(options, Box::new(g))
+            }
+            Ok(None) => {
+                eprintln!("ogm-corners: backend: cpu (no hardware GPU adapter found; --backend gpu accepts software ones)");
+                Detector::new(options)
+            }
+            Err(e @ Error::Input { .. }) => return Err(e),
+            Err(e) => {
+                eprintln!("ogm-corners: backend: cpu (the GPU could not be opened: {e})");
+                Detector::new(options)
+            }
+        },
+    })
+}
+
+/// Parses `WIDTHxHEIGHT`.
+fn parse_size(s: &str) -> std::result::Result<(u32, u32), String> {
+    let (w, h) = s
+        .split_once(['x', 'X'])
+        .ok_or_else(|| format!("expected WIDTHxHEIGHT, got `{s}`"))?;
+    let w: u32 = w.trim().parse().map_err(|_| format!("bad width `{w}`"))?;
+    let h: u32 = h.trim().parse().map_err(|_| format!("bad height `{h}`"))?;
+    if w == 0 || h == 0 {
+        return Err(format!("zero-size map {w}x{h}"));
+    }
+    Ok((w, h))
+}
+
+/// Runs a parsed command line.
+pub fn run(cli: Cli) -> Result<()> {
+    let budget = Budget::from_option(cli.max_memory)?;
+    match cli.command {
+        Command::Detect(a) => detect::run(a, &budget),
+        Command::Demo(a) => demo::run(a, &budget),
+        Command::Rules(a) => rules::run(a),
+        Command::Info(a) => info::run(a),
+        Command::Bench(a) => bench::bench(a, &budget),
+        Command::Eval(a) => eval::run(a, &budget),
+        Command::Compare(a) => compare::run(a, &budget),
+    }
+}
+
+/// Set when the process started with standard output closed (`>&-`).
+static STDOUT_CLOSED: AtomicBool = AtomicBool::new(false);
+
+/// Run first: notes whether standard output was closed when the process started. Rust's runtime reopens
+/// a closed standard descriptor as /dev/null before `main` (so no file opened later takes its number), and
+/// writes there succeed silently; [`write_stdout`] turns them into an error instead.
+pub fn guard_standard_descriptors() {
+    #[cfg(unix)]
+    STDOUT_CLOSED.store(stdout_was_closed(), Ordering::Relaxed);
+}
+
+/// Whether fd 1 is the /dev/null that Rust's runtime put in place of a closed descriptor: opened
+/// read-write, which a shell's `>/dev/null` (write-only) never is.
+#[cfg(unix)]
+fn stdout_was_closed() -> bool {
+    use rustix::fs::{fcntl_getfl, fstat, FileType, OFlags};
+    use std::os::unix::fs::MetadataExt;
+    let out = std::io::stdout();
+    let (Ok(flags), Ok(st)) = (fcntl_getfl(&out), fstat(&out)) else {
+        return true;
+    };
+    let null = std::fs::metadata("/dev/null").map(|m| m.rdev()).ok();
+    flags.contains(OFlags::RDWR)
+        && FileType::from_raw_mode(st.st_mode) == FileType::CharacterDevice
+        && Some(st.st_rdev) == null
+}
+
+/// Whether standard output can be written: an error naming it when it was closed at start.
+pub fn check_stdout() -> Result<()> {
+    if STDOUT_CLOSED.load(Ordering::Relaxed) {
+        return Err(Error::output(
+            "<stdout>",
+            "standard output is closed; redirect it or give --output",
+        ));
+    }
+    Ok(())
+}
+
+/// Writes to standard output; a closed pipe (`| head`) ends quietly rather than as an error, a standard
+/// output closed from the start is an error.
+fn write_stdout(f: impl FnOnce(&mut dyn Write) -> std::io::Result<()>) -> Result<()> {
+    check_stdout()?;
+    let stdout = std::io::stdout();
+    let mut out = BufWriter::new(stdout.lock());
+    match f(&mut out).and_then(|_| out.flush()) {
+        Ok(()) => Ok(()),
+        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
+        Err(e) => Err(Error::output("<stdout>", e)),
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+enum TextOrJson {
+    Text,
+    Json,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+enum TableFormat {
+    Md,
+    Csv,
+    Json,
+}
+
+impl From<TableFormat> for ogm_corners::output::TableFormat {
+    fn from(f: TableFormat) -> Self {
+        match f {
+            TableFormat::Md => Self::Md,
+            TableFormat::Csv => Self::Csv,
+            TableFormat::Json => Self::Json,
+        }
+    }
+}
+
+const ALL_DETECTORS: [DetectorKind; 4] = [
+    DetectorKind::Ogm,
+    DetectorKind::Baseline(Baseline::Harris),
+    DetectorKind::Baseline(Baseline::ShiTomasi),
+    DetectorKind::Baseline(Baseline::Trajkovic),
+];

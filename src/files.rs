@@ -1,0 +1,507 @@
+//! Files the tool reads and writes, made safe against careless and hostile use.
+//!
+//! - Outputs are written to a temporary file in the target's folder and renamed into place only when
+//!   complete ([`AtomicFile`], [`write_atomic`]): a reader sees the old file or the whole new one, never a
+//!   truncated one, also on a full disk, a crash or two runs writing the same file. Temporary files of an
+//!   interrupted run are removed by [`remove_pending`] (the command-line tool calls it on SIGINT/SIGTERM).
+//! - Outputs that would overwrite an input are refused ([`Inputs`]).
+//! - Inputs are opened only when they are regular files ([`open_regular`]): a fifo would block forever, a
+//!   device such as `/dev/zero` never ends.
+
+use std::fs::{self, File};
+use std::io::{self, BufWriter, Read, Write};
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+
+use crate::error::{Error, Result};
+
+/// Temporary files being written now, removed by [`remove_pending`] when the process is interrupted.
+static PENDING: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+
+fn pending() -> std::sync::MutexGuard<'static, Vec<PathBuf>> {
+    // A panic while holding the lock leaves a list that is still valid.
+    PENDING.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// Removes every temporary output file not yet renamed into place; for a signal handler that then exits.
+pub fn remove_pending() {
+    for p in pending().drain(..) {
+        let _ = fs::remove_file(p);
+    }
+}
+
+/// An output file being written: a temporary file beside the target, renamed onto it by
+/// [`AtomicFile::commit`]. Dropped without a commit, the temporary file is removed and the target is left
+/// as it was.
+///
+/// A target that exists and is not a regular file (`/dev/null`, a fifo, a terminal) is written directly:
+/// renaming onto it would replace the device, and such targets have no old content to protect.
+pub struct AtomicFile {
+    target: PathBuf,
+    /// None only after [`AtomicFile::commit`] took it.
+    inner: Option<Inner>,
+}
+
+enum Inner {
+    /// The open temporary file, and its path (removed when dropped, unless persisted).
+    Temp(BufWriter<File>, tempfile::TempPath),
+    Direct(BufWriter<File>),
+}
+
+impl AtomicFile {
+    /// Starts writing `target` (a symbolic link is followed: the file it points to is replaced).
+    pub fn create(target: &Path) -> Result<Self> {
+        let out_err = |e: &dyn std::fmt::Display| Error::output(target, e.to_string());
+        match fs::metadata(target) {
+            Ok(m) if m.is_dir() => return Err(out_err(&"is a folder")),
+            Ok(m) if !m.is_file() => {
+                let f = fs::OpenOptions::new()
+                    .write(true)
+                    .open(target)
+                    .map_err(|e| out_err(&e))?;
+                return Ok(AtomicFile {
+                    target: target.to_path_buf(),
+                    inner: Some(Inner::Direct(BufWriter::new(f))),
+                });
+            }
+            _ => {}
+        }
+        // Write beside the file a link points to, so the rename replaces that file and keeps the link.
+        let real = match fs::canonicalize(target) {
+            Ok(p) => p,
+            Err(_) => target.to_path_buf(),
+        };
+        let dir = match real.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+            _ => PathBuf::from("."),
+        };
+        let name = real
+            .file_name()
+            .ok_or_else(|| out_err(&"not a file name"))?
+            .to_string_lossy()
+            .into_owned();
+        let mut builder = tempfile::Builder::new();
+        // Hidden, and named after the target, so a stray one (after a power cut) says where it came from.
+        let prefix = format!(".{name}.");
+        builder.prefix(&prefix).suffix(".tmp");
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::PermissionsExt;
+            // The mode a plain create would give (umask applies), not tempfile's private 0600.
+            builder.permissions(fs::Permissions::from_mode(0o666));
+        }
+        let temp = builder.tempfile_in(&dir).map_err(|e| out_err(&e))?;
+        pending().push(temp.path().to_path_buf());
+        // Written through the plain file, so errors read as the system's ("No space left on device").
+        let (file, path) = temp.into_parts();
+        Ok(AtomicFile {
+            target: real,
+            inner: Some(Inner::Temp(BufWriter::with_capacity(1 << 16, file), path)),
+        })
+    }
+
+    /// The final path.
+    pub fn target(&self) -> &Path {
+        &self.target
+    }
+
+    /// Flushes, syncs (so a full disk shows up here, not later) and renames the file into place.
+    pub fn commit(mut self) -> Result<()> {
+        let target = std::mem::take(&mut self.target);
+        let err = |e: io::Error| Error::output(&target, e);
+        let Some(inner) = self.inner.take() else {
+            return Ok(());
+        };
+        match inner {
+            Inner::Direct(mut w) => w.flush().map_err(err),
+            Inner::Temp(w, path) => {
+                let name = path.to_path_buf();
+                let done = w
+                    .into_inner()
+                    .map_err(|e| e.into_error())
+                    .and_then(|f| f.sync_all())
+                    .and_then(|_| path.persist(&target).map_err(|e| e.error));
+                pending().retain(|p| p != &name);
+                // On failure the TempPath (dropped with the error) removes the temporary file.
+                done.map_err(err)
+            }
+        }
+    }
+}
+
+impl Drop for AtomicFile {
+    fn drop(&mut self) {
+        if let Some(Inner::Temp(_, path)) = &self.inner {
+            let path = path.to_path_buf();
+            pending().retain(|p| p != &path);
+        }
+    }
+}
+
+impl AtomicFile {
+    fn writer(&mut self) -> io::Result<&mut dyn Write> {
+        match &mut self.inner {
+            Some(Inner::Temp(w, _)) => Ok(w),
+            Some(Inner::Direct(w)) => Ok(w),
+            None => Err(io::Error::other("output already committed")),
+        }
+    }
+}
+
+impl Write for AtomicFile {
+    fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
+        self.writer()?.write(buf)
+    }
+
+    fn write_all(&mut self, buf: &[u8]) -> io::Result<()> {
+        self.writer()?.write_all(buf)
+    }
+
+    fn flush(&mut self) -> io::Result<()> {
+        self.writer()?.flush()
+    }
+}
+
+/// Writes `path` atomically with `f`: the file appears, complete, only when `f` succeeded.
+pub fn write_atomic(path: &Path, f: impl FnOnce(&mut dyn Write) -> io::Result<()>) -> Result<()> {
+    let mut file = AtomicFile::create(path)?;
+    f(&mut file).map_err(|e| Error::output(path, e))?;
+    file.commit()
+}
+
+/// Writes a PNG atomically.
+pub fn write_png(path: &Path, img: &image::RgbImage) -> Result<()> {
+    write_atomic(path, |w| {
+        let mut buf = io::BufWriter::new(w);
+        img.write_to(&mut WriteSeek(&mut buf), image::ImageFormat::Png)
+            .map_err(io::Error::other)?;
+        buf.flush()
+    })
+}
+
+/// The image crate's encoders want `Seek`; PNG encoding only ever writes forward, so seeking is refused.
+struct WriteSeek<W>(W);
+
+impl<W: Write> Write for WriteSeek<W> {
+    fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
+        self.0.write(buf)
+    }
+    fn flush(&mut self) -> io::Result<()> {
+        self.0.flush()
+    }
+}
+
+impl<W: Write> io::Seek for WriteSeek<W> {
+    fn seek(&mut self, _: io::SeekFrom) -> io::Result<u64> {
+        Err(io::Error::new(
+            io::ErrorKind::Unsupported,
+            "the PNG encoder tried to seek",
+        ))
+    }
+}
+
+/// Creates `dir` (and its parents) unless it exists; a file in its place is an error.
+pub fn create_dir(dir: &Path) -> Result<()> {
+    fs::create_dir_all(dir).map_err(|e| Error::output(dir, e))
+}
+
+/// Opens `path` for reading when it is a regular file (after following links), with its length. Fifos,
+/// devices and folders are refused before opening: reading them would block or never end.
+pub fn open_regular(path: &Path) -> Result<(File, u64)> {
+    let meta = fs::metadata(path).map_err(|e| Error::input(path, format!("cannot read: {e}")))?;
+    if !meta.is_file() {
+        return Err(Error::input(
+            path,
+            format!("not a regular file ({})", kind_of(&meta)),
+        ));
+    }
+    let f = File::open(path).map_err(|e| Error::input(path, format!("cannot read: {e}")))?;
+    Ok((f, meta.len()))
+}
+
+/// What kind of file system entry `meta` describes, for messages.
+pub fn kind_of(meta: &fs::Metadata) -> &'static str {
+    let t = meta.file_type();
+    if t.is_dir() {
+        return "a folder";
+    }
+    if t.is_file() {
+        return "a file";
+    }
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::FileTypeExt;
+        if t.is_fifo() {
+            return "a fifo";
+        }
+        if t.is_char_device() || t.is_block_device() {
+            return "a device";
+        }
+        if t.is_socket() {
+            return "a socket";
+        }
+    }
+    "a special file"
+}
+
+/// Reads a small text file whole, refusing files over `max` bytes before reading them.
+pub fn read_small_text(path: &Path, max: u64, what: &str) -> Result<String> {
+    let (f, len) = open_regular(path)?;
+    if len > max {
+        return Err(Error::input(
+            path,
+            format!("{len} bytes is too large for {what} (at most {max})"),
+        ));
+    }
+    let mut bytes = Vec::with_capacity(len as usize);
+    // `take` also bounds a file that grows while it is read.
+    f.take(max + 1)
+        .read_to_end(&mut bytes)
+        .map_err(|e| Error::input(path, format!("cannot read: {e}")))?;
+    if bytes.len() as u64 > max {
+        return Err(Error::input(
+            path,
+            format!("too large for {what} (over {max} bytes)"),
+        ));
+    }
+    String::from_utf8(bytes).map_err(|e| {
+        Error::input(
+            path,
+            format!(
+                "not UTF-8 text (invalid byte at offset {})",
+                e.utf8_error().valid_up_to()
+            ),
+        )
+    })
+}
+
+/// The identity of an existing file: device and inode on Unix, so hard links, symbolic links and other
+/// spellings of one file compare equal; the canonical path elsewhere.
+#[derive(Clone, Debug, PartialEq, Eq, Hash)]
+pub struct FileId(IdInner);
+
+#[derive(Clone, Debug, PartialEq, Eq, Hash)]
+enum IdInner {
+    #[cfg(unix)]
+    Inode(u64, u64),
+    #[cfg_attr(unix, allow(dead_code))]
+    Path(PathBuf),
+}
+
+impl FileId {
+    /// The identity of `path` (links followed), or None when it does not exist.
+    pub fn of(path: &Path) -> Option<FileId> {
+        let meta = fs::metadata(path).ok()?;
+        Some(Self::from_meta(path, &meta))
+    }
+
+    /// The identity from metadata already read for `path`.
+    pub fn from_meta(path: &Path, meta: &fs::Metadata) -> FileId {
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::MetadataExt;
+            let _ = path;
+            FileId(IdInner::Inode(meta.dev(), meta.ino()))
+        }
+        #[cfg(not(unix))]
+        {
+            let _ = meta;
+            FileId(IdInner::Path(
+                fs::canonicalize(path).unwrap_or_else(|_| path.to_path_buf()),
+            ))
+        }
+    }
+}
+
+/// The input files of a run, so that no output overwrites one (`-o map.pgm`, an overlay folder that is
+/// the map folder), and no two outputs of one run are the same file.
+#[derive(Default, Debug)]
+pub struct Inputs {
+    files: Vec<(FileId, PathBuf)>,
+    outputs: Vec<(PathBuf, String)>,
+}
+
+impl Inputs {
+    /// No inputs yet.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Records an input file (missing files are ignored: loading them reports the error).
+    pub fn add(&mut self, path: &Path) {
+        if let Some(id) = FileId::of(path) {
+            self.files.push((id, path.to_path_buf()));
+        }
+    }
+
+    /// Records the files a map is made of: the path given, its yaml and its image.
+    pub fn add_map(&mut self, map: &crate::map::OccupancyMap) {
+        for p in [map.yaml_path.as_deref(), map.image_path.as_deref()]
+            .into_iter()
+            .flatten()
+        {
+            self.add(p);
+        }
+    }
+
+    /// Refuses `output` (named by `option`, e.g. "--overlay") when it is one of the inputs or an output
+    /// already claimed in this run; otherwise claims it.
+    pub fn claim_output(&mut self, output: &Path, option: &str) -> Result<()> {
+        if let Some(id) = FileId::of(output) {
+            if let Some((_, input)) = self.files.iter().find(|(i, _)| *i == id) {
+                return Err(Error::invalid(format!(
+                    "{option} {} is the input {}: refusing to overwrite it",
+                    output.display(),
+                    input.display()
+                )));
+            }
+        }
+        let resolved = resolve(output);
+        if let Some((_, other)) = self.outputs.iter().find(|(p, _)| *p == resolved) {
+            return Err(Error::invalid(format!(
+                "{option} {} is also the output of {other}: give different paths",
+                output.display()
+            )));
+        }
+        self.outputs.push((resolved, option.to_string()));
+        Ok(())
+    }
+}
+
+/// `path` with its folder made canonical (links resolved), for comparing paths of files that may not
+/// exist yet.
+pub fn resolve(path: &Path) -> PathBuf {
+    if let Ok(p) = fs::canonicalize(path) {
+        return p;
+    }
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    match (fs::canonicalize(dir), path.file_name()) {
+        (Ok(d), Some(n)) => d.join(n),
+        _ => path.to_path_buf(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn dir(name: &str) -> PathBuf {
+        let d = std::env::temp_dir().join(format!("ogm-files-{}-{name}", std::process::id()));
+        let _ = fs::remove_dir_all(&d);
+        fs::create_dir_all(&d).unwrap();
+        d
+    }
+
+    fn entries(d: &Path) -> Vec<String> {
+        let mut v: Vec<String> = fs::read_dir(d)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        v.sort();
+        v
+    }
+
+    #[test]
+    fn a_failed_write_keeps_the_old_file_and_leaves_no_temporary() {
+        let d = dir("fail");
+        let p = d.join("out.csv");
+        fs::write(&p, "old\n").unwrap();
+        let r = write_atomic(&p, |w| {
+            w.write_all(b"half a line")?;
+            Err(io::Error::other("disk full"))
+        });
+        assert!(r.is_err());
+        assert_eq!(fs::read_to_string(&p).unwrap(), "old\n");
+        assert_eq!(entries(&d), ["out.csv"]);
+        write_atomic(&p, |w| w.write_all(b"new\n")).unwrap();
+        assert_eq!(fs::read_to_string(&p).unwrap(), "new\n");
+        assert_eq!(entries(&d), ["out.csv"]);
+    }
+
+    #[test]
+    fn nothing_appears_before_commit_and_pending_files_are_removed() {
+        let d = dir("pending");
+        let p = d.join("k.json");
+        let mut f = AtomicFile::create(&p).unwrap();
+        f.write_all(b"{").unwrap();
+        f.flush().unwrap();
+        assert!(!p.exists());
+        assert_eq!(entries(&d).len(), 1, "one temporary file");
+        remove_pending();
+        assert!(entries(&d).is_empty());
+        drop(f);
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn a_link_is_kept_and_its_file_replaced_and_devices_are_written_directly() {
+        let d = dir("link");
+        let real = d.join("real.csv");
+        fs::write(&real, "old").unwrap();
+        let link = d.join("link.csv");
+        std::os::unix::fs::symlink(&real, &link).unwrap();
+        write_atomic(&link, |w| w.write_all(b"new")).unwrap();
+        assert!(fs::symlink_metadata(&link)
+            .unwrap()
+            .file_type()
+            .is_symlink());
+        assert_eq!(fs::read_to_string(&real).unwrap(), "new");
+        write_atomic(Path::new("/dev/null"), |w| w.write_all(b"x")).unwrap();
+        assert!(fs::metadata("/dev/null")
+            .unwrap()
+            .file_type()
+            .is_char_device_like());
+    }
+
+    trait CharDev {
+        fn is_char_device_like(&self) -> bool;
+    }
+    impl CharDev for fs::FileType {
+        fn is_char_device_like(&self) -> bool {
+            #[cfg(unix)]
+            {
+                use std::os::unix::fs::FileTypeExt;
+                self.is_char_device()
+            }
+            #[cfg(not(unix))]
+            {
+                true
+            }
+        }
+    }
+
+    #[test]
+    fn outputs_equal_to_inputs_or_to_each_other_are_refused() {
+        let d = dir("inputs");
+        let map = d.join("map.pgm");
+        fs::write(&map, "P5\n1 1\n255\n\0").unwrap();
+        let mut inputs = Inputs::new();
+        inputs.add(&map);
+        let spelled = d.join(".").join("map.pgm");
+        let e = inputs.claim_output(&spelled, "-o").unwrap_err();
+        assert!(e.to_string().contains("refusing to overwrite"), "{e}");
+        inputs.claim_output(&d.join("a.csv"), "-o").unwrap();
+        let e = inputs
+            .claim_output(&d.join(".").join("a.csv"), "--overlay")
+            .unwrap_err();
+        assert!(e.to_string().contains("also the output of -o"), "{e}");
+    }
+
+    #[test]
+    fn non_regular_inputs_and_large_texts_are_refused_before_reading() {
+        let e = open_regular(Path::new("/dev/zero")).unwrap_err();
+        assert!(
+            e.to_string().contains("not a regular file (a device)"),
+            "{e}"
+        );
+        let d = dir("small");
+        let p = d.join("big.yaml");
+        fs::write(&p, vec![b'a'; 100]).unwrap();
+        let e = read_small_text(&p, 50, "a map yaml").unwrap_err();
+        assert!(e.to_string().contains("too large"), "{e}");
+        assert_eq!(read_small_text(&p, 100, "x").unwrap().len(), 100);
+    }
+}

@@ -1,0 +1,719 @@
+//! The tool against careless and hostile use: outputs never half-written or destroyed, inputs never
+//! overwritten, bounded memory and time on any input, clear one-line errors. One test (or more) per defect
+//! of the reliability issue; each fails on the code before its fix.
+
+mod common;
+
+use std::fs;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
+use std::time::{Duration, Instant};
+
+use ogm_corners::synth::{office_map, FREE, OCCUPIED, UNKNOWN};
+
+const BIN: &str = env!("CARGO_BIN_EXE_ogm-corners");
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+fn stdout(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+/// Runs `cmd`, killing it and failing the test if it takes longer than `secs` (a hang is a defect too).
+/// Its output is read while it runs, so a full pipe never blocks it.
+fn within(mut cmd: Command, secs: u64) -> Output {
+    let child = cmd
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let pid = child.id();
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || tx.send(child.wait_with_output().unwrap()));
+    match rx.recv_timeout(Duration::from_secs(secs)) {
+        Ok(o) => o,
+        Err(_) => {
+            let _ = Command::new("kill")
+                .args(["-KILL", &pid.to_string()])
+                .status();
+            let o = rx.recv().unwrap();
+            panic!("still running after {secs} s; stderr: {}", stderr(&o));
+        }
+    }
+}
+
+fn ogm(args: &[&str]) -> Output {
+    let mut c = Command::new(BIN);
+    c.args(args);
+    within(c, 120)
+}
+
+/// Runs a shell script with `$OGM` set to the tool (for ulimit, traps and redirections).
+fn sh(script: &str) -> Output {
+    let mut c = Command::new("sh");
+    c.arg("-c").arg(script).env("OGM", BIN);
+    within(c, 120)
+}
+
+fn tmp() -> tempfile::TempDir {
+    tempfile::Builder::new()
+        .prefix("ogm-reliability-")
+        .tempdir()
+        .unwrap()
+}
+
+/// Files in `dir`, sorted (hidden temporary files included).
+fn entries(dir: &Path) -> Vec<String> {
+    let mut v: Vec<String> = fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    v.sort();
+    v
+}
+
+/// A map with many keypoints (a dense random three-state map), so keypoint files are large.
+fn busy_pgm(dir: &Path, name: &str, w: u32, h: u32, seed: u64) -> PathBuf {
+    let p = dir.join(name);
+    common::random_map(w, h, seed).write_pgm(&p).unwrap();
+    p
+}
+
+fn pgm_bytes(w: u32, h: u32, maxval: u32, samples: &[u8]) -> Vec<u8> {
+    let mut b = format!("P5\n{w} {h}\n{maxval}\n").into_bytes();
+    b.extend_from_slice(samples);
+    b
+}
+
+fn room_samples() -> Vec<u8> {
+    let rows = ["######", "#....#", "#....#", "#....#", "######"];
+    rows.iter()
+        .flat_map(|r| r.bytes().map(|b| if b == b'#' { 0 } else { 254 }))
+        .collect()
+}
+
+// 1. Outputs are written whole or not at all.
+
+#[test]
+fn a_full_disk_leaves_the_previous_output_intact_and_no_partial_file() {
+    let d = tmp();
+    let map = busy_pgm(d.path(), "busy.pgm", 512, 512, 1);
+    let out_dir = d.path().join("out");
+    fs::create_dir(&out_dir).unwrap();
+    for (ext, extra) in [("csv", ""), ("json", "--format json")] {
+        let out = out_dir.join(format!("k.{ext}"));
+        fs::write(&out, "previous good output\n").unwrap();
+        // A file size limit makes writes past 16 KiB fail (EFBIG), as a full disk does (ENOSPC).
+        let o = sh(&format!(
+            "trap '' XFSZ; ulimit -f 32; exec \"$OGM\" detect --backend cpu {extra} {} -o {}",
+            s(&map),
+            s(&out)
+        ));
+        assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+        assert!(stderr(&o).contains("cannot write"), "{}", stderr(&o));
+        assert_eq!(fs::read_to_string(&out).unwrap(), "previous good output\n");
+    }
+    // An overlay too, and no temporary file is left behind by any of them.
+    let png = out_dir.join("o.png");
+    let big = busy_pgm(d.path(), "big.pgm", 1100, 1100, 2);
+    let o = sh(&format!(
+        "trap '' XFSZ; ulimit -f 32; exec \"$OGM\" detect --backend cpu {} -o /dev/null --overlay {}",
+        s(&big),
+        s(&png)
+    ));
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(!png.exists());
+    assert_eq!(entries(&out_dir), ["k.csv", "k.json"]);
+}
+
+#[test]
+fn an_interrupted_run_leaves_neither_a_partial_output_nor_a_temporary_file() {
+    let d = tmp();
+    // About a million keypoints: the JSON takes long enough to write to be caught in the middle.
+    let map = busy_pgm(d.path(), "busy.pgm", 3000, 3000, 3);
+    let out = d.path().join("k.json");
+    let mut child = Command::new(BIN)
+        .args([
+            "detect",
+            "--backend",
+            "cpu",
+            "--unknown-as-occupied",
+            "--format",
+            "json",
+            s(&map),
+            "-o",
+            s(&out),
+        ])
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let deadline = Instant::now() + Duration::from_secs(60);
+    let writing = loop {
+        let temp = entries(d.path())
+            .into_iter()
+            .any(|n| n.starts_with(".k.json."));
+        if temp || child.try_wait().unwrap().is_some() || Instant::now() > deadline {
+            break temp;
+        }
+        std::thread::sleep(Duration::from_millis(1));
+    };
+    assert!(writing, "the temporary output never appeared");
+    Command::new("kill")
+        .args(["-TERM", &child.id().to_string()])
+        .status()
+        .unwrap();
+    let status = child.wait().unwrap();
+    assert_eq!(status.code(), Some(130));
+    assert!(!out.exists(), "a partial output was left");
+    assert_eq!(entries(d.path()), ["busy.pgm"]);
+}
+
+#[test]
+fn two_runs_writing_one_file_leave_one_complete_output() {
+    let d = tmp();
+    let a = busy_pgm(d.path(), "a.pgm", 700, 700, 4);
+    let b = busy_pgm(d.path(), "b.pgm", 700, 700, 5);
+    let expected: Vec<String> = [&a, &b]
+        .iter()
+        .map(|m| stdout(&ogm(&["detect", "--backend", "cpu", s(m)])))
+        .collect();
+    let out = d.path().join("k.csv");
+    for round in 0..3 {
+        let spawn = |m: &Path| {
+            Command::new(BIN)
+                .args(["detect", "--backend", "cpu", s(m), "-o", s(&out)])
+                .spawn()
+                .unwrap()
+        };
+        let (mut x, mut y) = (spawn(&a), spawn(&b));
+        assert!(x.wait().unwrap().success() && y.wait().unwrap().success());
+        let got = fs::read_to_string(&out).unwrap();
+        assert!(
+            expected.contains(&got),
+            "round {round}: the output is neither run's ({} bytes)",
+            got.len()
+        );
+    }
+}
+
+// 2. No output overwrites an input.
+
+#[test]
+fn outputs_naming_an_input_are_refused_and_the_input_kept() {
+    let d = tmp();
+    let img = d.path().join("room.pgm");
+    fs::write(&img, pgm_bytes(6, 5, 255, &room_samples())).unwrap();
+    let yaml = d.path().join("room.yaml");
+    fs::write(
+        &yaml,
+        "image: room.pgm\nresolution: 0.05\norigin: [0, 0, 0]\n",
+    )
+    .unwrap();
+    let link = d.path().join("alias.pgm");
+    std::os::unix::fs::symlink(&img, &link).unwrap();
+    let (img_bytes, yaml_bytes) = (fs::read(&img).unwrap(), fs::read(&yaml).unwrap());
+    let dotted = d.path().join(".").join("room.pgm");
+    let cases: Vec<Vec<&str>> = vec![
+        vec![s(&img), "-o", s(&img)],
+        vec![s(&yaml), "-o", s(&yaml)],
+        vec![s(&yaml), "-o", s(&img)],
+        vec![s(&yaml), "--overlay", s(&img)],
+        vec![s(&yaml), "--overlay", s(&link)],
+        vec![s(&img), "-o", s(&dotted)],
+    ];
+    for args in cases {
+        let mut full = vec!["detect"];
+        full.extend(&args);
+        let o = ogm(&full);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {}", stderr(&o));
+        assert!(
+            stderr(&o).contains("refusing to overwrite"),
+            "{}",
+            stderr(&o)
+        );
+        assert_eq!(fs::read(&img).unwrap(), img_bytes, "{args:?}");
+        assert_eq!(fs::read(&yaml).unwrap(), yaml_bytes, "{args:?}");
+    }
+    let out = d.path().join("same.csv");
+    let o = ogm(&["detect", s(&img), "-o", s(&out), "--overlay", s(&out)]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+}
+
+#[test]
+fn a_batch_overlay_folder_that_is_the_map_folder_is_refused() {
+    let d = tmp();
+    let maps = d.path().join("maps");
+    fs::create_dir(&maps).unwrap();
+    for (name, seed) in [("a", 1), ("b", 2)] {
+        let img = office_map(64, 64, seed).unwrap();
+        let mut png = Vec::new();
+        image::GrayImage::from_raw(64, 64, img.pixels().to_vec())
+            .unwrap()
+            .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+            .unwrap();
+        fs::write(maps.join(format!("{name}.png")), png).unwrap();
+    }
+    let before: Vec<Vec<u8>> = ["a", "b"]
+        .iter()
+        .map(|n| fs::read(maps.join(format!("{n}.png"))).unwrap())
+        .collect();
+    let o = ogm(&[
+        "detect",
+        s(&maps),
+        "-o",
+        s(&d.path().join("out")),
+        "--overlay",
+        s(&maps),
+    ]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("refusing to overwrite"),
+        "{}",
+        stderr(&o)
+    );
+    for (n, b) in ["a", "b"].iter().zip(before) {
+        assert_eq!(fs::read(maps.join(format!("{n}.png"))).unwrap(), b);
+    }
+}
+
+// 3. Link loops in batch folders.
+
+#[test]
+fn link_loops_in_a_batch_folder_visit_each_map_once() {
+    let d = tmp();
+    let maps = d.path().join("maps");
+    fs::create_dir_all(maps.join("sub")).unwrap();
+    office_map(64, 64, 1)
+        .unwrap()
+        .write_pgm(&maps.join("a.pgm"))
+        .unwrap();
+    office_map(64, 64, 2)
+        .unwrap()
+        .write_pgm(&maps.join("sub/b.pgm"))
+        .unwrap();
+    std::os::unix::fs::symlink(".", maps.join("loop")).unwrap();
+    std::os::unix::fs::symlink("..", maps.join("sub/up")).unwrap();
+    let out = d.path().join("out");
+    let o = ogm(&["detect", s(&maps), "-o", s(&out)]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(stdout(&o).lines().count(), 2, "{}", stdout(&o));
+    assert_eq!(entries(&out), ["a.csv", "b.csv"]);
+}
+
+// 4. Headers first, non-regular files refused.
+
+#[test]
+fn a_device_or_fifo_as_image_is_refused_at_once() {
+    let d = tmp();
+    let yaml = d.path().join("zero.yaml");
+    fs::write(
+        &yaml,
+        "image: /dev/zero\nresolution: 0.05\norigin: [0, 0, 0]\n",
+    )
+    .unwrap();
+    let o = ogm(&["detect", s(&yaml)]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("not a regular file (a device)"),
+        "{}",
+        stderr(&o)
+    );
+    let fifo = d.path().join("pipe.pgm");
+    assert!(Command::new("mkfifo")
+        .arg(&fifo)
+        .status()
+        .unwrap()
+        .success());
+    let o = ogm(&["detect", s(&fifo)]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("not a regular file (a fifo)"),
+        "{}",
+        stderr(&o)
+    );
+    // In a batch folder: skipped with an error, the other maps done, exit 2 at the end.
+    office_map(64, 64, 1)
+        .unwrap()
+        .write_pgm(&d.path().join("ok.pgm"))
+        .unwrap();
+    let out = d.path().join("out");
+    let o = ogm(&["detect", s(d.path()), "-o", s(&out)]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("pipe.pgm: not a regular file"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(out.join("ok.csv").is_file());
+}
+
+#[test]
+fn data_after_the_raster_is_not_read() {
+    let d = tmp();
+    let p = d.path().join("tail.pgm");
+    fs::write(&p, pgm_bytes(6, 5, 255, &room_samples())).unwrap();
+    // 5 GB of (sparse) data after a valid map; with 1 GB of address space, reading it whole would fail.
+    let f = fs::OpenOptions::new().write(true).open(&p).unwrap();
+    f.set_len(5 << 30).unwrap();
+    drop(f);
+    let o = sh(&format!(
+        "ulimit -v 1000000; exec \"$OGM\" detect --backend cpu {}",
+        s(&p)
+    ));
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(stdout(&o).lines().count(), 5, "{}", stdout(&o));
+    assert!(stderr(&o).contains("ignored"), "{}", stderr(&o));
+}
+
+// 5. Memory bounded up front.
+
+#[test]
+fn commands_that_would_exhaust_memory_are_refused_up_front() {
+    let d = tmp();
+    // Harris on a 200000000 x 1 map: the header alone says it needs far more than the limit.
+    let p = d.path().join("line.pgm");
+    let mut f = fs::File::create(&p).unwrap();
+    f.write_all(b"P5\n200000000 1\n255\n").unwrap();
+    f.set_len(200_000_000 + 19).unwrap();
+    drop(f);
+    let o = ogm(&[
+        "detect",
+        "--detector",
+        "harris",
+        "--max-memory",
+        "4G",
+        s(&p),
+    ]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    let e = stderr(&o);
+    assert!(
+        e.contains("needs about") && e.contains("limit of 4.0 GiB") && e.contains("--max-memory"),
+        "{e}"
+    );
+    // A PNG bomb: 20000 x 20000 16-bit grey (800 MB of samples) in a few megabytes.
+    let bomb = d.path().join("bomb.png");
+    {
+        let f = fs::File::create(&bomb).unwrap();
+        let mut enc = png::Encoder::new(std::io::BufWriter::new(f), 20000, 20000);
+        enc.set_color(png::ColorType::Grayscale);
+        enc.set_depth(png::BitDepth::Sixteen);
+        enc.set_compression(png::Compression::Fast);
+        let mut w = enc.write_header().unwrap().into_stream_writer().unwrap();
+        let row = vec![0u8; 40000];
+        for _ in 0..20000 {
+            w.write_all(&row).unwrap();
+        }
+        w.finish().unwrap();
+    }
+    assert!(fs::metadata(&bomb).unwrap().len() < 16 << 20);
+    let o = ogm(&["detect", "--max-memory", "256M", s(&bomb)]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("limit of 256.0 MiB"), "{}", stderr(&o));
+    // The limit also comes from the environment.
+    let mut c = Command::new(BIN);
+    c.args(["detect", s(&bomb)]).env("OGM_MAX_MEMORY", "100M");
+    let o = within(c, 60);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    // demo refuses before it makes its folder or its map.
+    let demo_dir = d.path().join("demo");
+    let o = ogm(&[
+        "demo",
+        "--size",
+        "1000000x4000",
+        "--max-memory",
+        "1G",
+        "-o",
+        s(&demo_dir),
+    ]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(!demo_dir.exists());
+}
+
+#[test]
+fn absurd_option_values_are_refused() {
+    let d = tmp();
+    let map = d.path().join("m.pgm");
+    office_map(64, 64, 1).unwrap().write_pgm(&map).unwrap();
+    for args in [
+        vec!["eval", "--trials", "4294967295", s(&map)],
+        vec!["eval", "--trials", "1001", s(&map)],
+        vec!["compare", "--repeat", "100000", s(&map)],
+        vec!["bench", "--repeat", "100000"],
+        vec!["detect", "--max-memory", "lots", s(&map)],
+    ] {
+        let o = ogm(&args);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {}", stderr(&o));
+        assert!(
+            stderr(&o).starts_with("ogm-corners: error: "),
+            "{}",
+            stderr(&o)
+        );
+    }
+}
+
+// 6. Yaml parsing is bounded.
+
+#[test]
+fn deeply_nested_or_huge_yaml_is_refused_quickly() {
+    let d = tmp();
+    let nested = d.path().join("nested.yaml");
+    fs::write(&nested, "[".repeat(100_000)).unwrap();
+    let t = Instant::now();
+    let o = ogm(&["detect", s(&nested)]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("too large") || stderr(&o).contains("nested"));
+    let small_nested = d.path().join("small.yaml");
+    fs::write(&small_nested, format!("image: {}", "[".repeat(5000))).unwrap();
+    let o = ogm(&["detect", s(&small_nested)]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("nested 5000 levels deep"),
+        "{}",
+        stderr(&o)
+    );
+    // Generous: the point is seconds, not the minute the parser took.
+    assert!(t.elapsed() < Duration::from_secs(20));
+}
+
+// 7. One unreadable entry does not stop a batch.
+
+#[test]
+fn unreadable_entries_are_skipped_and_the_batch_fails_at_the_end() {
+    let d = tmp();
+    let maps = d.path().join("maps");
+    fs::create_dir_all(maps.join("locked")).unwrap();
+    office_map(64, 64, 1)
+        .unwrap()
+        .write_pgm(&maps.join("a.pgm"))
+        .unwrap();
+    office_map(64, 64, 2)
+        .unwrap()
+        .write_pgm(&maps.join("locked/b.pgm"))
+        .unwrap();
+    fs::write(maps.join("latin1.yaml"), b"# caf\xe9\nimage: a.pgm\n").unwrap();
+    fs::write(maps.join("params.yaml"), "controller_frequency: 5.0\n").unwrap();
+    // Permissions bind root only through another user: run the tool as nobody when we are root.
+    let out = d.path().join("out");
+    fs::create_dir(&out).unwrap();
+    for p in [d.path(), &maps, &out] {
+        set_mode(p, 0o777);
+    }
+    set_mode(&maps.join("locked"), 0o000);
+    let root = is_root();
+    let mut c = if root {
+        let mut c = Command::new("setpriv");
+        c.args(["--reuid=65534", "--regid=65534", "--clear-groups", BIN]);
+        c
+    } else {
+        Command::new(BIN)
+    };
+    c.args(["detect", s(&maps), "-o", s(&out)]);
+    let o = within(c, 60);
+    set_mode(&maps.join("locked"), 0o755);
+    let e = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{e}");
+    assert!(e.contains("latin1.yaml: not UTF-8"), "{e}");
+    assert!(e.contains("locked: cannot list the folder"), "{e}");
+    assert!(e.contains("params.yaml: not a map yaml"), "{e}");
+    assert!(e.contains("2 entries could not be read"), "{e}");
+    assert_eq!(entries(&out), ["a.csv"]);
+}
+
+fn set_mode(p: &Path, mode: u32) {
+    use std::os::unix::fs::PermissionsExt;
+    fs::set_permissions(p, fs::Permissions::from_mode(mode)).unwrap();
+}
+
+fn is_root() -> bool {
+    let o = Command::new("id").arg("-u").output().unwrap();
+    String::from_utf8_lossy(&o.stdout).trim() == "0"
+}
+
+// 8. Malformed image data is refused, CRLF headers read right.
+
+#[test]
+fn samples_above_maxval_and_palette_indices_past_the_palette_are_refused() {
+    let d = tmp();
+    let p = d.path().join("maxval.pgm");
+    let mut samples = vec![100u8; 30];
+    samples[7] = 205;
+    fs::write(&p, pgm_bytes(6, 5, 100, &samples)).unwrap();
+    let o = ogm(&["detect", s(&p)]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("205") && stderr(&o).contains("100"),
+        "{}",
+        stderr(&o)
+    );
+    // A 4-entry palette, and one pixel with index 9.
+    let png_path = d.path().join("palette.png");
+    {
+        let f = fs::File::create(&png_path).unwrap();
+        let mut enc = png::Encoder::new(f, 4, 2);
+        enc.set_color(png::ColorType::Indexed);
+        enc.set_depth(png::BitDepth::Eight);
+        enc.set_palette(vec![0, 0, 0, 205, 205, 205, 254, 254, 254, 9, 9, 9]);
+        let mut w = enc.write_header().unwrap();
+        w.write_image_data(&[0, 1, 2, 3, 2, 9, 2, 2]).unwrap();
+    }
+    let o = ogm(&["detect", s(&png_path)]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("palette"), "{}", stderr(&o));
+}
+
+#[test]
+fn a_crlf_pgm_header_gives_the_same_keypoints() {
+    let d = tmp();
+    let img = office_map(200, 160, 3).unwrap();
+    let lf = d.path().join("lf.pgm");
+    img.write_pgm(&lf).unwrap();
+    let crlf = d.path().join("crlf.pgm");
+    let mut b = b"P5\r\n# made on Windows\r\n200 160\r\n255\r\n".to_vec();
+    b.extend_from_slice(img.pixels());
+    fs::write(&crlf, b).unwrap();
+    let a = ogm(&["detect", s(&lf)]);
+    let b = ogm(&["detect", s(&crlf)]);
+    assert!(a.status.success() && b.status.success(), "{}", stderr(&b));
+    assert!(stdout(&a).lines().count() > 5);
+    assert_eq!(stdout(&a), stdout(&b));
+}
+
+// 9. World coordinates stay finite.
+
+#[test]
+fn a_resolution_that_makes_world_coordinates_infinite_is_refused() {
+    let d = tmp();
+    fs::write(
+        d.path().join("room.pgm"),
+        pgm_bytes(6, 5, 255, &room_samples()),
+    )
+    .unwrap();
+    for (res, origin) in [("1e308", "[0, 0, 0]"), ("1e307", "[1.79e308, 0, 0]")] {
+        let yaml = d.path().join("room.yaml");
+        fs::write(
+            &yaml,
+            format!("image: room.pgm\nresolution: {res}\norigin: {origin}\n"),
+        )
+        .unwrap();
+        let o = ogm(&["detect", "--format", "json", s(&yaml)]);
+        assert_eq!(o.status.code(), Some(2), "{res}: {}", stdout(&o));
+        assert!(
+            stderr(&o).contains("non-finite world coordinates"),
+            "{}",
+            stderr(&o)
+        );
+    }
+}
+
+// 10. The rest.
+
+#[test]
+fn a_closed_standard_output_is_an_error() {
+    let d = tmp();
+    let p = d.path().join("room.pgm");
+    fs::write(&p, pgm_bytes(6, 5, 255, &room_samples())).unwrap();
+    for cmd in [format!("detect {}", s(&p)), "rules".to_string()] {
+        let o = sh(&format!("exec \"$OGM\" {cmd} >&-"));
+        assert_eq!(o.status.code(), Some(1), "{cmd}: {}", stderr(&o));
+        assert!(
+            stderr(&o).contains("standard output is closed"),
+            "{}",
+            stderr(&o)
+        );
+    }
+    // With stdout closed, an output file must not take its place (fd 1) and receive stray text.
+    let out = d.path().join("k.csv");
+    let o = sh(&format!(
+        "exec \"$OGM\" detect {} -o {} >&-",
+        s(&p),
+        s(&out)
+    ));
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(fs::read_to_string(&out)
+        .unwrap()
+        .starts_with("x,y,rule,code\n"));
+}
+
+#[test]
+fn a_yaml_with_a_byte_order_mark_loads() {
+    let d = tmp();
+    fs::write(
+        d.path().join("room.pgm"),
+        pgm_bytes(6, 5, 255, &room_samples()),
+    )
+    .unwrap();
+    let yaml = d.path().join("room.yaml");
+    fs::write(
+        &yaml,
+        "\u{feff}image: room.pgm\nresolution: 0.05\norigin: [0, 0, 0]\n",
+    )
+    .unwrap();
+    let o = ogm(&["detect", s(&yaml)]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(stdout(&o).lines().count(), 5);
+}
+
+#[test]
+fn a_batch_on_a_full_disk_says_what_failed() {
+    let d = tmp();
+    let maps = d.path().join("maps");
+    fs::create_dir(&maps).unwrap();
+    for i in 1..=3 {
+        busy_pgm(&maps, &format!("m{i}.pgm"), 400, 400, i);
+    }
+    let out = d.path().join("out");
+    let o = sh(&format!(
+        "trap '' XFSZ; ulimit -f 16; exec \"$OGM\" detect --backend cpu {} -o {}",
+        s(&maps),
+        s(&out)
+    ));
+    let e = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{e}");
+    let last = e.lines().last().unwrap();
+    assert!(
+        last.contains("3 of 3 maps failed: 3 could not be written (first:")
+            && last.contains("File too large"),
+        "{last}"
+    );
+    assert!(!e.contains("internal error"), "{e}");
+    assert!(entries(&out).is_empty(), "{:?}", entries(&out));
+}
+
+#[test]
+fn usage_errors_lead_with_one_line_and_refusals_come_before_output() {
+    let o = ogm(&["detect"]);
+    assert_eq!(o.status.code(), Some(2));
+    let first = stderr(&o).lines().next().unwrap().to_string();
+    assert!(
+        first.starts_with("ogm-corners: error: ") && first.contains("<MAP>"),
+        "{first}"
+    );
+    // bench refuses a size before it prints its header.
+    let o = ogm(&["bench", "--size", "10x10"]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(o.stdout.is_empty(), "{}", stdout(&o));
+    // demo refuses a size before it makes its folder.
+    let d = tmp();
+    let dir = d.path().join("demo");
+    let o = ogm(&["demo", "--size", "10x10", "-o", s(&dir)]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(!dir.exists());
+}
+
+#[test]
+fn values_in_a_map_are_read_as_they_are() {
+    // Guard for the strict decoder: the three ROS values survive exactly.
+    let d = tmp();
+    let p = d.path().join("v.pgm");
+    fs::write(&p, pgm_bytes(3, 1, 255, &[FREE, UNKNOWN, OCCUPIED])).unwrap();
+    let m = ogm_corners::OccupancyMap::load(&p).unwrap();
+    assert_eq!(m.image.pixels(), [FREE, UNKNOWN, OCCUPIED]);
+}
