@@ -388,6 +388,9 @@ pub fn resolve(path: &Path) -> PathBuf {
 mod tests {
     use super::*;
 
+    /// `remove_pending` removes every pending file of the process: tests that write take turns.
+    static SERIAL: Mutex<()> = Mutex::new(());
+
     fn dir(name: &str) -> PathBuf {
         let d = std::env::temp_dir().join(format!("ogm-files-{}-{name}", std::process::id()));
         let _ = fs::remove_dir_all(&d);
@@ -406,6 +409,7 @@ mod tests {
 
     #[test]
     fn a_failed_write_keeps_the_old_file_and_leaves_no_temporary() {
+        let _turn = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
         let d = dir("fail");
         let p = d.join("out.csv");
         fs::write(&p, "old\n").unwrap();
@@ -423,6 +427,7 @@ mod tests {
 
     #[test]
     fn nothing_appears_before_commit_and_pending_files_are_removed() {
+        let _turn = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
         let d = dir("pending");
         let p = d.join("k.json");
         let mut f = AtomicFile::create(&p).unwrap();
@@ -438,6 +443,7 @@ mod tests {
     #[cfg(unix)]
     #[test]
     fn a_link_is_kept_and_its_file_replaced_and_devices_are_written_directly() {
+        let _turn = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
         let d = dir("link");
         let real = d.join("real.csv");
         fs::write(&real, "old").unwrap();

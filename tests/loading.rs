@@ -291,3 +291,40 @@ fn zero_size_and_mismatched_maps_in_memory_are_errors() {
         Err(Error::Input { .. })
     ));
 }
+
+proptest::proptest! {
+    #![proptest_config(proptest::prelude::ProptestConfig::with_cases(400))]
+
+    /// Any text: the map yaml parser returns a map or a one-line message, never panics.
+    #[test]
+    fn any_yaml_text_parses_or_fails_cleanly(text in ".{0,300}") {
+        if let Err(e) = ogm_corners::map::MapYaml::parse(&text) {
+            proptest::prop_assert!(!e.contains('\n'));
+        }
+    }
+
+    /// Any file contents, named .yaml, .pgm or .png: loading gives a map or a one-line error naming the
+    /// file, never a panic.
+    #[test]
+    fn any_file_loads_or_fails_cleanly(
+        bytes in proptest::collection::vec(proptest::num::u8::ANY, 0..400),
+        prefix in proptest::sample::select(vec![&b""[..], b"P5\n3 2\n255\n", b"P2\n", b"\x89PNG\r\n\x1a\n", b"image: m.pgm\nresolution: 0.05\norigin: [0, 0, 0]\n"]),
+        ext in proptest::sample::select(vec!["yaml", "pgm", "png"]),
+    ) {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join(format!("m.{ext}"));
+        let mut data = prefix.to_vec();
+        data.extend(&bytes);
+        std::fs::write(&p, &data).unwrap();
+        // A yaml's image: the same bytes again.
+        std::fs::write(dir.path().join("m.pgm"), &data).unwrap();
+        match ogm_corners::OccupancyMap::load(&p) {
+            Ok(m) => proptest::prop_assert_eq!(m.image.len() as u64, u64::from(m.image.width()) * u64::from(m.image.height())),
+            Err(e) => {
+                let m = e.to_string();
+                proptest::prop_assert!(!m.contains('\n'), "{}", m);
+                proptest::prop_assert_eq!(e.exit_code(), 2);
+            }
+        }
+    }
+}

@@ -74,4 +74,55 @@ fn fast_paths_allocate_a_small_fraction_of_the_map() {
             "{kind:?} fast path allocated {extra} bytes for a {map_bytes}-byte map"
         );
     }
+    loading_takes_about_one_map();
+}
+
+/// Loading decodes row by row into the one output buffer: about 1x the 8-bit map, whatever the file's
+/// format (a 16-bit or colour image used to take 2-3x: the file, the decoded image, the grey copy).
+fn loading_takes_about_one_map() {
+    let dir = tempfile::tempdir().unwrap();
+    let img = office_map(2048, 1536, 7).unwrap();
+    let out_bytes = img.len();
+    let pgm = dir.path().join("m.pgm");
+    img.write_pgm(&pgm).unwrap();
+    let write_png = |name: &str,
+                     color: png::ColorType,
+                     depth: png::BitDepth,
+                     expand: &dyn Fn(u8) -> Vec<u8>| {
+        let p = dir.path().join(name);
+        let mut enc = png::Encoder::new(std::fs::File::create(&p).unwrap(), 2048, 1536);
+        enc.set_color(color);
+        enc.set_depth(depth);
+        let data: Vec<u8> = img.pixels().iter().flat_map(|&v| expand(v)).collect();
+        enc.write_header().unwrap().write_image_data(&data).unwrap();
+        p
+    };
+    let files = [
+        pgm,
+        write_png(
+            "g16.png",
+            png::ColorType::Grayscale,
+            png::BitDepth::Sixteen,
+            &|v| vec![v, v],
+        ),
+        write_png(
+            "rgba.png",
+            png::ColorType::Rgba,
+            png::BitDepth::Eight,
+            &|v| vec![v, v, v, 255],
+        ),
+    ];
+    for f in &files {
+        let (map, extra) = peak_extra(|| ogm_corners::OccupancyMap::load(f).unwrap());
+        assert_eq!(map.image.pixels(), img.pixels(), "{}", f.display());
+        eprintln!(
+            "load {}: {extra} bytes for a {out_bytes}-byte map",
+            f.display()
+        );
+        assert!(
+            extra < out_bytes + out_bytes / 20 + (1 << 20),
+            "{}: loading allocated {extra} bytes for a {out_bytes}-byte map",
+            f.display()
+        );
+    }
 }

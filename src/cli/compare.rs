@@ -9,10 +9,10 @@ use crate::batch::map_name;
 
 use ogm_corners::backend::reference_working_bytes;
 use ogm_corners::compare::{self, CompareRecord};
-use ogm_corners::files::{self, Inputs};
+use ogm_corners::files;
 use ogm_corners::memory::Budget;
 use ogm_corners::{
-    Baseline, BaselineParams, DetectOptions, DetectorKind, Error, OccupancyMap, Result, RuleSet,
+    Baseline, BaselineParams, DetectOptions, DetectorKind, OccupancyMap, Result, RuleSet,
 };
 
 use super::{bench, write_stdout, TableFormat, ALL_DETECTORS};
@@ -39,13 +39,7 @@ pub(super) struct CompareArgs {
 pub(super) fn run(a: CompareArgs, budget: &Budget) -> Result<()> {
     super::check_stdout()?;
     // Every path is checked, and no output may overwrite an input, before the first measurement.
-    let mut inputs = Inputs::new();
-    for p in &a.maps {
-        if !p.is_file() {
-            return Err(Error::input(p, "no such file (give map files)"));
-        }
-        inputs.add(p);
-    }
+    let mut inputs = super::map_inputs(&a.maps)?;
     let table_path = a.out.join("compare.md");
     inputs.claim_output(&table_path, "--out")?;
     let sheets: Vec<PathBuf> = a

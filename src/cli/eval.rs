@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use clap::Args;
 
 use ogm_corners::eval::{self, MAX_TRIALS};
-use ogm_corners::files::{self, Inputs};
+use ogm_corners::files;
 use ogm_corners::memory::Budget;
 use ogm_corners::{DetectOptions, Error, OccupancyMap, Result};
 
@@ -45,13 +45,7 @@ pub(super) fn run(a: EvalArgs, budget: &Budget) -> Result<()> {
     }
     super::check_stdout()?;
     // Every path is checked before the first (long) evaluation; the plots must not overwrite a map.
-    let mut inputs = Inputs::new();
-    for p in &a.maps {
-        if !p.is_file() {
-            return Err(Error::input(p, "no such file (give map files)"));
-        }
-        inputs.add(p);
-    }
+    let mut inputs = super::map_inputs(&a.maps)?;
     if let Some(dir) = &a.plot {
         for file in eval::PLOT_FILES {
             inputs.claim_output(&dir.join(file), "--plot")?;

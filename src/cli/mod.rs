@@ -231,6 +231,19 @@ fn detector_on(backend: BackendArg, options: DetectOptions) -> Result<Detector> 
     })
 }
 
+/// The input set of commands that take map files (not folders): each must exist, and no output of the
+/// run may overwrite one.
+fn map_inputs(maps: &[std::path::PathBuf]) -> Result<ogm_corners::files::Inputs> {
+    let mut inputs = ogm_corners::files::Inputs::new();
+    for p in maps {
+        if !p.is_file() {
+            return Err(Error::input(p, "no such file (give map files)"));
+        }
+        inputs.add(p);
+    }
+    Ok(inputs)
+}
+
 /// Parses `WIDTHxHEIGHT`.
 fn parse_size(s: &str) -> std::result::Result<(u32, u32), String> {
     let (w, h) = s
