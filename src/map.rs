@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 
 use serde_yaml::Value;
 
-use crate::decode::{self, Decoder, ImageKind};
+use crate::decode::{Decoder, ImageKind};
 use crate::error::{Error, Result};
 use crate::files::{self, FileId};
 use crate::memory::Budget;
@@ -493,14 +493,34 @@ pub fn load_image_within(
     check: Option<SizeCheck>,
 ) -> Result<(MapImage, Vec<String>)> {
     let (file, len) = files::open_regular(path)?;
-    let input = |m: String| Error::input(path, m);
-    let mut dec = Decoder::new(
-        BufReader::with_capacity(1 << 16, file),
-        Some(len),
-        kind_hint(path),
-        budget.limit(),
-    )
-    .map_err(input)?;
+    let reader = BufReader::with_capacity(1 << 16, file);
+    decode_within(reader, len, kind_hint(path), budget, extra, check)
+        .map_err(|e| match e {
+            Error::Input {
+                path: None,
+                message,
+            } => Error::input(path, message),
+            other => other,
+        })
+        .map(|(img, warnings)| {
+            let named = warnings
+                .into_iter()
+                .map(|m| format!("{}: {m}", path.display()))
+                .collect();
+            (img, named)
+        })
+}
+
+/// The one decoding path of files and bytes: header, checks, budget, then the rows.
+fn decode_within<R: std::io::BufRead>(
+    reader: R,
+    len: u64,
+    hint: Option<ImageKind>,
+    budget: &Budget,
+    extra: &dyn Fn(u32, u32) -> u64,
+    check: Option<SizeCheck>,
+) -> Result<(MapImage, Vec<String>)> {
+    let mut dec = Decoder::new(reader, Some(len), hint, budget.limit()).map_err(Error::invalid)?;
     let (w, h) = (dec.header().width, dec.header().height);
     if let Some(check) = check {
         check(w, h)?;
@@ -508,28 +528,31 @@ pub fn load_image_within(
     let need = (u64::from(w) * u64::from(h))
         .saturating_add(dec.header().decoder_bytes)
         .saturating_add(extra(w, h));
-    budget.check(format_args!("{}: a {w}x{h} map", path.display()), need)?;
+    budget.check(format_args!("a {w}x{h} map"), need)?;
     let mut pixels = vec![0u8; w as usize * h as usize];
     for row in pixels.chunks_exact_mut(w as usize) {
-        dec.read_row(row).map_err(input)?;
+        dec.read_row(row).map_err(Error::invalid)?;
     }
-    let warnings = dec
-        .finish()
-        .map_err(input)?
-        .into_iter()
-        .map(|m| format!("{}: {m}", path.display()))
-        .collect();
+    let warnings = dec.finish().map_err(Error::invalid)?;
     Ok((MapImage::new(w, h, pixels)?, warnings))
 }
 
 /// Decodes image bytes in memory; `hint` is the format the file name suggests, used when the content
-/// does not say. Refuses images over [`MAX_IMAGE_BYTES`].
+/// does not say. Refuses images over the machine's memory budget ([`Budget::machine`]) from the header.
 pub fn decode_image(
     bytes: &[u8],
     hint: Option<ImageKind>,
 ) -> std::result::Result<MapImage, String> {
-    let (w, h, pixels, _) = decode::decode_bytes(bytes, hint, MAX_IMAGE_BYTES)?;
-    MapImage::new(w, h, pixels).map_err(|e| e.to_string())
+    decode_within(
+        bytes,
+        bytes.len() as u64,
+        hint,
+        &Budget::default(),
+        &|_, _| 0,
+        None,
+    )
+    .map(|(img, _)| img)
+    .map_err(|e| e.to_string())
 }
 
 /// What [`find_maps`] found.
