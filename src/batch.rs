@@ -63,11 +63,15 @@ pub struct Plan<'a> {
 }
 
 /// Detects corners in every map, writing `out_dir/NAME.csv|json` (and `overlay_dir/NAME.png`), each
-/// atomically, and a line per map on standard output. No output may overwrite an input (a map, its yaml or
+/// atomically, and a line per map on standard output (while it can be written). No output may overwrite an input (a map, its yaml or
 /// its image): that is checked for every file before the first map is read. A map that fails is reported
 /// and skipped; the call fails at the end if any did, saying what failed.
-pub fn detect_many(maps: &[PathBuf], detector: &mut Detector, plan: &Plan) -> Result<()> {
-    crate::cli::check_stdout()?;
+/// The detector is made by `make_detector` once the outputs are checked (opening a GPU takes a moment).
+pub fn detect_many(
+    maps: &[PathBuf],
+    make_detector: impl FnOnce() -> Result<Detector>,
+    plan: &Plan,
+) -> Result<()> {
     let names = output_names(maps);
     let ext = match plan.format {
         Format::Csv => "csv",
@@ -99,6 +103,7 @@ pub fn detect_many(maps: &[PathBuf], detector: &mut Detector, plan: &Plan) -> Re
     for dir in std::iter::once(plan.out_dir).chain(plan.overlay_dir) {
         files::create_dir(dir)?;
     }
+    let detector = &mut make_detector()?;
     let bar = ProgressBar::new(maps.len() as u64);
     bar.set_style(
         ProgressStyle::with_template("{bar:30} {pos}/{len} maps, {elapsed} (eta {eta}) {msg}")
@@ -112,6 +117,7 @@ pub fn detect_many(maps: &[PathBuf], detector: &mut Detector, plan: &Plan) -> Re
     let (mut bad_maps, mut unwritten, mut other) = (0usize, Vec::new(), 0usize);
     let stdout = std::io::stdout();
     let mut summary = BufWriter::new(stdout.lock());
+    let mut summary_open = true;
     let want_overlay = plan.overlay_dir.is_some();
     // Each map's budget counts the detector's buffers and the overlay as well as the map.
     let extra = |detector: &Detector, w: u32, h: u32| {
@@ -170,8 +176,13 @@ pub fn detect_many(maps: &[PathBuf], detector: &mut Detector, plan: &Plan) -> Re
             });
             match result {
                 Ok(line) => {
-                    bar.suspend(|| writeln!(summary, "{line}").and_then(|_| summary.flush()))
-                        .map_err(|e| Error::output("<stdout>", e))?;
+                    // The summary is a courtesy: the results are the files. A closed pipe (`| head`) or a
+                    // closed standard output stops the summary, not the batch.
+                    if summary_open {
+                        summary_open = bar
+                            .suspend(|| writeln!(summary, "{line}").and_then(|_| summary.flush()))
+                            .is_ok();
+                    }
                 }
                 Err(e) => {
                     match &e {

@@ -6,7 +6,7 @@ use image::RgbImage;
 
 use crate::detector::DetectorKind;
 use crate::map::OccupancyMap;
-use crate::output::TableFormat;
+use crate::output::{csv_field, md_cell, TableFormat};
 use crate::states::ClassTable;
 
 /// One row of `compare`: a detector on a map.
@@ -138,7 +138,7 @@ pub fn markdown(rows: &[CompareRecord]) -> String {
     for r in rows {
         md += &format!(
             "| {} | {}x{} | {} | {} | {} | {} | {} | {} | {} |\n",
-            r.map,
+            md_cell(&r.map),
             r.width,
             r.height,
             r.detector,
@@ -172,7 +172,7 @@ pub fn write_table(
                 writeln!(
                     out,
                     "{},{},{},{},{},{},{},{},{},{}",
-                    r.map,
+                    csv_field(&r.map),
                     r.width,
                     r.height,
                     r.detector,

@@ -61,26 +61,58 @@ impl Error {
 }
 
 impl fmt::Display for Error {
+    /// One line: control characters in paths and messages (a newline in a file name, a NUL from a yaml)
+    /// are written escaped, so an error never spans lines or carries raw bytes to a terminal.
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let path = |p: &Path| one_line(&p.display().to_string());
         match self {
             Error::Input {
                 path: Some(p),
                 message,
-            } => write!(f, "{}: {}", p.display(), message),
+            } => write!(f, "{}: {}", path(p), one_line(message)),
             Error::Input {
                 path: None,
                 message,
-            } => write!(f, "{message}"),
-            Error::Output { path, message } => {
-                write!(f, "{}: cannot write: {}", path.display(), message)
+            } => write!(f, "{}", one_line(message)),
+            Error::Output { path: p, message } => {
+                write!(f, "{}: cannot write: {}", path(p), one_line(message))
             }
-            Error::Unavailable(m) => write!(f, "{m}"),
-            Error::Internal(m) => write!(f, "internal error: {m}"),
+            Error::Unavailable(m) => write!(f, "{}", one_line(m)),
+            Error::Internal(m) => write!(f, "internal error: {}", one_line(m)),
         }
     }
+}
+
+/// `s` with control characters escaped (`\n`, `\0`, `\u{1b}`), everything else as it is.
+pub fn one_line(s: &str) -> String {
+    if !s.chars().any(char::is_control) {
+        return s.to_string();
+    }
+    s.chars()
+        .map(|c| {
+            if c.is_control() {
+                c.escape_default().to_string()
+            } else {
+                c.to_string()
+            }
+        })
+        .collect()
 }
 
 impl std::error::Error for Error {}
 
 /// Shorthand used throughout the crate.
 pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn errors_stay_on_one_line() {
+        let e = Error::input("bad\nname.pgm", "image \"x\ny\0.pgm\" is missing");
+        let m = e.to_string();
+        assert_eq!(m, "bad\\nname.pgm: image \"x\\ny\\u{0}.pgm\" is missing");
+        assert_eq!(one_line("café ok"), "café ok");
+    }
+}

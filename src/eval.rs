@@ -12,7 +12,7 @@ use serde::Serialize;
 use crate::detector::{DetectOptions, Detector, DetectorKind, Keypoint};
 use crate::error::{Error, Result};
 use crate::map::{MapImage, OccupancyMap};
-use crate::output::TableFormat;
+use crate::output::{csv_field, md_cell, TableFormat};
 use crate::synth::{Rng, FREE, OCCUPIED, UNKNOWN};
 
 /// Most random trials per condition `evaluate` runs (each trial is a transformed copy of the map).
@@ -178,11 +178,27 @@ pub fn score(pair: &Pair, a: &[Keypoint], b: &[Keypoint], tolerance: f64) -> Opt
         return None;
     }
     let t2 = tolerance * tolerance;
+    // The second set in a grid of cells at least `tolerance` wide: a match lies in the 3 x 3 cells around
+    // a point, so dense maps cost linear time, not all pairs.
+    let cell = tolerance.max(1.0);
+    let key = |x: f64, y: f64| ((x / cell).floor() as i64, (y / cell).floor() as i64);
+    let mut grid: std::collections::HashMap<(i64, i64), Vec<(f64, f64)>> = Default::default();
+    for &(bx, by) in &b {
+        grid.entry(key(bx, by)).or_default().push((bx, by));
+    }
     let matched = mapped
         .iter()
         .filter(|&&(x, y)| {
-            b.iter()
-                .any(|&(bx, by)| (bx - x).powi(2) + (by - y).powi(2) <= t2)
+            let (cx, cy) = key(x, y);
+            (-1..=1).any(|dy| {
+                (-1..=1).any(|dx| {
+                    let k = (cx.saturating_add(dx), cy.saturating_add(dy));
+                    grid.get(&k).is_some_and(|v| {
+                        v.iter()
+                            .any(|&(bx, by)| (bx - x).powi(2) + (by - y).powi(2) <= t2)
+                    })
+                })
+            })
         })
         .count();
     Some(matched.min(n) as f64 / n as f64)
@@ -435,7 +451,11 @@ pub fn write_table(
                 writeln!(
                     out,
                     "{},{},{},{},{rep},{}",
-                    r.map, r.detector, r.condition, r.level, r.trials
+                    csv_field(&r.map),
+                    r.detector,
+                    r.condition,
+                    r.level,
+                    r.trials
                 )?;
             }
         }
@@ -452,7 +472,11 @@ pub fn write_table(
                 writeln!(
                     out,
                     "| {} | {} | {} | {} | {rep} | {} |",
-                    r.map, r.detector, r.condition, r.level, r.trials
+                    md_cell(&r.map),
+                    r.detector,
+                    r.condition,
+                    r.level,
+                    r.trials
                 )?;
             }
         }
@@ -526,4 +550,46 @@ pub fn repeatability_plots(rows: &[EvalRecord]) -> Vec<(&'static str, RgbImage)>
         plots.push((file, line_plot(&title, x_label, &series, 900, 520)));
     }
     plots
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The grid search finds exactly the matches of the all-pairs search it replaced.
+    #[test]
+    fn grid_matching_equals_all_pairs() {
+        let mut rng = Rng::new(7);
+        let map = MapImage::filled(64, 48, FREE).unwrap();
+        let pair = Pair::new(&map, Transform::Mirror).unwrap();
+        for tolerance in [0.0, 0.5, 1.0, 2.0, 3.7, 10.0, 1e300] {
+            let pts = |rng: &mut Rng, n: u32| -> Vec<Keypoint> {
+                (0..n)
+                    .map(|_| Keypoint::scored(rng.range(0, 64), rng.range(0, 48), 0))
+                    .collect()
+            };
+            let (a, b) = (pts(&mut rng, 200), pts(&mut rng, 150));
+            let mapped: Vec<(f64, f64)> =
+                a.iter().filter_map(|k| pair.forward(centre(k))).collect();
+            let bs: Vec<(f64, f64)> = b
+                .iter()
+                .map(centre)
+                .filter(|&p| pair.seen_by_first(p))
+                .collect();
+            let t2 = tolerance * tolerance;
+            let brute = mapped
+                .iter()
+                .filter(|&&(x, y)| {
+                    bs.iter()
+                        .any(|&(bx, by)| (bx - x).powi(2) + (by - y).powi(2) <= t2)
+                })
+                .count();
+            let n = mapped.len().min(bs.len());
+            assert_eq!(
+                score(&pair, &a, &b, tolerance),
+                Some(brute.min(n) as f64 / n as f64),
+                "tolerance {tolerance}"
+            );
+        }
+    }
 }

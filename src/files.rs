@@ -8,6 +8,7 @@
 //! - Inputs are opened only when they are regular files ([`open_regular`]): a fifo would block forever, a
 //!   device such as `/dev/zero` never ends.
 
+use std::collections::HashMap;
 use std::fs::{self, File};
 use std::io::{self, BufWriter, Read, Write};
 use std::path::{Path, PathBuf};
@@ -66,11 +67,9 @@ impl AtomicFile {
             }
             _ => {}
         }
-        // Write beside the file a link points to, so the rename replaces that file and keeps the link.
-        let real = match fs::canonicalize(target) {
-            Ok(p) => p,
-            Err(_) => target.to_path_buf(),
-        };
+        // Write beside the file a link points to (also one that does not exist yet), so the rename
+        // replaces or creates that file and keeps the link.
+        let real = resolve(target);
         let dir = match real.parent() {
             Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
             _ => PathBuf::from("."),
@@ -92,6 +91,10 @@ impl AtomicFile {
         }
         let temp = builder.tempfile_in(&dir).map_err(|e| out_err(&e))?;
         pending().push(temp.path().to_path_buf());
+        // A file that is replaced keeps its mode, as it would when rewritten in place.
+        if let Ok(old) = fs::metadata(&real) {
+            let _ = fs::set_permissions(temp.path(), old.permissions());
+        }
         // Written through the plain file, so errors read as the system's ("No space left on device").
         let (file, path) = temp.into_parts();
         Ok(AtomicFile {
@@ -200,8 +203,19 @@ impl<W: Write> io::Seek for WriteSeek<W> {
     }
 }
 
-/// Creates `dir` (and its parents) unless it exists; a file in its place is an error.
+/// Creates `dir` (and its parents) unless it exists; a file in its place is a usage error (exit 2), not
+/// the system's "File exists".
 pub fn create_dir(dir: &Path) -> Result<()> {
+    match fs::metadata(dir) {
+        Ok(m) if m.is_dir() => return Ok(()),
+        Ok(m) => {
+            return Err(Error::input(
+                dir,
+                format!("is {}, not a folder (a folder is needed here)", kind_of(&m)),
+            ))
+        }
+        Err(_) => {}
+    }
     fs::create_dir_all(dir).map_err(|e| Error::output(dir, e))
 }
 
@@ -317,8 +331,11 @@ impl FileId {
 /// the map folder), and no two outputs of one run are the same file.
 #[derive(Default, Debug)]
 pub struct Inputs {
-    files: Vec<(FileId, PathBuf)>,
-    outputs: Vec<(PathBuf, String)>,
+    /// Each input's identity and the path it was named by.
+    files: HashMap<FileId, PathBuf>,
+    /// Each claimed output (resolved) and the option that named it. Maps, so a batch of many maps stays
+    /// linear.
+    outputs: HashMap<PathBuf, String>,
 }
 
 impl Inputs {
@@ -330,7 +347,7 @@ impl Inputs {
     /// Records an input file (missing files are ignored: loading them reports the error).
     pub fn add(&mut self, path: &Path) {
         if let Some(id) = FileId::of(path) {
-            self.files.push((id, path.to_path_buf()));
+            self.files.entry(id).or_insert_with(|| path.to_path_buf());
         }
     }
 
@@ -348,7 +365,7 @@ impl Inputs {
     /// already claimed in this run; otherwise claims it.
     pub fn claim_output(&mut self, output: &Path, option: &str) -> Result<()> {
         if let Some(id) = FileId::of(output) {
-            if let Some((_, input)) = self.files.iter().find(|(i, _)| *i == id) {
+            if let Some(input) = self.files.get(&id) {
                 return Err(Error::invalid(format!(
                     "{option} {} is the input {}: refusing to overwrite it",
                     output.display(),
@@ -357,30 +374,44 @@ impl Inputs {
             }
         }
         let resolved = resolve(output);
-        if let Some((_, other)) = self.outputs.iter().find(|(p, _)| *p == resolved) {
+        if let Some(other) = self.outputs.get(&resolved) {
             return Err(Error::invalid(format!(
                 "{option} {} is also the output of {other}: give different paths",
                 output.display()
             )));
         }
-        self.outputs.push((resolved, option.to_string()));
+        self.outputs.insert(resolved, option.to_string());
         Ok(())
     }
 }
 
-/// `path` with its folder made canonical (links resolved), for comparing paths of files that may not
-/// exist yet.
+/// Where writing `path` lands: its canonical path when it exists; otherwise, links followed (a dangling
+/// link names the file it will create) and the folder made canonical. For comparing paths of files that
+/// may not exist yet.
 pub fn resolve(path: &Path) -> PathBuf {
-    if let Ok(p) = fs::canonicalize(path) {
-        return p;
+    let mut p = path.to_path_buf();
+    // A bounded number of hops, as the system allows (40 on Linux), so a loop of links ends.
+    for _ in 0..40 {
+        if let Ok(c) = fs::canonicalize(&p) {
+            return c;
+        }
+        match fs::read_link(&p) {
+            Ok(target) => {
+                p = match p.parent() {
+                    Some(dir) if target.is_relative() => dir.join(target),
+                    _ => target,
+                }
+            }
+            Err(_) => break,
+        }
     }
-    let dir = match path.parent() {
+    let dir = match p.parent() {
         Some(d) if !d.as_os_str().is_empty() => d,
         _ => Path::new("."),
     };
-    match (fs::canonicalize(dir), path.file_name()) {
+    match (fs::canonicalize(dir), p.file_name()) {
         (Ok(d), Some(n)) => d.join(n),
-        _ => path.to_path_buf(),
+        _ => p,
     }
 }
 
@@ -456,6 +487,14 @@ mod tests {
             .is_symlink());
         assert_eq!(fs::read_to_string(&real).unwrap(), "new");
         write_atomic(Path::new("/dev/null"), |w| w.write_all(b"x")).unwrap();
+        // A dangling link creates the file it names, and is one output with it.
+        let dangling = d.join("dangling.csv");
+        std::os::unix::fs::symlink("later.csv", &dangling).unwrap();
+        let mut inputs = Inputs::new();
+        inputs.claim_output(&d.join("later.csv"), "-o").unwrap();
+        assert!(inputs.claim_output(&dangling, "--overlay").is_err());
+        write_atomic(&dangling, |w| w.write_all(b"made")).unwrap();
+        assert_eq!(fs::read_to_string(d.join("later.csv")).unwrap(), "made");
         assert!(fs::metadata("/dev/null")
             .unwrap()
             .file_type()

@@ -24,6 +24,11 @@ fn main() -> ExitCode {
             let _ = e.print();
             return ExitCode::SUCCESS;
         }
+        Err(e) if e.kind() == clap::error::ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand => {
+            // `ogm-corners` alone: say so, then the help (clap would lead with the description).
+            eprint!("ogm-corners: error: no command given\n\n{}", e.render());
+            return ExitCode::from(2);
+        }
         Err(e) => {
             eprint!("{}", usage_error(&e.render().to_string()));
             return ExitCode::from(2);

@@ -265,15 +265,7 @@ impl OccupancyMap {
         budget: &Budget,
         extra: &dyn Fn(u32, u32) -> u64,
     ) -> Result<Self> {
-        let text = files::read_small_text(path, MAX_YAML_BYTES, "a map yaml")?;
-        let meta = MapYaml::parse(&text).map_err(|m| Error::input(path, m))?;
-        let image_path = if Path::new(&meta.image).is_absolute() {
-            PathBuf::from(&meta.image)
-        } else {
-            path.parent()
-                .unwrap_or_else(|| Path::new(""))
-                .join(&meta.image)
-        };
+        let (meta, image_path) = read_yaml(path)?;
         let georef = GeoRef {
             resolution: meta.resolution,
             origin: meta.origin,
@@ -297,10 +289,56 @@ impl OccupancyMap {
         })
     }
 
+    /// Reads what loading `path` reads up to the image header (the yaml and its checks, the header),
+    /// without the pixels, and returns the map's size: to refuse a bad map before a long run starts.
+    pub fn probe(path: &Path) -> Result<(u32, u32)> {
+        let ext = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(|e| e.to_ascii_lowercase());
+        let (image_path, georef) = if matches!(ext.as_deref(), Some("yaml") | Some("yml")) {
+            let (meta, image_path) = read_yaml(path)?;
+            let georef = GeoRef {
+                resolution: meta.resolution,
+                origin: meta.origin,
+            };
+            (image_path, Some(georef))
+        } else {
+            (path.to_path_buf(), None)
+        };
+        let (file, len) = files::open_regular(&image_path)?;
+        let dec = Decoder::new(
+            BufReader::with_capacity(1 << 16, file),
+            Some(len),
+            kind_hint(&image_path),
+            Budget::default().limit(),
+        )
+        .map_err(|m| Error::input(&image_path, m))?;
+        let (w, h) = (dec.header().width, dec.header().height);
+        if let Some(g) = georef {
+            g.check_finite(w, h).map_err(|m| Error::input(path, m))?;
+        }
+        Ok((w, h))
+    }
+
     /// The file a user named for this map: the yaml if there was one, else the image.
     pub fn source(&self) -> Option<&Path> {
         self.yaml_path.as_deref().or(self.image_path.as_deref())
     }
+}
+
+/// A map yaml's fields and the path of the image it names (relative to the yaml's folder).
+fn read_yaml(path: &Path) -> Result<(MapYaml, PathBuf)> {
+    let text = files::read_small_text(path, MAX_YAML_BYTES, "a map yaml")?;
+    let meta = MapYaml::parse(&text).map_err(|m| Error::input(path, m))?;
+    let image_path = if Path::new(&meta.image).is_absolute() {
+        PathBuf::from(&meta.image)
+    } else {
+        path.parent()
+            .unwrap_or_else(|| Path::new(""))
+            .join(&meta.image)
+    };
+    Ok((meta, image_path))
 }
 
 /// The fields of a ROS `map_server` yaml that the detector uses.
@@ -402,6 +440,26 @@ impl MapYaml {
             origin,
             thresholds,
         })
+    }
+}
+
+impl MapYaml {
+    /// The `image` of yaml text that is meant as a map yaml (a mapping with `image` and `resolution` or
+    /// `origin`) whether or not it is a valid one; None for other yaml (a ROS parameter file).
+    pub fn meant_image(text: &str) -> Option<String> {
+        let text = text.strip_prefix('\u{feff}').unwrap_or(text);
+        if text.len() as u64 > MAX_YAML_BYTES || nesting_depth(text) > MAX_YAML_NESTING {
+            return None;
+        }
+        let doc: Value = serde_yaml::from_str(text).ok()?;
+        let map = doc.as_mapping()?;
+        let has = |k: &str| map.contains_key(Value::String(k.to_string()));
+        if !(has("resolution") || has("origin")) {
+            return None;
+        }
+        map.get(Value::String("image".into()))?
+            .as_str()
+            .map(|s| s.trim().to_string())
     }
 }
 
@@ -609,15 +667,23 @@ pub fn find_maps(inputs: &[PathBuf]) -> FoundMaps {
                     continue;
                 }
             };
+            let dir = y.parent().unwrap_or(Path::new(""));
             match MapYaml::parse(&text) {
                 Ok(meta) => {
-                    let img = y.parent().unwrap_or(Path::new("")).join(meta.image);
-                    named.extend(FileId::of(&img));
+                    named.extend(FileId::of(&dir.join(meta.image)));
                     found.maps.push(y.clone());
                 }
-                Err(e) => found
-                    .notes
-                    .push(format!("skipped {}: not a map yaml: {e}", y.display())),
+                // A broken map yaml is an error, and its image is not read as a bare image either: that
+                // would detect with the wrong thresholds and no world coordinates.
+                Err(e) => match MapYaml::meant_image(&text) {
+                    Some(image) => {
+                        named.extend(FileId::of(&dir.join(image)));
+                        found.problems.push(format!("skipped {}: {e}", y.display()));
+                    }
+                    None => found
+                        .notes
+                        .push(format!("skipped {}: not a map yaml: {e}", y.display())),
+                },
             }
         }
         for p in &files {

@@ -18,6 +18,21 @@ pub enum TableFormat {
     Json,
 }
 
+/// A CSV field as RFC 4180 writes it: quoted (quotes doubled) when it holds a comma, a quote or a line
+/// break, as a map's file name may.
+pub fn csv_field(s: &str) -> std::borrow::Cow<'_, str> {
+    if s.contains([',', '"', '\n', '\r']) {
+        format!("\"{}\"", s.replace('"', "\"\"")).into()
+    } else {
+        s.into()
+    }
+}
+
+/// A Markdown table cell: `|` escaped and line breaks made spaces, so a file name cannot break the table.
+pub fn md_cell(s: &str) -> String {
+    s.replace('|', "\\|").replace(['\n', '\r'], " ")
+}
+
 /// Output formats of `detect`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Format {
@@ -105,7 +120,35 @@ struct JsonDetection<'a> {
     unknown_as_occupied: bool,
     backend: &'a str,
     count: usize,
-    keypoints: Vec<JsonKeypoint>,
+    keypoints: JsonKeypoints<'a>,
+}
+
+/// The keypoint list, serialised one by one as it is written: no second copy of a long list in memory.
+struct JsonKeypoints<'a> {
+    det: &'a Detection,
+    georef: Option<crate::map::GeoRef>,
+    ogm: bool,
+}
+
+impl Serialize for JsonKeypoints<'_> {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeSeq;
+        let mut seq = s.serialize_seq(Some(self.det.keypoints.len()))?;
+        for k in &self.det.keypoints {
+            seq.serialize_element(&JsonKeypoint {
+                x: k.x,
+                y: k.y,
+                rule: self.ogm.then_some(k.rule),
+                code: self.ogm.then_some(k.code),
+                score: (!self.ogm).then_some(k.score),
+                world: self.georef.map(|g| {
+                    let (wx, wy) = g.pixel_to_world(k.x, k.y, self.det.height);
+                    [wx, wy]
+                }),
+            })?;
+        }
+        seq.end()
+    }
 }
 
 /// JSON: `{"map", "width", "height", ["resolution", "origin",] "rules", "unknown_as_occupied", "backend",
@@ -132,22 +175,25 @@ pub fn write_json(
         unknown_as_occupied: options.unknown_as_occupied,
         backend,
         count: det.keypoints.len(),
-        keypoints: det
-            .keypoints
-            .iter()
-            .map(|k| JsonKeypoint {
-                x: k.x,
-                y: k.y,
-                rule: ogm.then_some(k.rule),
-                code: ogm.then_some(k.code),
-                score: (!ogm).then_some(k.score),
-                world: map.georef.map(|g| {
-                    let (wx, wy) = g.pixel_to_world(k.x, k.y, det.height);
-                    [wx, wy]
-                }),
-            })
-            .collect(),
+        keypoints: JsonKeypoints {
+            det,
+            georef: map.georef,
+            ogm,
+        },
     };
     serde_json::to_writer_pretty(&mut *out, &doc)?;
     writeln!(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn table_cells_keep_their_columns() {
+        assert_eq!(csv_field("map"), "map");
+        assert_eq!(csv_field("a,b"), "\"a,b\"");
+        assert_eq!(csv_field("say \"hi\"\n"), "\"say \"\"hi\"\"\n\"");
+        assert_eq!(md_cell("a|b\nc"), "a\\|b c");
+    }
 }

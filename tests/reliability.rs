@@ -62,6 +62,11 @@ fn refused(o: &Output, needle: &str) {
     );
 }
 
+fn signal(pid: u32, sig: rustix::process::Signal) {
+    let pid = rustix::process::Pid::from_raw(pid as i32).expect("a child's pid is positive");
+    let _ = rustix::process::kill_process(pid, sig);
+}
+
 fn ogm(args: &[&str]) -> Output {
     let mut c = Command::new(BIN);
     c.args(args);
@@ -178,10 +183,7 @@ fn an_interrupted_run_leaves_neither_a_partial_output_nor_a_temporary_file() {
         std::thread::sleep(Duration::from_millis(1));
     };
     assert!(writing, "the temporary output never appeared");
-    Command::new("kill")
-        .args(["-TERM", &child.id().to_string()])
-        .status()
-        .unwrap();
+    signal(child.id(), rustix::process::Signal::TERM);
     let status = child.wait().unwrap();
     assert_eq!(status.code(), Some(130));
     assert!(!out.exists(), "a partial output was left");
@@ -424,6 +426,19 @@ fn commands_that_would_exhaust_memory_are_refused_up_front() {
 }
 
 #[test]
+fn compressed_metadata_is_not_inflated() {
+    // tests/data/metadata-bomb.png: a 20 x 10 room whose colour profile (iCCP) and comment (zTXt) each
+    // inflate to 256 MiB from 500 KB. The map needs none of it: with 200 MB of address space it loads.
+    let bomb = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/metadata-bomb.png");
+    let o = sh(&format!(
+        "ulimit -v 200000; exec \"$OGM\" detect --backend cpu {}",
+        s(&bomb)
+    ));
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(stdout(&o).lines().count(), 5, "{}", stdout(&o));
+}
+
+#[test]
 fn absurd_option_values_are_refused() {
     let d = tmp();
     let map = d.path().join("m.pgm");
@@ -481,6 +496,16 @@ fn unreadable_entries_are_skipped_and_the_batch_fails_at_the_end() {
         .unwrap();
     fs::write(maps.join("latin1.yaml"), b"# caf\xe9\nimage: a.pgm\n").unwrap();
     fs::write(maps.join("params.yaml"), "controller_frequency: 5.0\n").unwrap();
+    // A map yaml with a bad value is an error, and its image is not detected as a bare image instead.
+    office_map(64, 64, 3)
+        .unwrap()
+        .write_pgm(&maps.join("c.pgm"))
+        .unwrap();
+    fs::write(
+        maps.join("c.yaml"),
+        "image: c.pgm\nresolution: 0.05\norigin: [0, 0, 0]\nfree_thresh: 1.5\n",
+    )
+    .unwrap();
     // Permissions bind root only through another user: run the tool as nobody when we are root.
     let out = d.path().join("out");
     fs::create_dir(&out).unwrap();
@@ -504,7 +529,8 @@ fn unreadable_entries_are_skipped_and_the_batch_fails_at_the_end() {
     assert!(e.contains("latin1.yaml: not UTF-8"), "{e}");
     assert!(e.contains("locked: cannot list the folder"), "{e}");
     assert!(e.contains("params.yaml: not a map yaml"), "{e}");
-    assert!(e.contains("2 entries could not be read"), "{e}");
+    assert!(e.contains("c.yaml: free_thresh must lie in [0, 1]"), "{e}");
+    assert!(e.contains("3 entries could not be read"), "{e}");
     assert_eq!(entries(&out), ["a.csv"]);
 }
 
@@ -691,4 +717,70 @@ fn values_in_a_map_are_read_as_they_are() {
     fs::write(&p, pgm_bytes(3, 1, 255, &[FREE, UNKNOWN, OCCUPIED])).unwrap();
     let m = ogm_corners::OccupancyMap::load(&p).unwrap();
     assert_eq!(m.image.pixels(), [FREE, UNKNOWN, OCCUPIED]);
+}
+
+#[test]
+fn a_batch_piped_into_head_still_writes_every_map() {
+    let d = tmp();
+    let maps = d.path().join("maps");
+    fs::create_dir(&maps).unwrap();
+    for i in 0..6 {
+        office_map(64, 64, i)
+            .unwrap()
+            .write_pgm(&maps.join(format!("m{i}.pgm")))
+            .unwrap();
+    }
+    let out = d.path().join("out");
+    let o = sh(&format!(
+        "\"$OGM\" detect --backend cpu {} -o {} | head -1",
+        s(&maps),
+        s(&out)
+    ));
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(stdout(&o).lines().count(), 1);
+    assert_eq!(entries(&out).len(), 6, "{:?}", entries(&out));
+    // And with standard output closed: the files are the results.
+    let out2 = d.path().join("out2");
+    let o = sh(&format!(
+        "exec \"$OGM\" detect --backend cpu {} -o {} >&-",
+        s(&maps),
+        s(&out2)
+    ));
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(entries(&out2).len(), 6);
+}
+
+#[test]
+fn long_runs_check_every_map_before_they_start() {
+    let d = tmp();
+    let maps = d.path().join("maps");
+    fs::create_dir(&maps).unwrap();
+    office_map(64, 64, 1)
+        .unwrap()
+        .write_pgm(&maps.join("good.pgm"))
+        .unwrap();
+    let bad = d.path().join("trunc.pgm");
+    fs::write(&bad, b"P5\n64 64\n255\n\x00\x00").unwrap();
+    let out = d.path().join("cmp");
+    let o = ogm(&[
+        "compare",
+        "--backend",
+        "cpu",
+        "--repeat",
+        "1",
+        "--out",
+        s(&out),
+        s(&maps),
+        s(&bad),
+    ]);
+    refused(&o, "trunc.pgm: truncated PGM");
+    assert!(!out.exists(), "compare wrote before checking its maps");
+    // A folder is searched like detect's; an output folder that is a file is a usage error.
+    let o = ogm(&["eval", "--backend", "cpu", "--trials", "1", s(&maps)]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stdout(&o).contains("good.pgm"));
+    let o = ogm(&["demo", "--size", "64x64", "-o", s(&bad)]);
+    refused(&o, "is a file, not a folder");
+    let o = ogm(&[]);
+    refused(&o, "no command given");
 }

@@ -729,10 +729,10 @@ pub(super) fn bench(a: BenchArgs, budget: &Budget) -> Result<()> {
         if p.is_dir() {
             let found = ogm_corners::map::find_maps(std::slice::from_ref(p));
             for n in found.notes {
-                eprintln!("ogm-corners: bench: note: {n}");
+                eprintln!("ogm-corners: note: {n}");
             }
             for n in &found.problems {
-                eprintln!("ogm-corners: bench: error: {n}");
+                eprintln!("ogm-corners: error: {n}");
             }
             problems += found.problems.len();
             for m in &found.maps {
@@ -810,8 +810,15 @@ pub(super) fn bench(a: BenchArgs, budget: &Budget) -> Result<()> {
                 }
             }
             Source::File(p) => {
-                let map = OccupancyMap::load_within(&p, budget, &|w, h| bench_bytes(&kinds, w, h))?;
-                BenchMap::from_file(&p, map)
+                match OccupancyMap::load_within(&p, budget, &|w, h| bench_bytes(&kinds, w, h)) {
+                    Ok(map) => BenchMap::from_file(&p, map),
+                    // One bad map does not end the measurement of the others; the run fails at the end.
+                    Err(e) => {
+                        eprintln!("ogm-corners: error: {e}");
+                        problems += 1;
+                        continue;
+                    }
+                }
             }
         };
         let records: Vec<BenchRecord> = runner
@@ -867,9 +874,11 @@ pub(super) fn bench(a: BenchArgs, budget: &Budget) -> Result<()> {
         })?;
     }
     if problems > 0 {
-        return Err(Error::invalid(format!(
-            "{problems} entries could not be read and were skipped (see above)"
-        )));
+        return Err(Error::invalid(if problems == 1 {
+            "1 map could not be read and was skipped (see above)".to_string()
+        } else {
+            format!("{problems} maps could not be read and were skipped (see above)")
+        }));
     }
     Ok(())
 }

@@ -5,7 +5,7 @@ use std::path::PathBuf;
 
 use clap::Args;
 
-use crate::batch::map_name;
+use crate::batch::output_names;
 
 use ogm_corners::backend::reference_working_bytes;
 use ogm_corners::compare::{self, CompareRecord};
@@ -19,7 +19,7 @@ use super::{bench, write_stdout, TableFormat, ALL_DETECTORS};
 
 #[derive(Args, Debug)]
 pub(super) struct CompareArgs {
-    /// Maps (yaml or image).
+    /// Maps (yaml or image), or folders of them (searched as `detect` searches them).
     #[arg(required = true)]
     maps: Vec<PathBuf>,
     /// Which backends to time: cpu, reference, gpu or all; comma-separated or repeated.
@@ -39,13 +39,14 @@ pub(super) struct CompareArgs {
 pub(super) fn run(a: CompareArgs, budget: &Budget) -> Result<()> {
     super::check_stdout()?;
     // Every path is checked, and no output may overwrite an input, before the first measurement.
-    let mut inputs = super::map_inputs(&a.maps)?;
+    let (maps, mut inputs) = super::map_inputs(&a.maps)?;
     let table_path = a.out.join("compare.md");
     inputs.claim_output(&table_path, "--out")?;
-    let sheets: Vec<PathBuf> = a
-        .maps
+    // One sheet per map, names made unique as batch detect makes them.
+    let names = output_names(&maps);
+    let sheets: Vec<PathBuf> = names
         .iter()
-        .map(|p| a.out.join(format!("{}-contact-sheet.png", map_name(p))))
+        .map(|n| a.out.join(format!("{n}-contact-sheet.png")))
         .collect();
     for s in &sheets {
         inputs.claim_output(s, "--out")?;
@@ -60,7 +61,7 @@ pub(super) fn run(a: CompareArgs, budget: &Budget) -> Result<()> {
     )?;
     files::create_dir(&a.out)?;
     let mut rows = Vec::new();
-    for (p, sheet_path) in a.maps.iter().zip(&sheets) {
+    for ((p, name), sheet_path) in maps.iter().zip(&names).zip(&sheets) {
         // The largest buffers: the reference's for Harris, plus a GPU's score readback, plus the sheet.
         let harris = DetectOptions {
             detector: DetectorKind::Baseline(Baseline::Harris),
@@ -73,7 +74,7 @@ pub(super) fn run(a: CompareArgs, budget: &Budget) -> Result<()> {
                 .saturating_add(compare::SHEET_BYTES)
         })?;
         let bm = bench::BenchMap::from_file(p, map);
-        let name = map_name(p);
+        let name = name.clone();
         let mut found = Vec::new();
         for m in runner.measure_map(&bm, &ALL_DETECTORS)? {
             let pick = |b: &str, s: &str| {

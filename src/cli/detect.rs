@@ -94,10 +94,17 @@ pub(super) fn run(a: DetectArgs, budget: &Budget) -> Result<()> {
 /// the run fail at the end.
 fn run_batch(a: DetectArgs, format: Format, budget: &Budget) -> Result<()> {
     let Some(out) = a.output.as_deref() else {
-        return Err(Error::invalid(format!(
-            "{} maps: give --output DIR for one keypoint file per map",
-            a.maps.len()
-        )));
+        return Err(Error::invalid(if a.maps.len() > 1 {
+            format!(
+                "{} maps: give --output DIR for one keypoint file per map",
+                a.maps.len()
+            )
+        } else {
+            format!(
+                "{} is a folder: give --output DIR for one keypoint file per map",
+                a.maps[0].display()
+            )
+        }));
     };
     let found = find_maps(&a.maps);
     for n in &found.notes {
@@ -109,15 +116,14 @@ fn run_batch(a: DetectArgs, format: Format, budget: &Budget) -> Result<()> {
     if found.maps.is_empty() {
         return Err(Error::invalid("no maps to detect in (see above)"));
     }
-    // Set-up (a GPU device and its pipelines) is paid once for the whole batch.
-    let mut detector = a.opts.detector()?;
     let plan = batch::Plan {
         format,
         out_dir: out,
         overlay_dir: a.overlay.as_deref(),
         budget,
     };
-    let done = batch::detect_many(&found.maps, &mut detector, &plan);
+    // Set-up (a GPU device and its pipelines) is paid once for the whole batch.
+    let done = batch::detect_many(&found.maps, || a.opts.detector(), &plan);
     match (done, found.problems.len()) {
         (Err(e), _) => Err(e),
         (Ok(()), 0) => Ok(()),

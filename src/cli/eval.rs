@@ -13,7 +13,7 @@ use super::{detector_on, write_stdout, BackendArg, TableFormat, ALL_DETECTORS};
 
 #[derive(Args, Debug)]
 pub(super) struct EvalArgs {
-    /// Maps (yaml or image).
+    /// Maps (yaml or image), or folders of them (searched as `detect` searches them).
     #[arg(required = true)]
     maps: Vec<PathBuf>,
     /// Random trials per condition (exact transforms run once), at most 1000.
@@ -45,7 +45,7 @@ pub(super) fn run(a: EvalArgs, budget: &Budget) -> Result<()> {
     }
     super::check_stdout()?;
     // Every path is checked before the first (long) evaluation; the plots must not overwrite a map.
-    let mut inputs = super::map_inputs(&a.maps)?;
+    let (maps, mut inputs) = super::map_inputs(&a.maps)?;
     if let Some(dir) = &a.plot {
         for file in eval::PLOT_FILES {
             inputs.claim_output(&dir.join(file), "--plot")?;
@@ -55,7 +55,7 @@ pub(super) fn run(a: EvalArgs, budget: &Budget) -> Result<()> {
     let mut detector = detector_on(a.backend, DetectOptions::default())?;
     let mut rows = Vec::new();
     // One map in memory at a time.
-    for p in &a.maps {
+    for p in &maps {
         let map = OccupancyMap::load_within(p, budget, &|w, h| {
             eval::evaluate_bytes(w, h).saturating_add(
                 ALL_DETECTORS

@@ -231,17 +231,31 @@ fn detector_on(backend: BackendArg, options: DetectOptions) -> Result<Detector> 
     })
 }
 
-/// The input set of commands that take map files (not folders): each must exist, and no output of the
-/// run may overwrite one.
-fn map_inputs(maps: &[std::path::PathBuf]) -> Result<ogm_corners::files::Inputs> {
+/// The maps of a long-running command (`eval`, `compare`): files as given and folders searched as
+/// `detect` searches them, each read up to its image header, so that a bad map stops the run before the
+/// first measurement rather than after hours; and the input set that no output of the run may overwrite.
+fn map_inputs(
+    args: &[std::path::PathBuf],
+) -> Result<(Vec<std::path::PathBuf>, ogm_corners::files::Inputs)> {
+    let found = ogm_corners::map::find_maps(args);
+    for n in &found.notes {
+        eprintln!("ogm-corners: note: {n}");
+    }
+    if let Some(first) = found.problems.first() {
+        return Err(Error::invalid(format!(
+            "{first}{}",
+            match found.problems.len() {
+                1 => String::new(),
+                n => format!(" (and {} more)", n - 1),
+            }
+        )));
+    }
     let mut inputs = ogm_corners::files::Inputs::new();
-    for p in maps {
-        if !p.is_file() {
-            return Err(Error::input(p, "no such file (give map files)"));
-        }
+    for p in &found.maps {
+        ogm_corners::OccupancyMap::probe(p)?;
         inputs.add(p);
     }
-    Ok(inputs)
+    Ok((found.maps, inputs))
 }
 
 /// Parses `WIDTHxHEIGHT`.

@@ -85,8 +85,10 @@ impl<R: BufRead> PngDecoder<R> {
             bytes: usize::try_from(max_decoder_bytes).unwrap_or(usize::MAX),
         };
         let mut dec = png::Decoder::new_with_limits(src, limits);
-        // As image sets it: text chunks are parsed (and a broken one refused).
-        dec.set_ignore_text_chunk(false);
+        // Metadata the map does not use is skipped, not decompressed: a compressed colour profile (iCCP)
+        // or text chunk can hold a gigabyte in a megabyte (a bomb in a 20 x 10 map).
+        dec.set_ignore_text_chunk(true);
+        dec.set_ignore_iccp_chunk(true);
         let info = dec.read_header_info().map_err(|e| png_error(&e))?;
         let (width, height) = (info.width, info.height);
         check_size(width, height)?;
