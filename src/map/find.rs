@@ -1,0 +1,180 @@
+//! Finding the maps in folders, for batch runs: each real folder once, unreadable entries reported, never
+//! fatal.
+
+use std::collections::HashSet;
+use std::path::{Path, PathBuf};
+
+use super::{MapYaml, MAX_YAML_BYTES};
+use crate::files::{self, FileId};
+
+/// What [`find_maps`] found.
+#[derive(Debug, Default)]
+pub struct FoundMaps {
+    /// The maps, files as given and then each folder's in path order.
+    pub maps: Vec<PathBuf>,
+    /// Things left out on purpose, for information: yaml files that are not maps, links back into a
+    /// folder already searched.
+    pub notes: Vec<String>,
+    /// Entries that could not be read (an unreadable folder or yaml, a fifo named like a map, a folder
+    /// with no map): skipped so the rest is processed, but the run should end with an error.
+    pub problems: Vec<String>,
+}
+
+/// The maps named by `inputs`: files as given, and for each folder (searched recursively, in path order,
+/// hidden entries left out, each real folder once however many links lead to it) every ROS map yaml plus
+/// every PGM/PNG image that no yaml there names. A yaml that is not a map (ROS packages keep other yaml
+/// files beside their maps) is left out with a note. Unreadable entries are reported in
+/// [`FoundMaps::problems`] and skipped; they never stop the search.
+pub fn find_maps(inputs: &[PathBuf]) -> FoundMaps {
+    let mut found = FoundMaps::default();
+    let mut seen_dirs: HashSet<FileId> = HashSet::new();
+    let mut seen_files: HashSet<FileId> = HashSet::new();
+    for input in inputs {
+        if !input.is_dir() {
+            found.maps.push(input.clone());
+            continue;
+        }
+        let before = found.maps.len();
+        let files = walk(input, &mut seen_dirs, &mut seen_files, &mut found);
+        let ext = |p: &Path| {
+            p.extension()
+                .and_then(|e| e.to_str())
+                .map(str::to_ascii_lowercase)
+                .unwrap_or_default()
+        };
+        // The images the yamls name, compared as file identities (links and spellings alike).
+        let mut named = HashSet::new();
+        for y in files
+            .iter()
+            .filter(|p| matches!(ext(p).as_str(), "yaml" | "yml"))
+        {
+            let text = match files::read_small_text(y, MAX_YAML_BYTES, "a map yaml") {
+                Ok(t) => t,
+                Err(e) if e.to_string().contains("too large") => {
+                    found
+                        .notes
+                        .push(format!("skipped {}: not a map yaml: {e}", y.display()));
+                    continue;
+                }
+                Err(e) => {
+                    found.problems.push(format!("skipped {e}"));
+                    continue;
+                }
+            };
+            let dir = y.parent().unwrap_or(Path::new(""));
+            match MapYaml::parse(&text) {
+                Ok(meta) => {
+                    named.extend(FileId::of(&dir.join(meta.image)));
+                    found.maps.push(y.clone());
+                }
+                // A broken map yaml is an error, and its image is not read as a bare image either: that
+                // would detect with the wrong thresholds and no world coordinates.
+                Err(e) => match MapYaml::meant_image(&text) {
+                    Some(image) => {
+                        named.extend(FileId::of(&dir.join(image)));
+                        found.problems.push(format!("skipped {}: {e}", y.display()));
+                    }
+                    None => found
+                        .notes
+                        .push(format!("skipped {}: not a map yaml: {e}", y.display())),
+                },
+            }
+        }
+        for p in &files {
+            if matches!(ext(p).as_str(), "pgm" | "png")
+                && !FileId::of(p).is_some_and(|id| named.contains(&id))
+            {
+                found.maps.push(p.clone());
+            }
+        }
+        if found.maps.len() == before {
+            found.problems.push(format!(
+                "{}: no maps in this folder (looked for .yaml, .pgm and .png files)",
+                input.display()
+            ));
+        }
+    }
+    found
+}
+
+/// The regular files under `root`, sorted, each real folder and file visited once.
+fn walk(
+    root: &Path,
+    seen_dirs: &mut HashSet<FileId>,
+    seen_files: &mut HashSet<FileId>,
+    found: &mut FoundMaps,
+) -> Vec<PathBuf> {
+    let mut files = Vec::new();
+    let mut stack = vec![root.to_path_buf()];
+    while let Some(dir) = stack.pop() {
+        let Some(id) = FileId::of(&dir) else {
+            found
+                .problems
+                .push(format!("skipped {}: cannot read the folder", dir.display()));
+            continue;
+        };
+        if !seen_dirs.insert(id) {
+            if dir != root {
+                found.notes.push(format!(
+                    "skipped {}: a link to a folder already searched",
+                    dir.display()
+                ));
+            }
+            continue;
+        }
+        let entries = match std::fs::read_dir(&dir) {
+            Ok(e) => e,
+            Err(e) => {
+                found.problems.push(format!(
+                    "skipped {}: cannot list the folder: {e}",
+                    dir.display()
+                ));
+                continue;
+            }
+        };
+        for entry in entries {
+            let p = match entry {
+                Ok(e) => e.path(),
+                Err(e) => {
+                    found
+                        .problems
+                        .push(format!("skipped an entry of {}: {e}", dir.display()));
+                    continue;
+                }
+            };
+            let hidden = p
+                .file_name()
+                .and_then(|n| n.to_str())
+                .is_some_and(|n| n.starts_with('.'));
+            if hidden {
+                continue;
+            }
+            let is_map_name = p
+                .extension()
+                .and_then(|e| e.to_str())
+                .map(str::to_ascii_lowercase)
+                .is_some_and(|e| matches!(e.as_str(), "yaml" | "yml" | "pgm" | "png"));
+            match std::fs::metadata(&p) {
+                Ok(m) if m.is_dir() => stack.push(p),
+                Ok(m) if m.is_file() => {
+                    if seen_files.insert(FileId::from_meta(&p, &m)) {
+                        files.push(p);
+                    }
+                }
+                Ok(m) if is_map_name => found.problems.push(format!(
+                    "skipped {}: not a regular file ({})",
+                    p.display(),
+                    files::kind_of(&m)
+                )),
+                Ok(_) => {}
+                Err(e) if is_map_name => found
+                    .problems
+                    .push(format!("skipped {}: cannot read: {e}", p.display())),
+                // A broken link or unreadable entry that is no map is none of our business.
+                Err(_) => {}
+            }
+        }
+    }
+    files.sort();
+    files
+}
