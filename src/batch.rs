@@ -1,7 +1,6 @@
 //! `detect` over many maps: the detector (and its GPU set-up) is made once, the next map is read and
 //! decoded on another thread while the current one is detected, and a progress bar runs on standard error.
 
-use std::collections::HashSet;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 use std::sync::mpsc;
@@ -10,6 +9,7 @@ use std::time::Instant;
 use indicatif::{ProgressBar, ProgressStyle};
 
 use ogm_corners::files::{self, FileId, Inputs};
+pub use ogm_corners::map::{map_name, output_names};
 use ogm_corners::memory::Budget;
 use ogm_corners::output::{self, Format};
 use ogm_corners::{overlay, Detector, Error, OccupancyMap, Result};
@@ -17,38 +17,6 @@ use ogm_corners::{overlay, Detector, Error, OccupancyMap, Result};
 /// Maps decoded ahead of the detector: one waiting while one is detected bounds the memory to about three
 /// maps.
 const READ_AHEAD: usize = 1;
-
-/// A file name for each map: its stem, or its folder for ROS's usual `map.yaml`, made unique with `-2`,
-/// `-3`... in input order.
-pub fn output_names(maps: &[PathBuf]) -> Vec<String> {
-    let mut seen = HashSet::new();
-    maps.iter()
-        .map(|p| {
-            let base = map_name(p);
-            let mut name = base.clone();
-            let mut n = 1;
-            while !seen.insert(name.clone()) {
-                n += 1;
-                name = format!("{base}-{n}");
-            }
-            name
-        })
-        .collect()
-}
-
-/// A short name for a map file: its stem, or its folder's name when the stem is the generic `map`.
-pub fn map_name(p: &Path) -> String {
-    let stem = p.file_stem().and_then(|s| s.to_str()).unwrap_or("map");
-    match (
-        stem,
-        p.parent()
-            .and_then(|d| d.file_name())
-            .and_then(|d| d.to_str()),
-    ) {
-        ("map", Some(dir)) => dir.to_string(),
-        _ => stem.to_string(),
-    }
-}
 
 /// Where and how a batch writes.
 pub struct Plan<'a> {

@@ -22,6 +22,7 @@
 
 pub mod backend;
 pub mod baselines;
+pub mod bench;
 pub mod compare;
 pub mod cpu;
 pub mod decode;

@@ -15,7 +15,8 @@ use ogm_corners::{
     Baseline, BaselineParams, DetectOptions, DetectorKind, OccupancyMap, Result, RuleSet,
 };
 
-use super::{bench, write_stdout, TableFormat, ALL_DETECTORS};
+use super::{write_stdout, TableFormat, ALL_DETECTORS};
+use ogm_corners::bench::{BenchBackend, BenchMap, Runner};
 
 #[derive(Args, Debug)]
 pub(super) struct CompareArgs {
@@ -24,7 +25,7 @@ pub(super) struct CompareArgs {
     maps: Vec<PathBuf>,
     /// Which backends to time: cpu, reference, gpu or all; comma-separated or repeated.
     #[arg(long, value_enum, value_delimiter = ',', default_values = ["cpu", "reference"])]
-    backend: Vec<bench::BenchBackend>,
+    backend: Vec<BenchBackend>,
     /// Folder for the table (compare.md) and the contact sheets.
     #[arg(long, value_name = "DIR", default_value = "compare-out")]
     out: PathBuf,
@@ -52,7 +53,7 @@ pub(super) fn run(a: CompareArgs, budget: &Budget) -> Result<()> {
         inputs.claim_output(s, "--out")?;
     }
     // The same measurement as `bench` (backends checked to agree keypoint for keypoint).
-    let mut runner = bench::Runner::new(
+    let mut runner = Runner::new(
         "compare",
         &a.backend,
         a.repeat,
@@ -73,7 +74,7 @@ pub(super) fn run(a: CompareArgs, budget: &Budget) -> Result<()> {
                 .saturating_add(px.saturating_mul(8))
                 .saturating_add(compare::SHEET_BYTES)
         })?;
-        let bm = bench::BenchMap::from_file(p, map);
+        let bm = BenchMap::from_file(p, map);
         let name = name.clone();
         let mut found = Vec::new();
         for m in runner.measure_map(&bm, &ALL_DETECTORS)? {

@@ -178,3 +178,35 @@ fn walk(
     files.sort();
     files
 }
+
+/// A file name for each map: its stem, or its folder for ROS's usual `map.yaml`, made unique with `-2`,
+/// `-3`... in input order.
+pub fn output_names(maps: &[PathBuf]) -> Vec<String> {
+    let mut seen = HashSet::new();
+    maps.iter()
+        .map(|p| {
+            let base = map_name(p);
+            let mut name = base.clone();
+            let mut n = 1;
+            while !seen.insert(name.clone()) {
+                n += 1;
+                name = format!("{base}-{n}");
+            }
+            name
+        })
+        .collect()
+}
+
+/// A short name for a map file: its stem, or its folder's name when the stem is the generic `map`.
+pub fn map_name(p: &Path) -> String {
+    let stem = p.file_stem().and_then(|s| s.to_str()).unwrap_or("map");
+    match (
+        stem,
+        p.parent()
+            .and_then(|d| d.file_name())
+            .and_then(|d| d.to_str()),
+    ) {
+        ("map", Some(dir)) => dir.to_string(),
+        _ => stem.to_string(),
+    }
+}

@@ -13,7 +13,7 @@ use crate::error::{Error, Result};
 use crate::files;
 use crate::memory::Budget;
 
-pub use find::{find_maps, FoundMaps};
+pub use find::{find_maps, map_name, output_names, FoundMaps};
 use yaml::read_yaml;
 pub use yaml::{MapYaml, MAX_YAML_BYTES, MAX_YAML_NESTING};
 

@@ -1,0 +1,607 @@
+//! The measurement behind `ogm-corners bench` and `compare`: median times of detectors on maps on the
+//! chosen backends (end to end, GPU kernels, upload), the peak memory of the CPU stages, and a check that
+//! every backend finds the same keypoints.
+
+use std::fs;
+use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use crate::backend::{Backend, DetectorKind, Keypoint};
+use crate::baselines::{self, BaselineParams};
+use crate::cpu::{classify::classify, ogm_corners::ogm_corners, CpuBackend};
+use crate::error::{Error, Result};
+use crate::fast::FastCpuBackend;
+use crate::gpu::{GpuBackend, GpuOptions};
+use crate::map::{map_name, OccupancyMap};
+use crate::rules::{RuleSet, RuleTable};
+use crate::states::ClassTable;
+
+/// The git commit the library was built from (build.rs; "unknown" without git).
+pub const GIT_COMMIT: &str = env!("OGM_GIT_COMMIT");
+
+/// Maps above this many pixels make the baselines on the reference or on a software GPU adapter take
+/// minutes per measurement (16384 x 16384 is 268 Mpx); `--backend all` skips those combinations, and naming
+/// the backend runs them. 32 Mi pixels lies between 4096 x 4096 (16.8 Mpx) and 8192 x 8192 (67 Mpx).
+pub const SLOW_PIXELS: u64 = 32 << 20;
+
+/// Which backends `bench` and `compare` time; a comma-separated list, or the option repeated.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum BenchBackend {
+    /// The fast CPU path (all cores), the default detection backend.
+    Cpu,
+    /// The plain single-threaded CPU reference.
+    Reference,
+    /// The GPU adapter wgpu picks, software ones included; fails without one.
+    Gpu,
+    /// cpu, reference and gpu (when an adapter opens; a note on standard error when not). Skips the
+    /// reference and software adapters for the baselines on maps over 32 Mi pixels: name them to run those.
+    All,
+}
+
+/// How a backend came into the run: not at all, through `all`, or by name. Named wins over `all`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+enum Want {
+    No,
+    All,
+    Named,
+}
+
+/// The three backends a measurement can run on.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Engine {
+    Cpu,
+    Reference,
+    Gpu,
+}
+
+impl Engine {
+    fn name(self) -> &'static str {
+        match self {
+            Engine::Cpu => "cpu",
+            Engine::Reference => "reference",
+            Engine::Gpu => "gpu",
+        }
+    }
+}
+
+/// One measurement: a detector on a map, on one backend, one stage.
+#[derive(serde::Serialize, Debug, Clone)]
+pub struct BenchRecord {
+    /// Short name of the map ("synthetic", or the file's stem / folder).
+    pub map: String,
+    /// The file the map was read from (yaml or image); null for synthetic maps.
+    pub source: Option<String>,
+    /// The image file holding the pixels (a synthetic map's --save-map file); null when there is none.
+    pub image: Option<String>,
+    pub detector: &'static str,
+    pub backend: &'static str,
+    /// The CPU model (CPU backends) or the GPU adapter.
+    pub adapter: String,
+    pub width: u32,
+    pub height: u32,
+    /// `end_to_end` (image in memory to keypoints in memory), `kernel` (GPU timestamp queries; the
+    /// reference's work before keypoint selection) or `upload` (the GPU upload alone).
+    pub stage: &'static str,
+    pub median_ms: f64,
+    pub mpx_per_s: f64,
+    pub keypoints: usize,
+    /// Peak resident memory of the process while this stage ran (CPU backends, Linux), map included.
+    pub peak_rss_mb: Option<f64>,
+    /// `peak_rss_mb` over the map's size in bytes (one byte a pixel).
+    pub peak_rss_ratio: Option<f64>,
+    /// Resident memory when the stage started (the map, the program, what the allocator keeps).
+    pub rss_before_mb: Option<f64>,
+}
+
+/// A map to measure, with the names that go into its records.
+pub struct BenchMap {
+    pub label: String,
+    pub source: Option<PathBuf>,
+    pub image_path: Option<PathBuf>,
+    pub map: OccupancyMap,
+}
+
+impl BenchMap {
+    /// A map loaded from `path` (what the user named or a folder held).
+    pub fn from_file(path: &Path, map: OccupancyMap) -> Self {
+        BenchMap {
+            label: map_name(path),
+            source: Some(path.to_path_buf()),
+            image_path: map.image_path.clone(),
+            map,
+        }
+    }
+}
+
+/// One detector's results on one map: its records on every backend, and the keypoints they agreed on.
+pub struct Measured {
+    pub kind: DetectorKind,
+    pub keypoints: Vec<Keypoint>,
+    pub records: Vec<BenchRecord>,
+}
+
+/// The GPU adapter found when the run started.
+struct GpuInfo {
+    label: String,
+    software: bool,
+}
+
+/// Peak resident memory over a stretch of work, from /proc/self (Linux).
+struct PeakRss {
+    before_kb: u64,
+}
+
+/// A field of /proc/self/status in kB (`VmRSS`, `VmHWM`).
+fn status_kb(field: &str) -> Option<u64> {
+    let s = fs::read_to_string("/proc/self/status").ok()?;
+    let line = s.lines().find(|l| l.starts_with(field))?;
+    line.split_whitespace().nth(1)?.parse().ok()
+}
+
+impl PeakRss {
+    /// Resets the high-water mark (writing 5 to clear_refs sets VmHWM to the current RSS, Linux 4.0+);
+    /// None where that is not possible, so that a lifetime peak is never reported as this stage's.
+    fn start() -> Option<Self> {
+        fs::write("/proc/self/clear_refs", "5").ok()?;
+        Some(PeakRss {
+            before_kb: status_kb("VmRSS")?,
+        })
+    }
+
+    /// Resident memory when started and the peak since.
+    fn finish(self) -> Option<Memory> {
+        let peak = status_kb("VmHWM")?;
+        Some(Memory {
+            before_mb: self.before_kb as f64 / 1e3,
+            peak_mb: peak as f64 / 1e3,
+        })
+    }
+}
+
+/// Resident memory over a stage, MB.
+#[derive(Clone, Copy, Debug)]
+struct Memory {
+    before_mb: f64,
+    peak_mb: f64,
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        (v[n / 2 - 1] + v[n / 2]) / 2.0
+    }
+}
+
+/// Runs `f` once to warm up (first-use costs stay out of the median), then `repeat` timed times. Returns
+/// the warm-up's result, the median time in ms, and the memory over all the runs.
+fn timed<T>(repeat: u32, mut f: impl FnMut() -> Result<T>) -> Result<(T, f64, Option<Memory>)> {
+    let rss = PeakRss::start();
+    let first = f()?;
+    let mut times = Vec::with_capacity(repeat as usize);
+    for _ in 0..repeat {
+        let t = Instant::now();
+        let r = f()?;
+        times.push(t.elapsed().as_secs_f64() * 1e3);
+        drop(r); // outside the timed span
+    }
+    Ok((first, median(times), rss.and_then(PeakRss::finish)))
+}
+
+/// The CPU's model name.
+pub fn cpu_model() -> String {
+    fs::read_to_string("/proc/cpuinfo")
+        .ok()
+        .and_then(|s| {
+            s.lines()
+                .find(|l| l.starts_with("model name"))
+                .and_then(|l| l.split_once(':'))
+                .map(|(_, v)| v.trim().to_string())
+        })
+        .unwrap_or_else(|| std::env::consts::ARCH.to_string())
+}
+
+pub fn threads() -> usize {
+    std::thread::available_parallelism().map_or(1, |n| n.get())
+}
+
+/// The first difference between two keypoint lists, for the disagreement error.
+fn first_difference(a: &[Keypoint], b: &[Keypoint]) -> String {
+    let show = |k: Option<&Keypoint>| {
+        k.map_or("nothing".to_string(), |k| {
+            format!(
+                "(x {}, y {}, rule {}, code {}, score {})",
+                k.x, k.y, k.rule, k.code, k.score
+            )
+        })
+    };
+    let i = a
+        .iter()
+        .zip(b)
+        .position(|(x, y)| x != y)
+        .unwrap_or(a.len().min(b.len()));
+    format!(
+        "first difference at index {i}: {} vs {}",
+        show(a.get(i)),
+        show(b.get(i))
+    )
+}
+
+/// Times detectors on maps on the chosen backends, checking that the backends agree.
+pub struct Runner {
+    cmd: &'static str,
+    cpu: Want,
+    reference: Want,
+    gpu_want: Want,
+    gpu_info: Option<GpuInfo>,
+    gpu: Option<GpuBackend>,
+    repeat: u32,
+    rule_set: RuleSet,
+    params: BaselineParams,
+    progress: bool,
+}
+
+impl Runner {
+    /// A runner for `backends`; opens the GPU once to check it is there (`gpu` named: an error without
+    /// one; through `all`: a note on standard error, and no GPU rows). `cmd` names the subcommand in notes.
+    pub fn new(
+        cmd: &'static str,
+        backends: &[BenchBackend],
+        repeat: u32,
+        rule_set: RuleSet,
+        params: BaselineParams,
+    ) -> Result<Self> {
+        params.exact()?; // bad baseline options fail before any measuring
+        let (mut cpu, mut reference, mut gpu_want) = (Want::No, Want::No, Want::No);
+        for b in backends {
+            match b {
+                BenchBackend::Cpu => cpu = Want::Named,
+                BenchBackend::Reference => reference = Want::Named,
+                BenchBackend::Gpu => gpu_want = Want::Named,
+                BenchBackend::All => {
+                    cpu = cpu.max(Want::All);
+                    reference = reference.max(Want::All);
+                    gpu_want = gpu_want.max(Want::All);
+                }
+            }
+        }
+        let gpu = match gpu_want {
+            Want::No => None,
+            Want::Named => Some(GpuBackend::new(GpuOptions::default())?),
+            Want::All => GpuBackend::new(GpuOptions::default())
+                .map_err(|e| eprintln!("ogm-corners: {cmd}: no GPU rows: {e}"))
+                .ok(),
+        };
+        let gpu_info = gpu.as_ref().map(|g| {
+            let a = g.adapter();
+            GpuInfo {
+                label: format!("{} ({}, {})", a.name, a.backend, a.device_type),
+                software: a.device_type == "Cpu",
+            }
+        });
+        Ok(Runner {
+            cmd,
+            cpu,
+            reference,
+            gpu_want,
+            gpu_info,
+            gpu,
+            repeat,
+            rule_set,
+            params,
+            progress: std::io::stderr().is_terminal(),
+        })
+    }
+
+    /// The GPU adapter the run found ("name (backend, type)"), if it opened one.
+    pub fn gpu_label(&self) -> Option<&str> {
+        self.gpu_info.as_ref().map(|g| g.label.as_str())
+    }
+
+    /// Whether `all` leaves this combination out as too slow (see [`SLOW_PIXELS`]).
+    fn too_slow(&self, engine: Engine, kind: DetectorKind, pixels: u64) -> bool {
+        let (want, slow) = match engine {
+            Engine::Cpu => (self.cpu, false),
+            Engine::Reference => (self.reference, true),
+            Engine::Gpu => (
+                self.gpu_want,
+                self.gpu_info.as_ref().is_some_and(|g| g.software),
+            ),
+        };
+        want == Want::All && slow && kind != DetectorKind::Ogm && pixels > SLOW_PIXELS
+    }
+
+    /// Times each of `kinds` on `m` on every chosen backend: the CPU ones first, then the GPU, which is
+    /// reopened per map when CPU backends run too, so that its buffers do not count in their peak memory.
+    /// Fails when two backends find different keypoint lists.
+    pub fn measure_map(&mut self, m: &BenchMap, kinds: &[DetectorKind]) -> Result<Vec<Measured>> {
+        let (w, h) = (m.map.image.width(), m.map.image.height());
+        let pixels = u64::from(w) * u64::from(h);
+        let cpu_side = self.cpu != Want::No || self.reference != Want::No;
+        if cpu_side {
+            self.gpu = None;
+        }
+        let mut out: Vec<Measured> = kinds
+            .iter()
+            .map(|&kind| Measured {
+                kind,
+                keypoints: Vec::new(),
+                records: Vec::new(),
+            })
+            .collect();
+        let mut first: Vec<Option<&'static str>> = vec![None; kinds.len()];
+        let mut skipped = Vec::new();
+        let mut engines = Vec::new();
+        if self.cpu != Want::No {
+            engines.push(Engine::Cpu);
+        }
+        if self.reference != Want::No {
+            engines.push(Engine::Reference);
+        }
+        if self.gpu_info.is_some() {
+            engines.push(Engine::Gpu);
+        }
+        for engine in engines {
+            if engine == Engine::Gpu && self.gpu.is_none() {
+                self.gpu = Some(GpuBackend::new(GpuOptions::default())?);
+            }
+            for (i, o) in out.iter_mut().enumerate() {
+                if self.too_slow(engine, o.kind, pixels) {
+                    skipped.push(format!("{} on {}", o.kind.name(), engine.name()));
+                    continue;
+                }
+                if self.progress {
+                    eprintln!(
+                        "ogm-corners: {}: {} {w}x{h} {} on {}",
+                        self.cmd,
+                        m.label,
+                        o.kind.name(),
+                        engine.name()
+                    );
+                }
+                let (records, kps) = self.measure(m, o.kind, engine)?;
+                match first[i] {
+                    None => {
+                        first[i] = Some(engine.name());
+                        o.keypoints = kps;
+                    }
+                    Some(a) if o.keypoints != kps => {
+                        return Err(Error::Internal(format!(
+                            "backends disagree on {} ({w}x{h}), detector {}: {a} found {} keypoints, {} found {}; {}",
+                            m.label,
+                            o.kind.name(),
+                            o.keypoints.len(),
+                            engine.name(),
+                            kps.len(),
+                            first_difference(&o.keypoints, &kps)
+                        )));
+                    }
+                    Some(_) => {}
+                }
+                o.records.extend(records);
+            }
+        }
+        if !skipped.is_empty() {
+            eprintln!(
+                "ogm-corners: {}: {} {w}x{h}: skipped {} (--backend all leaves out the reference and software \
+                 GPU adapters on baselines over {} Mpx: minutes each; name the backend to run them, e.g. \
+                 --backend cpu,reference,gpu)",
+                self.cmd,
+                m.label,
+                skipped.join(", "),
+                SLOW_PIXELS as f64 / 1e6
+            );
+        }
+        Ok(out)
+    }
+
+    /// The records of one detector on one backend, and its keypoints.
+    fn measure(
+        &mut self,
+        m: &BenchMap,
+        kind: DetectorKind,
+        engine: Engine,
+    ) -> Result<(Vec<BenchRecord>, Vec<Keypoint>)> {
+        let image = &m.map.image;
+        let (w, h) = (image.width(), image.height());
+        let mpx = f64::from(w) * f64::from(h) / 1e6;
+        let classes = ClassTable::new(&m.map.thresholds);
+        let rules = RuleTable::new(self.rule_set);
+        let params = self.params;
+        let exact = params.exact()?;
+        let repeat = self.repeat;
+        // End to end through the backend trait: image in memory to keypoints in memory.
+        let end_to_end = |b: &mut dyn Backend| -> Result<Vec<Keypoint>> {
+            match kind {
+                DetectorKind::Ogm => b.detect(image, &classes, &rules, false),
+                DetectorKind::Baseline(k) => b.baseline_keypoints(k, image, &params),
+            }
+        };
+        let adapter = match engine {
+            Engine::Cpu | Engine::Reference => cpu_model(),
+            Engine::Gpu => self
+                .gpu_info
+                .as_ref()
+                .map_or_else(String::new, |g| g.label.clone()),
+        };
+        let record = |stage, ms: f64, mem: Option<Memory>, n: usize| BenchRecord {
+            map: m.label.clone(),
+            source: m.source.as_ref().map(|p| p.display().to_string()),
+            image: m.image_path.as_ref().map(|p| p.display().to_string()),
+            detector: kind.name(),
+            backend: engine.name(),
+            adapter: adapter.clone(),
+            width: w,
+            height: h,
+            stage,
+            median_ms: ms,
+            mpx_per_s: mpx / (ms / 1e3),
+            keypoints: n,
+            peak_rss_mb: mem.map(|m| m.peak_mb),
+            peak_rss_ratio: mem.map(|m| m.peak_mb * 1e6 / (f64::from(w) * f64::from(h))),
+            rss_before_mb: mem.map(|m| m.before_mb),
+        };
+        let mut records = Vec::new();
+        let keypoints = match engine {
+            Engine::Cpu => {
+                let (kps, ms, mem) = timed(repeat, || end_to_end(&mut FastCpuBackend))?;
+                records.push(record("end_to_end", ms, mem, kps.len()));
+                kps
+            }
+            Engine::Reference => {
+                let (kps, ms, mem) = timed(repeat, || end_to_end(&mut CpuBackend))?;
+                records.push(record("end_to_end", ms, mem, kps.len()));
+                // The reference's "kernels" are the twins of the GPU kernels: the work before selection.
+                let (_, ms, mem) = timed(repeat, || {
+                    Ok(match kind {
+                        DetectorKind::Ogm => {
+                            let states = classify(image, &classes);
+                            ogm_corners(&states, w, h, &rules, false).len()
+                        }
+                        DetectorKind::Baseline(k) => baselines::cpu_scores(k, image, &exact).len(),
+                    })
+                })?;
+                records.push(record("kernel", ms, mem, kps.len()));
+                kps
+            }
+            Engine::Gpu => {
+                let g = self
+                    .gpu
+                    .as_mut()
+                    .ok_or_else(|| Error::Internal("GPU backend not open".into()))?;
+                let mut kernel = Vec::new();
+                let (kps, ms, _) = timed(repeat, || {
+                    let kps = end_to_end(&mut *g)?;
+                    if let Some(k) = g.stats().kernel_time {
+                        kernel.push(k.as_secs_f64() * 1e3);
+                    }
+                    Ok(kps)
+                })?;
+                records.push(record("end_to_end", ms, None, kps.len()));
+                // The warm-up's kernel time is the first entry; the median uses the timed runs only.
+                if kernel.len() > 1 {
+                    records.push(record(
+                        "kernel",
+                        median(kernel[1..].to_vec()),
+                        None,
+                        kps.len(),
+                    ));
+                } else {
+                    eprintln!(
+                        "ogm-corners: {}: {} has no timestamp queries; no kernel-only row",
+                        self.cmd,
+                        g.adapter().name
+                    );
+                }
+                g.upload_time(image)?; // warm-up
+                let mut up = Vec::with_capacity(repeat as usize);
+                for _ in 0..repeat {
+                    up.push(g.upload_time(image)?.as_secs_f64() * 1e3);
+                }
+                records.push(record("upload", median(up), None, kps.len()));
+                kps
+            }
+        };
+        Ok((records, keypoints))
+    }
+
+    /// Header lines naming the machine, the build and the backends.
+    pub fn header(&self, seed: Option<u64>) -> Vec<String> {
+        let mut lines = vec![format!(
+            "# ogm-corners {} (git {GIT_COMMIT}); {} ({} threads), {} {}; median of {} timed runs after a warm-up",
+            env!("CARGO_PKG_VERSION"),
+            cpu_model(),
+            threads(),
+            std::env::consts::OS,
+            std::env::consts::ARCH,
+            self.repeat
+        )];
+        let mut b = Vec::new();
+        if self.cpu != Want::No {
+            b.push(format!(
+                "cpu = fast CPU path on {} threads",
+                rayon::current_num_threads()
+            ));
+        }
+        if self.reference != Want::No {
+            b.push("reference = single-threaded CPU reference".to_string());
+        }
+        if let Some(g) = &self.gpu_info {
+            b.push(format!("gpu = {}", g.label));
+        }
+        lines.push(format!("# backends: {}", b.join("; ")));
+        if let Some(seed) = seed {
+            lines.push(format!(
+                "# synthetic: the office map of ogm_corners::synth, seed {seed}"
+            ));
+        }
+        if self.cpu != Want::No || self.reference != Want::No {
+            lines.push(
+                "# peak MB: the process's peak resident memory while that CPU stage ran, map included; \
+                 x map: peak over the map's bytes; start MB: resident when the stage started"
+                    .to_string(),
+            );
+        }
+        lines
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::baselines::Baseline;
+
+    fn runner(cpu: Want, reference: Want, gpu_want: Want, software: bool) -> Runner {
+        Runner {
+            cmd: "test",
+            cpu,
+            reference,
+            gpu_want,
+            gpu_info: Some(GpuInfo {
+                label: "test".into(),
+                software,
+            }),
+            gpu: None,
+            repeat: 1,
+            rule_set: RuleSet::Paper,
+            params: BaselineParams::default(),
+            progress: false,
+        }
+    }
+
+    #[test]
+    fn all_leaves_out_only_slow_backends_on_huge_baselines() {
+        let harris = DetectorKind::Baseline(Baseline::Harris);
+        let huge = 16384 * 16384;
+        let r = runner(Want::All, Want::All, Want::All, true);
+        assert!(r.too_slow(Engine::Reference, harris, huge));
+        assert!(r.too_slow(Engine::Gpu, harris, huge));
+        assert!(!r.too_slow(Engine::Cpu, harris, huge));
+        assert!(!r.too_slow(Engine::Reference, DetectorKind::Ogm, huge));
+        assert!(!r.too_slow(Engine::Reference, harris, 4096 * 4096));
+        // A hardware adapter, or a backend named on the command line, always runs.
+        assert!(!runner(Want::All, Want::All, Want::All, false).too_slow(
+            Engine::Gpu,
+            harris,
+            huge
+        ));
+        let named = runner(Want::All, Want::Named, Want::Named, true);
+        assert!(!named.too_slow(Engine::Reference, harris, huge));
+        assert!(!named.too_slow(Engine::Gpu, harris, huge));
+    }
+
+    #[test]
+    fn first_difference_names_the_index_and_both_keypoints() {
+        let a = [Keypoint::scored(1, 2, 5), Keypoint::scored(3, 4, 6)];
+        let b = [Keypoint::scored(1, 2, 5), Keypoint::scored(3, 4, 7)];
+        let m = first_difference(&a, &b);
+        assert!(
+            m.contains("index 1") && m.contains("score 6") && m.contains("score 7"),
+            "{m}"
+        );
+        assert!(first_difference(&a, &a[..1]).contains("vs nothing"));
+    }
+}
