@@ -94,6 +94,26 @@ pub fn shared_maps() -> Option<PathBuf> {
     None
 }
 
+/// The merge-pairs data set (`$OGM_MERGE_PAIRS_DIR`, else `../shared/merge-pairs`), or None with a clear
+/// message; under CI=true a missing folder is a failure.
+pub fn merge_pairs() -> Option<PathBuf> {
+    let dir = std::env::var_os("OGM_MERGE_PAIRS_DIR")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/merge-pairs"));
+    if dir.join("corners.json").is_file() {
+        return Some(dir);
+    }
+    let msg = format!(
+        "merge-pairs data not found at {}: the annotated-corner checks did NOT run",
+        dir.display()
+    );
+    if std::env::var("CI").is_ok_and(|v| v == "true") {
+        panic!("{msg} (CI=true requires them)");
+    }
+    eprintln!("SKIPPED: {msg}");
+    None
+}
+
 /// Every map under `dir`: each yaml, and each image that no yaml names.
 pub fn real_maps(dir: &std::path::Path) -> Vec<PathBuf> {
     let mut files = Vec::new();

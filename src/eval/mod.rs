@@ -4,6 +4,8 @@
 //! keypoints within `tolerance` pixels of a keypoint of the second set, over the region both maps see,
 //! divided by the smaller of the two counts in that region.
 
+pub mod annotations;
+
 use std::io::{self, Write};
 
 use image::{Rgb, RgbImage};
