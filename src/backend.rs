@@ -128,15 +128,35 @@ pub trait Backend {
     }
 }
 
-/// The reference's buffers: one state per pixel (OGM); the blurred map, the structure tensor and the score
-/// map (Harris, Shi-Tomasi: 1 + 12 + 8 bytes a pixel), or the low-resolution and full score maps
-/// (Trajkovic: 2 + 8).
+/// The reference's buffers: one state per pixel (OGM); the blurred map, the gradient products and the
+/// structure tensor alive together (Harris, Shi-Tomasi: 1 + 12 + 12 bytes a pixel), then the score map
+/// and, for Shi-Tomasi, the selection's buffers ([`shi_tomasi_selection_bytes`]); or the low-resolution
+/// and full score maps (Trajkovic: 2 + 8).
 pub fn reference_working_bytes(options: &DetectOptions, width: u32, height: u32) -> u64 {
     let px = u64::from(width) * u64::from(height);
-    let per_px = match options.detector {
-        DetectorKind::Ogm => 1,
-        DetectorKind::Baseline(Baseline::Harris | Baseline::ShiTomasi) => 21,
-        DetectorKind::Baseline(Baseline::Trajkovic) => 10,
+    match options.detector {
+        DetectorKind::Ogm => px,
+        DetectorKind::Baseline(Baseline::Harris) => px.saturating_mul(25),
+        DetectorKind::Baseline(Baseline::ShiTomasi) => px.saturating_mul(25).max(
+            px.saturating_mul(8)
+                .saturating_add(shi_tomasi_selection_bytes(options, width, height)),
+        ),
+        DetectorKind::Baseline(Baseline::Trajkovic) => px.saturating_mul(10),
+    }
+}
+
+/// What goodFeaturesToTrack's selection allocates beside a full score map: the thresholded copy (8 bytes a
+/// pixel) and an empty list per grid cell of `min_distance` (24 bytes a cell: a pixel each at distances up
+/// to 1).
+pub fn shi_tomasi_selection_bytes(options: &DetectOptions, width: u32, height: u32) -> u64 {
+    let px = u64::from(width) * u64::from(height);
+    let d = options.baseline.min_distance;
+    let cell = if d.is_finite() {
+        d.max(1.0).ceil().min(65536.0) as u64
+    } else {
+        65536
     };
-    px.saturating_mul(per_px)
+    let cells = u64::from(width).div_ceil(cell) * u64::from(height).div_ceil(cell);
+    px.saturating_mul(8)
+        .saturating_add(cells.saturating_mul(24))
 }

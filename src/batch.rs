@@ -14,8 +14,8 @@ use ogm_corners::memory::Budget;
 use ogm_corners::output::{self, Format};
 use ogm_corners::{overlay, Detector, Error, OccupancyMap, Result};
 
-/// Maps decoded ahead of the detector: one waiting while one is detected bounds the memory to about three
-/// maps.
+/// Maps decoded ahead of the detector: one waiting while one is detected. A batch holds up to three maps
+/// at once (one detected, one waiting, one being decoded); the budget is checked per map.
 const READ_AHEAD: usize = 1;
 
 /// Where and how a batch writes.
@@ -28,6 +28,9 @@ pub struct Plan<'a> {
     pub overlay_dir: Option<&'a Path>,
     /// Memory budget per map (the map, the decoder, the detector, the overlay).
     pub budget: &'a Budget,
+    /// What detection (and the overlay) will allocate for a `w` x `h` map, known before the backend
+    /// opens: the reader checks it with each map's header, before decoding.
+    pub extra: &'a (dyn Fn(u32, u32) -> u64 + Sync),
 }
 
 /// Detects corners in every map, writing `out_dir/NAME.csv|json` (and `overlay_dir/NAME.png`), each
@@ -86,24 +89,13 @@ pub fn detect_many(
     let stdout = std::io::stdout();
     let mut summary = BufWriter::new(stdout.lock());
     let mut summary_open = true;
-    let want_overlay = plan.overlay_dir.is_some();
-    // Each map's budget counts the detector's buffers and the overlay as well as the map.
-    let extra = |detector: &Detector, w: u32, h: u32| {
-        detector
-            .working_bytes(w, h)
-            .saturating_add(if want_overlay {
-                overlay::overlay_bytes(w, h)
-            } else {
-                0
-            })
-    };
     std::thread::scope(|s| -> Result<()> {
         let (tx, rx) = mpsc::sync_channel(READ_AHEAD);
-        let budget = plan.budget;
+        let (budget, extra) = (plan.budget, plan.extra);
         s.spawn(move || {
             for path in maps {
-                // The map alone is checked here; with the detector's buffers before detection below.
-                let loaded = OccupancyMap::load_within(path, budget, &|_, _| 0);
+                // Checked from the header with the detector's buffers, before the pixels are decoded.
+                let loaded = OccupancyMap::load_within(path, budget, extra);
                 // The receiver hangs up only when the main loop stops early; then stop reading.
                 if tx.send(loaded).is_err() {
                     break;
@@ -114,14 +106,8 @@ pub fn detect_many(
             bar.set_message(name.clone());
             let result = loaded.and_then(|map| {
                 for w in &map.warnings {
-                    bar.suspend(|| eprintln!("ogm-corners: warning: {w}"));
+                    bar.suspend(|| ogm_corners::say!("ogm-corners: warning: {w}"));
                 }
-                let (w, h) = (map.image.width(), map.image.height());
-                let need = (map.image.len() as u64).saturating_add(extra(detector, w, h));
-                budget.check(
-                    format_args!("{}: a {w}x{h} map and the detector", path.display()),
-                    need,
-                )?;
                 let t = Instant::now();
                 let det = detector.detect(&map)?;
                 let ms = t.elapsed().as_secs_f64() * 1e3;
@@ -158,7 +144,7 @@ pub fn detect_many(
                         Error::Output { .. } => unwritten.push(e.to_string()),
                         _ => other += 1,
                     }
-                    bar.suspend(|| eprintln!("ogm-corners: error: {e}"));
+                    bar.suspend(|| ogm_corners::say!("ogm-corners: error: {e}"));
                 }
             }
             bar.inc(1);
@@ -168,7 +154,7 @@ pub fn detect_many(
     bar.finish_and_clear();
     let secs = started.elapsed().as_secs_f64();
     let failed = bad_maps + unwritten.len() + other;
-    eprintln!(
+    ogm_corners::say!(
         "ogm-corners: {} of {} maps done on {backend}, {keypoints} keypoints, {:.2} s ({:.0} Mpx/s \
          including reading and writing)",
         maps.len() - failed,
@@ -197,10 +183,11 @@ pub fn detect_many(
         "{failed} of {n} maps failed: {} (see above)",
         parts.join(", ")
     );
-    // Bad maps alone are the input's fault (exit 2); anything else is not.
+    // Bad maps alone are the input's fault (exit 2); outputs that could not be written are not (exit 1),
+    // and "internal" is kept for failures in the detector itself.
     Err(if failed == bad_maps {
         Error::invalid(message)
-    } else if unwritten.len() == failed {
+    } else if other == 0 {
         Error::output(plan.out_dir, message)
     } else {
         Error::Internal(message)

@@ -272,7 +272,7 @@ impl Runner {
             Want::No => None,
             Want::Named => Some(GpuBackend::new(GpuOptions::default())?),
             Want::All => GpuBackend::new(GpuOptions::default())
-                .map_err(|e| eprintln!("ogm-corners: {cmd}: no GPU rows: {e}"))
+                .map_err(|e| crate::say!("ogm-corners: {cmd}: no GPU rows: {e}"))
                 .ok(),
         };
         let gpu_info = gpu.as_ref().map(|g| {
@@ -354,7 +354,7 @@ impl Runner {
                     continue;
                 }
                 if self.progress {
-                    eprintln!(
+                    crate::say!(
                         "ogm-corners: {}: {} {w}x{h} {} on {}",
                         self.cmd,
                         m.label,
@@ -385,7 +385,7 @@ impl Runner {
             }
         }
         if !skipped.is_empty() {
-            eprintln!(
+            crate::say!(
                 "ogm-corners: {}: {} {w}x{h}: skipped {} (--backend all leaves out the reference and software \
                  GPU adapters on baselines over {} Mpx: minutes each; name the backend to run them, e.g. \
                  --backend cpu,reference,gpu)",
@@ -490,7 +490,7 @@ impl Runner {
                         kps.len(),
                     ));
                 } else {
-                    eprintln!(
+                    crate::say!(
                         "ogm-corners: {}: {} has no timestamp queries; no kernel-only row",
                         self.cmd,
                         g.adapter().name

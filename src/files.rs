@@ -24,11 +24,22 @@ fn pending() -> std::sync::MutexGuard<'static, Vec<PathBuf>> {
     PENDING.lock().unwrap_or_else(|e| e.into_inner())
 }
 
-/// Removes every temporary output file not yet renamed into place; for a signal handler that then exits.
+/// Removes every temporary output file not yet renamed into place (for tests; a signal handler wants
+/// [`remove_pending_and_exit`]).
 pub fn remove_pending() {
     for p in pending().drain(..) {
         let _ = fs::remove_file(p);
     }
+}
+
+/// Removes every temporary output file not yet renamed into place and exits with `code`, holding the list
+/// locked until the process is gone, so that no other thread registers (and leaves behind) a new one.
+pub fn remove_pending_and_exit(code: i32) -> ! {
+    let mut list = pending();
+    for p in list.drain(..) {
+        let _ = fs::remove_file(p);
+    }
+    std::process::exit(code)
 }
 
 /// An output file being written: a temporary file beside the target, renamed onto it by
@@ -53,6 +64,16 @@ impl AtomicFile {
     /// Starts writing `target` (a symbolic link is followed: the file it points to is replaced).
     pub fn create(target: &Path) -> Result<Self> {
         let out_err = |e: &dyn std::fmt::Display| Error::output(target, e.to_string());
+        if target
+            .as_os_str()
+            .to_string_lossy()
+            .ends_with(std::path::MAIN_SEPARATOR)
+        {
+            return Err(Error::input(
+                target,
+                "names a folder (it ends in a separator); give a file name",
+            ));
+        }
         match fs::metadata(target) {
             Ok(m) if m.is_dir() => return Err(out_err(&"is a folder")),
             Ok(m) if !m.is_file() => {
@@ -81,7 +102,12 @@ impl AtomicFile {
             .into_owned();
         let mut builder = tempfile::Builder::new();
         // Hidden, and named after the target, so a stray one (after a power cut) says where it came from.
-        let prefix = format!(".{name}.");
+        // At most 200 bytes of the name, so the temporary name stays under the system's 255.
+        let mut cut = name.len().min(200);
+        while !name.is_char_boundary(cut) {
+            cut -= 1;
+        }
+        let prefix = format!(".{}.", &name[..cut]);
         builder.prefix(&prefix).suffix(".tmp");
         #[cfg(unix)]
         {
@@ -89,8 +115,11 @@ impl AtomicFile {
             // The mode a plain create would give (umask applies), not tempfile's private 0600.
             builder.permissions(fs::Permissions::from_mode(0o666));
         }
+        // Created and registered under the lock, so an interrupt sees every temporary file that exists.
+        let mut list = pending();
         let temp = builder.tempfile_in(&dir).map_err(|e| out_err(&e))?;
-        pending().push(temp.path().to_path_buf());
+        list.push(temp.path().to_path_buf());
+        drop(list);
         // A file that is replaced keeps its mode, as it would when rewritten in place.
         if let Ok(old) = fs::metadata(&real) {
             let _ = fs::set_permissions(temp.path(), old.permissions());
@@ -123,7 +152,21 @@ impl AtomicFile {
                     .into_inner()
                     .map_err(|e| e.into_error())
                     .and_then(|f| f.sync_all())
-                    .and_then(|_| path.persist(&target).map_err(|e| e.error));
+                    .and_then(|_| match path.persist(&target) {
+                        Ok(()) => Ok(()),
+                        // A target that cannot be replaced by a rename (a single file bind-mounted into
+                        // a container: EBUSY; another file system: EXDEV) is rewritten in place instead,
+                        // which is not atomic; say so.
+                        Err(e) if matches!(e.error.raw_os_error(), Some(16 | 18)) => {
+                            crate::say!(
+                                "ogm-corners: warning: {}: cannot be replaced atomically ({}); rewriting it in place",
+                                target.display(),
+                                e.error
+                            );
+                            fs::copy(&e.path, &target).map(drop)
+                        }
+                        Err(e) => Err(e.error),
+                    });
                 pending().retain(|p| p != &name);
                 // On failure the TempPath (dropped with the error) removes the temporary file.
                 done.map_err(err)
@@ -134,9 +177,12 @@ impl AtomicFile {
 
 impl Drop for AtomicFile {
     fn drop(&mut self) {
-        if let Some(Inner::Temp(_, path)) = &self.inner {
-            let path = path.to_path_buf();
-            pending().retain(|p| p != &path);
+        if let Some(Inner::Temp(w, path)) = self.inner.take() {
+            let name = path.to_path_buf();
+            drop(w);
+            // Removed first, then forgotten: an interrupt in between removes it again, harmlessly.
+            drop(path);
+            pending().retain(|p| p != &name);
         }
     }
 }

@@ -20,6 +20,16 @@
 //! assert_eq!(corners, vec![(1, 1), (6, 1), (1, 6), (6, 6)]);
 //! ```
 
+/// Like `eprintln!`, but a standard error that cannot be written (a closed pipe: `2>&1 | head`) drops the
+/// message instead of panicking: a diagnostic must never be what stops a run.
+#[macro_export]
+macro_rules! say {
+    ($($arg:tt)*) => {{
+        use ::std::io::Write as _;
+        let _ = ::std::writeln!(::std::io::stderr(), $($arg)*);
+    }};
+}
+
 pub mod backend;
 pub mod baselines;
 pub mod bench;

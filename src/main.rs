@@ -9,13 +9,28 @@ use std::process::ExitCode;
 use clap::Parser;
 
 fn main() -> ExitCode {
-    cli::guard_standard_descriptors();
+    // A panic is a bug: one escaped line, then exit 1 below (not Rust's multi-line message and 101).
+    std::panic::set_hook(Box::new(|info| {
+        let at = info
+            .location()
+            .map(|l| format!(" at {}:{}", l.file(), l.line()))
+            .unwrap_or_default();
+        let what = info
+            .payload()
+            .downcast_ref::<&str>()
+            .map(|s| s.to_string())
+            .or_else(|| info.payload().downcast_ref::<String>().cloned())
+            .unwrap_or_default();
+        ogm_corners::say!(
+            "ogm-corners: internal error: the tool panicked{at}: {} (a bug; please report it)",
+            ogm_corners::error::one_line(&what)
+        );
+    }));
     // Outputs are written to temporary files renamed into place when complete; an interrupted run removes
     // the ones in progress, so neither a partial output nor a stray temporary file is left.
     let _ = ctrlc::set_handler(|| {
-        ogm_corners::files::remove_pending();
-        eprintln!("ogm-corners: interrupted; outputs in progress removed");
-        std::process::exit(130);
+        ogm_corners::say!("ogm-corners: interrupted; outputs in progress removed");
+        ogm_corners::files::remove_pending_and_exit(130);
     });
     let parsed = match cli::Cli::try_parse() {
         Ok(c) => c,
@@ -26,11 +41,11 @@ fn main() -> ExitCode {
         }
         Err(e) if e.kind() == clap::error::ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand => {
             // `ogm-corners` alone: say so, then the help (clap would lead with the description).
-            eprint!("ogm-corners: error: no command given\n\n{}", e.render());
+            ogm_corners::say!("ogm-corners: error: no command given\n\n{}", e.render());
             return ExitCode::from(2);
         }
         Err(e) => {
-            eprint!("{}", usage_error(&e.render().to_string()));
+            ogm_corners::say!("{}", usage_error(&e.render().to_string()).trim_end());
             return ExitCode::from(2);
         }
     };
@@ -38,13 +53,11 @@ fn main() -> ExitCode {
     match std::panic::catch_unwind(|| cli::run(parsed)) {
         Ok(Ok(())) => ExitCode::SUCCESS,
         Ok(Err(e)) => {
-            eprintln!("ogm-corners: error: {e}");
+            ogm_corners::say!("ogm-corners: error: {e}");
             ExitCode::from(e.exit_code() as u8)
         }
-        Err(_) => {
-            eprintln!("ogm-corners: internal error: the tool panicked (a bug; please report it)");
-            ExitCode::from(1)
-        }
+        // The panic hook has said what happened.
+        Err(_) => ExitCode::from(1),
     }
 }
 

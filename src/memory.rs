@@ -150,15 +150,41 @@ fn physical_memory() -> Option<u64> {
     kib.checked_mul(1024)
 }
 
-/// The memory limit of this process's cgroup (v2 `memory.max`, v1 `memory.limit_in_bytes`), if any.
+/// The memory limit of this process's cgroup, or of any cgroup above it (v2 `memory.max`, v1
+/// `memory.limit_in_bytes`), if any: the lowest one binds. Read from this process's own cgroup (a systemd
+/// unit's `MemoryMax=`, a container's limit), not only the root.
 fn cgroup_limit() -> Option<u64> {
-    [
-        "/sys/fs/cgroup/memory.max",
-        "/sys/fs/cgroup/memory/memory.limit_in_bytes",
-    ]
-    .iter()
-    .filter_map(|p| std::fs::read_to_string(p).ok())
-    .find_map(|s| s.trim().parse::<u64>().ok())
+    let own = std::fs::read_to_string("/proc/self/cgroup").unwrap_or_default();
+    let mut files = Vec::new();
+    for line in own.lines() {
+        let mut parts = line.splitn(3, ':');
+        let (_, controllers, path) = (parts.next(), parts.next(), parts.next());
+        let (Some(controllers), Some(path)) = (controllers, path) else {
+            continue;
+        };
+        let (root, file) = match controllers {
+            "" => ("/sys/fs/cgroup", "memory.max"),
+            c if c.split(',').any(|c| c == "memory") => {
+                ("/sys/fs/cgroup/memory", "memory.limit_in_bytes")
+            }
+            _ => continue,
+        };
+        // This cgroup and every one above it.
+        let mut dir = std::path::PathBuf::from(format!("{root}{path}"));
+        loop {
+            files.push(dir.join(file));
+            if dir.as_os_str().len() <= root.len() || !dir.pop() {
+                break;
+            }
+        }
+    }
+    files.push("/sys/fs/cgroup/memory.max".into());
+    files.push("/sys/fs/cgroup/memory/memory.limit_in_bytes".into());
+    files
+        .iter()
+        .filter_map(|p| std::fs::read_to_string(p).ok())
+        .filter_map(|s| s.trim().parse::<u64>().ok())
+        .min()
 }
 
 /// `a * b` in bytes, saturating: estimates of absurd sizes must compare as huge, not wrap.

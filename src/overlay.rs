@@ -90,14 +90,15 @@ fn ring(img: &mut RgbImage, cx2: i64, cy2: i64, radius: i64, colour: Rgb<u8>) {
     }
 }
 
-/// Bytes [`render_overlay`] allocates for a `width` x `height` map (the RGB picture), for memory budgets.
+/// Bytes [`render_overlay`] and its PNG encoding allocate for a `width` x `height` map (the RGB picture,
+/// and at most as much again for the compressed stream the encoder keeps), for memory budgets.
 pub fn overlay_bytes(width: u32, height: u32) -> u64 {
     let (s, d) = (
         u64::from(overlay_scale(width, height)),
         u64::from(overlay_shrink(width, height)),
     );
     let side = |n: u32| u64::from(n).div_ceil(d) * s;
-    3 * side(width) * side(height)
+    6 * side(width) * side(height)
 }
 
 /// Renders and writes the overlay as a PNG, atomically ([`crate::files::write_atomic`]).

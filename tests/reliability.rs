@@ -354,7 +354,7 @@ fn data_after_the_raster_is_not_read() {
     f.set_len(5 << 30).unwrap();
     drop(f);
     let o = sh(&format!(
-        "ulimit -v 1000000; exec \"$OGM\" detect --backend cpu {}",
+        "ulimit -v 1000000; RAYON_NUM_THREADS=1 MALLOC_ARENA_MAX=1 exec \"$OGM\" detect --backend cpu {}",
         s(&p)
     ));
     assert!(o.status.success(), "{}", stderr(&o));
@@ -431,7 +431,7 @@ fn compressed_metadata_is_not_inflated() {
     // inflate to 256 MiB from 500 KB. The map needs none of it: with 200 MB of address space it loads.
     let bomb = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/metadata-bomb.png");
     let o = sh(&format!(
-        "ulimit -v 200000; exec \"$OGM\" detect --backend cpu {}",
+        "ulimit -v 200000; RAYON_NUM_THREADS=1 MALLOC_ARENA_MAX=1 exec \"$OGM\" detect --backend cpu {}",
         s(&bomb)
     ));
     assert!(o.status.success(), "{}", stderr(&o));
@@ -520,7 +520,8 @@ fn unreadable_entries_are_skipped_and_the_batch_fails_at_the_end() {
         fs::copy(BIN, &bin).unwrap();
         set_mode(&bin, 0o755);
         let mut c = Command::new("setpriv");
-        c.args(["--reuid=65534", "--regid=65534", "--clear-groups"]).arg(&bin);
+        c.args(["--reuid=65534", "--regid=65534", "--clear-groups"])
+            .arg(&bin);
         c
     } else {
         Command::new(BIN)
@@ -787,4 +788,63 @@ fn long_runs_check_every_map_before_they_start() {
     refused(&o, "is a file, not a folder");
     let o = ogm(&[]);
     refused(&o, "no command given");
+}
+
+#[test]
+fn standard_streams_given_as_dev_null_or_a_closed_pipe_are_no_errors() {
+    // /dev/null opened read-write, as Python's subprocess.DEVNULL and daemons give it: an open stdout.
+    let null = fs::OpenOptions::new()
+        .read(true)
+        .write(true)
+        .open("/dev/null")
+        .unwrap();
+    let o = Command::new(BIN)
+        .arg("rules")
+        .stdout(null)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    // A standard error nobody reads (`2>&1 | head`): the error is lost, the exit status is not, and no
+    // panic replaces it.
+    let (reader, writer) = rustix::pipe::pipe().unwrap();
+    drop(reader);
+    let st = Command::new(BIN)
+        .args(["detect", "/nonexistent/map.pgm"])
+        .stderr(std::fs::File::from(writer))
+        .status()
+        .unwrap();
+    assert_eq!(st.code(), Some(2));
+}
+
+#[test]
+fn a_folder_named_twice_is_searched_once_and_mixed_failures_say_so() {
+    let d = tmp();
+    let maps = d.path().join("maps");
+    fs::create_dir_all(maps.join("sub")).unwrap();
+    office_map(64, 64, 1)
+        .unwrap()
+        .write_pgm(&maps.join("sub/a.pgm"))
+        .unwrap();
+    let out = d.path().join("out");
+    let o = ogm(&["detect", s(&maps), s(&maps.join("sub")), "-o", s(&out)]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stderr(&o).contains("searched already"), "{}", stderr(&o));
+    assert_eq!(entries(&out), ["a.csv"]);
+    // One unreadable map and outputs that cannot be written: an output failure (1), not "internal".
+    fs::write(maps.join("bad.pgm"), b"P5\n9 9\n255\n").unwrap();
+    for i in 1..=2 {
+        busy_pgm(&maps, &format!("m{i}.pgm"), 300, 300, i);
+    }
+    let o = sh(&format!(
+        "trap '' XFSZ; ulimit -f 16; exec \"$OGM\" detect --backend cpu {} -o {}",
+        s(&maps),
+        s(&d.path().join("out2"))
+    ));
+    let e = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{e}");
+    assert!(
+        e.contains("1 could not be read") && e.contains("could not be written"),
+        "{e}"
+    );
+    assert!(!e.contains("internal error"), "{e}");
 }

@@ -192,10 +192,10 @@ pub(super) fn bench(a: BenchArgs, budget: &Budget) -> Result<()> {
         if p.is_dir() {
             let found = ogm_corners::map::find_maps(std::slice::from_ref(p));
             for n in found.notes {
-                eprintln!("ogm-corners: note: {n}");
+                ogm_corners::say!("ogm-corners: note: {n}");
             }
             for n in &found.problems {
-                eprintln!("ogm-corners: error: {n}");
+                ogm_corners::say!("ogm-corners: error: {n}");
             }
             problems += found.problems.len();
             for m in &found.maps {
@@ -209,6 +209,22 @@ pub(super) fn bench(a: BenchArgs, budget: &Budget) -> Result<()> {
             return Err(Error::input(p, "no such file or folder"));
         }
     }
+    // Every map file read up to its header before the first measurement: a bad one is reported (and left
+    // out) now, and the image a yaml names is protected from --save-map like the yaml itself.
+    sources.retain(|src| match src {
+        Source::Synthetic(..) => true,
+        Source::File(p) => match OccupancyMap::probe(p) {
+            Ok((_, _, image)) => {
+                inputs.add(&image);
+                true
+            }
+            Err(e) => {
+                ogm_corners::say!("ogm-corners: error: {e}");
+                problems += 1;
+                false
+            }
+        },
+    });
     let saves = save_paths(a.save_map.as_deref(), &sizes, a.seed)?;
     for s in saves.iter().flatten() {
         inputs.claim_output(s, "--save-map")?;
@@ -263,7 +279,7 @@ pub(super) fn bench(a: BenchArgs, budget: &Budget) -> Result<()> {
                 synthetic += 1;
                 if let Some(p) = &saved {
                     image.write_pgm(p)?;
-                    eprintln!("ogm-corners: bench: wrote {}", p.display());
+                    ogm_corners::say!("ogm-corners: bench: wrote {}", p.display());
                 }
                 BenchMap {
                     label: "synthetic".to_string(),
@@ -277,7 +293,7 @@ pub(super) fn bench(a: BenchArgs, budget: &Budget) -> Result<()> {
                     Ok(map) => BenchMap::from_file(&p, map),
                     // One bad map does not end the measurement of the others; the run fails at the end.
                     Err(e) => {
-                        eprintln!("ogm-corners: error: {e}");
+                        ogm_corners::say!("ogm-corners: error: {e}");
                         problems += 1;
                         continue;
                     }

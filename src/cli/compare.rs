@@ -40,7 +40,18 @@ pub(super) struct CompareArgs {
 pub(super) fn run(a: CompareArgs, budget: &Budget) -> Result<()> {
     super::check_stdout()?;
     // Every path is checked, and no output may overwrite an input, before the first measurement.
-    let (maps, mut inputs) = super::map_inputs(&a.maps)?;
+    // The largest buffers: the reference's for Harris, plus a GPU's score readback, plus the sheet.
+    let harris = DetectOptions {
+        detector: DetectorKind::Baseline(Baseline::Harris),
+        ..DetectOptions::default()
+    };
+    let extra = |w: u32, h: u32| {
+        let px = u64::from(w) * u64::from(h);
+        reference_working_bytes(&harris, w, h)
+            .saturating_add(px.saturating_mul(8))
+            .saturating_add(compare::SHEET_BYTES)
+    };
+    let (maps, mut inputs) = super::map_inputs(&a.maps, budget, &extra)?;
     let table_path = a.out.join("compare.md");
     inputs.claim_output(&table_path, "--out")?;
     // One sheet per map, names made unique as batch detect makes them.
@@ -63,17 +74,7 @@ pub(super) fn run(a: CompareArgs, budget: &Budget) -> Result<()> {
     files::create_dir(&a.out)?;
     let mut rows = Vec::new();
     for ((p, name), sheet_path) in maps.iter().zip(&names).zip(&sheets) {
-        // The largest buffers: the reference's for Harris, plus a GPU's score readback, plus the sheet.
-        let harris = DetectOptions {
-            detector: DetectorKind::Baseline(Baseline::Harris),
-            ..DetectOptions::default()
-        };
-        let map = OccupancyMap::load_within(p, budget, &|w, h| {
-            let px = u64::from(w) * u64::from(h);
-            reference_working_bytes(&harris, w, h)
-                .saturating_add(px.saturating_mul(8))
-                .saturating_add(compare::SHEET_BYTES)
-        })?;
+        let map = OccupancyMap::load_within(p, budget, &extra)?;
         let bm = BenchMap::from_file(p, map);
         let name = name.clone();
         let mut found = Vec::new();
@@ -99,7 +100,7 @@ pub(super) fn run(a: CompareArgs, budget: &Budget) -> Result<()> {
             found.push((m.kind, m.keypoints));
         }
         files::write_png(sheet_path, &compare::contact_sheet(&name, &bm.map, &found))?;
-        eprintln!("ogm-corners: wrote {}", sheet_path.display());
+        ogm_corners::say!("ogm-corners: wrote {}", sheet_path.display());
     }
     let md = compare::markdown(&rows);
     files::write_atomic(&table_path, |out| out.write_all(md.as_bytes()))?;

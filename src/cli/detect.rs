@@ -62,7 +62,7 @@ pub(super) fn run(a: DetectArgs, budget: &Budget) -> Result<()> {
             .saturating_add(overlay_bytes(w, h))
     })?;
     for w in &map.warnings {
-        eprintln!("ogm-corners: warning: {w}");
+        ogm_corners::say!("ogm-corners: warning: {w}");
     }
     // Outputs are checked against the map's files before anything is computed or written.
     let mut inputs = Inputs::new();
@@ -108,19 +108,29 @@ fn run_batch(a: DetectArgs, format: Format, budget: &Budget) -> Result<()> {
     };
     let found = find_maps(&a.maps);
     for n in &found.notes {
-        eprintln!("ogm-corners: note: {n}");
+        ogm_corners::say!("ogm-corners: note: {n}");
     }
     for p in &found.problems {
-        eprintln!("ogm-corners: error: {p}");
+        ogm_corners::say!("ogm-corners: error: {p}");
     }
     if found.maps.is_empty() {
         return Err(Error::invalid("no maps to detect in (see above)"));
     }
+    let with_overlay = a.overlay.is_some();
+    let extra = |w: u32, h: u32| {
+        let overlay = if with_overlay {
+            overlay::overlay_bytes(w, h)
+        } else {
+            0
+        };
+        a.opts.working_bytes(w, h).saturating_add(overlay)
+    };
     let plan = batch::Plan {
         format,
         out_dir: out,
         overlay_dir: a.overlay.as_deref(),
         budget,
+        extra: &extra,
     };
     // Set-up (a GPU device and its pipelines) is paid once for the whole batch.
     let done = batch::detect_many(&found.maps, || a.opts.detector(), &plan);

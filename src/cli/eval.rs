@@ -4,6 +4,7 @@ use std::path::PathBuf;
 
 use clap::Args;
 
+use ogm_corners::backend::reference_working_bytes;
 use ogm_corners::eval::{self, MAX_TRIALS};
 use ogm_corners::files;
 use ogm_corners::memory::Budget;
@@ -50,7 +51,22 @@ pub(super) fn run(a: EvalArgs, budget: &Budget) -> Result<()> {
     }
     super::check_stdout()?;
     // Every path is checked before the first (long) evaluation; the plots must not overwrite a map.
-    let (maps, mut inputs) = super::map_inputs(&a.maps)?;
+    // The transformed pairs, and the largest buffers any backend takes for any detector (the reference's).
+    let extra = |w: u32, h: u32| {
+        let worst = ALL_DETECTORS
+            .iter()
+            .map(|&d| {
+                let o = DetectOptions {
+                    detector: d,
+                    ..DetectOptions::default()
+                };
+                reference_working_bytes(&o, w, h)
+            })
+            .max()
+            .unwrap_or(0);
+        eval::evaluate_bytes(w, h).saturating_add(worst)
+    };
+    let (maps, mut inputs) = super::map_inputs(&a.maps, budget, &extra)?;
     if let Some(dir) = &a.plot {
         for file in eval::PLOT_FILES {
             inputs.claim_output(&dir.join(file), "--plot")?;
@@ -64,21 +80,7 @@ pub(super) fn run(a: EvalArgs, budget: &Budget) -> Result<()> {
     let mut rows = Vec::new();
     // One map in memory at a time.
     for p in &maps {
-        let map = OccupancyMap::load_within(p, budget, &|w, h| {
-            eval::evaluate_bytes(w, h).saturating_add(
-                ALL_DETECTORS
-                    .iter()
-                    .map(|&d| {
-                        let options = DetectOptions {
-                            detector: d,
-                            ..DetectOptions::default()
-                        };
-                        detector.working_bytes_with(&options, w, h)
-                    })
-                    .max()
-                    .unwrap_or(0),
-            )
-        })?;
+        let map = OccupancyMap::load_within(p, budget, &extra)?;
         rows.extend(eval::evaluate(
             &mut detector,
             &p.display().to_string(),
@@ -94,7 +96,7 @@ pub(super) fn run(a: EvalArgs, budget: &Budget) -> Result<()> {
         for (file, picture) in eval::repeatability_plots(&rows) {
             let path = dir.join(file);
             files::write_png(&path, &picture)?;
-            eprintln!("ogm-corners: wrote {}", path.display());
+            ogm_corners::say!("ogm-corners: wrote {}", path.display());
         }
     }
     write_stdout(|out| eval::write_table(out, a.format.into(), &rows))
@@ -114,7 +116,7 @@ fn annotated(
     for p in maps {
         let name = p.file_stem().and_then(|s| s.to_str()).unwrap_or("");
         let Some(points) = marks.points(name) else {
-            eprintln!(
+            ogm_corners::say!(
                 "ogm-corners: note: {}: no marked points for `{name}` in {}",
                 p.display(),
                 file.display()

@@ -211,7 +211,7 @@ fn detector_on(backend: BackendArg, options: DetectOptions) -> Result<Detector> 
         }
         BackendArg::Auto => match GpuBackend::open(true, GpuOptions::default()) {
             Ok(Some(g)) => {
-                eprintln!(
+                ogm_corners::say!(
                     "ogm-corners: backend: gpu ({}, {})",
                     g.adapter().name,
                     g.adapter().backend
@@ -219,12 +219,12 @@ fn detector_on(backend: BackendArg, options: DetectOptions) -> Result<Detector> 
                 Detector::with_backend(options, Box::new(g))
             }
             Ok(None) => {
-                eprintln!("ogm-corners: backend: cpu (no hardware GPU adapter found; --backend gpu accepts software ones)");
+                ogm_corners::say!("ogm-corners: backend: cpu (no hardware GPU adapter found; --backend gpu accepts software ones)");
                 Detector::new(options)
             }
             Err(e @ Error::Input { .. }) => return Err(e),
             Err(e) => {
-                eprintln!("ogm-corners: backend: cpu (the GPU could not be opened: {e})");
+                ogm_corners::say!("ogm-corners: backend: cpu (the GPU could not be opened: {e})");
                 Detector::new(options)
             }
         },
@@ -232,14 +232,18 @@ fn detector_on(backend: BackendArg, options: DetectOptions) -> Result<Detector> 
 }
 
 /// The maps of a long-running command (`eval`, `compare`): files as given and folders searched as
-/// `detect` searches them, each read up to its image header, so that a bad map stops the run before the
-/// first measurement rather than after hours; and the input set that no output of the run may overwrite.
+/// `detect` searches them, each read up to its image header (and checked against `budget` with `extra`
+/// bytes for the command's work), so that a bad or too large map stops the run before the first
+/// measurement rather than after hours; and the input set (maps and the images their yamls name) that no
+/// output of the run may overwrite.
 fn map_inputs(
     args: &[std::path::PathBuf],
+    budget: &Budget,
+    extra: &dyn Fn(u32, u32) -> u64,
 ) -> Result<(Vec<std::path::PathBuf>, ogm_corners::files::Inputs)> {
     let found = ogm_corners::map::find_maps(args);
     for n in &found.notes {
-        eprintln!("ogm-corners: note: {n}");
+        ogm_corners::say!("ogm-corners: note: {n}");
     }
     if let Some(first) = found.problems.first() {
         return Err(Error::invalid(format!(
@@ -252,8 +256,13 @@ fn map_inputs(
     }
     let mut inputs = ogm_corners::files::Inputs::new();
     for p in &found.maps {
-        ogm_corners::OccupancyMap::probe(p)?;
+        let (w, h, image) = ogm_corners::OccupancyMap::probe(p)?;
+        budget.check(
+            format_args!("{}: a {w}x{h} map", p.display()),
+            (u64::from(w) * u64::from(h)).saturating_add(extra(w, h)),
+        )?;
         inputs.add(p);
+        inputs.add(&image);
     }
     Ok((found.maps, inputs))
 }
@@ -285,31 +294,23 @@ pub fn run(cli: Cli) -> Result<()> {
     }
 }
 
-/// Set when the process started with standard output closed (`>&-`).
+/// Whether standard output was closed when the process started (`>&-`). Rust's runtime reopens a
+/// closed standard descriptor as /dev/null before `main`, and writes there succeed silently; so the check
+/// runs before the runtime, as an ELF constructor (Linux), while fd 1 is still as the caller left it. A
+/// /dev/null given on purpose (`>/dev/null`, Python's `subprocess.DEVNULL`) is an open descriptor and fine.
 static STDOUT_CLOSED: AtomicBool = AtomicBool::new(false);
 
-/// Run first: notes whether standard output was closed when the process started. Rust's runtime reopens
-/// a closed standard descriptor as /dev/null before `main` (so no file opened later takes its number), and
-/// writes there succeed silently; [`write_stdout`] turns them into an error instead.
-pub fn guard_standard_descriptors() {
-    #[cfg(unix)]
-    STDOUT_CLOSED.store(stdout_was_closed(), Ordering::Relaxed);
-}
+#[cfg(target_os = "linux")]
+#[used]
+#[link_section = ".init_array"]
+static CHECK_STDOUT_AT_START: extern "C" fn() = note_closed_stdout;
 
-/// Whether fd 1 is the /dev/null that Rust's runtime put in place of a closed descriptor: opened
-/// read-write, which a shell's `>/dev/null` (write-only) never is.
-#[cfg(unix)]
-fn stdout_was_closed() -> bool {
-    use rustix::fs::{fcntl_getfl, fstat, FileType, OFlags};
-    use std::os::unix::fs::MetadataExt;
-    let out = std::io::stdout();
-    let (Ok(flags), Ok(st)) = (fcntl_getfl(&out), fstat(&out)) else {
-        return true;
-    };
-    let null = std::fs::metadata("/dev/null").map(|m| m.rdev()).ok();
-    flags.contains(OFlags::RDWR)
-        && FileType::from_raw_mode(st.st_mode) == FileType::CharacterDevice
-        && Some(st.st_rdev) == null
+#[cfg(target_os = "linux")]
+extern "C" fn note_closed_stdout() {
+    use std::os::fd::AsFd;
+    // `as_fd` only names descriptor 1; fcntl fails with EBADF when nothing is open there.
+    let closed = rustix::io::fcntl_getfd(std::io::stdout().as_fd()).is_err();
+    STDOUT_CLOSED.store(closed, Ordering::Relaxed);
 }
 
 /// Whether standard output can be written: an error naming it when it was closed at start.

@@ -15,11 +15,13 @@
 //! The netpbm spec says exactly ONE whitespace byte follows the last header number (maxval, or
 //! height for PBM), and the binary raster starts right after it. Files written on Windows often
 //! end the header with `\r\n`, which under that rule makes the `\n` the first raster byte and
-//! shifts the whole map by one pixel. So: if the byte after the last number is `\r` and the byte
-//! after that is `\n`, the pair `\r\n` is taken as the separator when the input's total length is
-//! known and the bytes remaining after the `\n` are at least the raster size; otherwise (length
-//! unknown, or too few bytes left) the spec reading stands and the `\n` is raster data. ASCII
-//! rasters (P1, P2, P3) are unaffected: whitespace before their samples is skipped anyway.
+//! shifts the whole map by one pixel. So, when the byte after the last number is `\r`, the next is
+//! `\n` and the input's total length is known: if exactly the raster follows the `\n`, the pair
+//! `\r\n` is the separator; if exactly the raster follows the `\r`, the spec reading stands (the
+//! `\n` is the first pixel); if more follows (data after the raster), both readings fit and either
+//! could shift the map, so the file is refused rather than guessed. With the length unknown the spec
+//! reading stands. ASCII rasters (P1, P2, P3) are unaffected: whitespace before their samples is
+//! skipped anyway.
 //!
 //! # Raster
 //!
@@ -118,11 +120,17 @@ impl<R: BufRead> PnmDecoder<R> {
 
         if binary {
             let raster = raster_bytes(family, width, height, wide);
-            if last == Some(b'\r') {
+            if last == Some(b'\r') && src.peek_byte()? == Some(b'\n') {
                 if let Some(len) = len {
-                    let after_lf = len.saturating_sub(src.pos() + 1);
-                    if src.peek_byte()? == Some(b'\n') && after_lf >= raster {
+                    // Exactly one of the two readings fits the file's length: take it. With data after
+                    // the raster both fit, and either could shift the map by a pixel: refuse.
+                    let after_cr = len.saturating_sub(src.pos());
+                    if after_cr == raster + 1 {
                         src.next_byte()?;
+                    } else if after_cr > raster + 1 {
+                        return Err(format!(
+                            "{name} header ends with CR LF and data follows the raster: cannot tell whether the LF is the first pixel; rewrite the header with one LF"
+                        ));
                     }
                 }
             }
@@ -471,6 +479,9 @@ fn raster_bytes(family: Family, width: u32, height: u32, wide: bool) -> u64 {
     }
 }
 
+/// Most bytes a header (comments included) may take.
+const MAX_HEADER_BYTES: u64 = 1 << 20;
+
 /// One header number as image's `read_next_u32` reads it (see the module doc), returning the
 /// value and the byte that ended it (`None` at end of input), which is consumed.
 fn read_header_u32<R: BufRead>(
@@ -482,6 +493,13 @@ fn read_header_u32<R: BufRead>(
     let mut value: u32 = 0;
     let mut found = false;
     while let Some(b) = src.next_byte()? {
+        // A header is a few dozen bytes: a huge comment or run of blanks is no map (and would be read
+        // byte by byte to its end).
+        if src.pos() > MAX_HEADER_BYTES {
+            return Err(format!(
+                "{name} header: over {MAX_HEADER_BYTES} bytes before the {what}"
+            ));
+        }
         if in_comment || b == b'#' {
             in_comment = !(b == b'\r' || b == b'\n');
             continue;

@@ -553,7 +553,8 @@ impl GpuBackend {
 }
 
 /// [`Backend::working_bytes`] of a GPU backend opened with `gpu`, known before opening it: two tiles'
-/// staging and readback, and for the baselines the score map read back for selection (8 bytes a pixel).
+/// staging and readback, and for the baselines the score map read back for selection (8 bytes a pixel),
+/// with Shi-Tomasi's selection buffers.
 pub fn gpu_working_bytes(
     gpu: &GpuOptions,
     options: &DetectOptions,
@@ -561,11 +562,15 @@ pub fn gpu_working_bytes(
     height: u32,
 ) -> u64 {
     let tiles = gpu.max_tile_bytes.saturating_mul(2);
+    let scores = (u64::from(width) * u64::from(height)).saturating_mul(8);
     match options.detector {
         DetectorKind::Ogm => tiles,
-        DetectorKind::Baseline(_) => (u64::from(width) * u64::from(height))
-            .saturating_mul(8)
+        DetectorKind::Baseline(crate::baselines::Baseline::ShiTomasi) => scores
+            .saturating_add(crate::backend::shi_tomasi_selection_bytes(
+                options, width, height,
+            ))
             .saturating_add(tiles),
+        DetectorKind::Baseline(_) => scores.saturating_add(tiles),
     }
 }
 

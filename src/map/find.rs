@@ -35,6 +35,13 @@ pub fn find_maps(inputs: &[PathBuf]) -> FoundMaps {
             continue;
         }
         let before = found.maps.len();
+        // A folder named twice, or inside one named before, was searched already.
+        if FileId::of(input).is_some_and(|id| seen_dirs.contains(&id)) {
+            found
+                .notes
+                .push(format!("{}: searched already", input.display()));
+            continue;
+        }
         let files = walk(input, &mut seen_dirs, &mut seen_files, &mut found);
         let ext = |p: &Path| {
             p.extension()

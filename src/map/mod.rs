@@ -286,8 +286,9 @@ impl OccupancyMap {
     }
 
     /// Reads what loading `path` reads up to the image header (the yaml and its checks, the header),
-    /// without the pixels, and returns the map's size: to refuse a bad map before a long run starts.
-    pub fn probe(path: &Path) -> Result<(u32, u32)> {
+    /// without the pixels, and returns the map's size and its image file: to refuse a bad map, and to
+    /// protect its image from the run's outputs, before a long run starts.
+    pub fn probe(path: &Path) -> Result<(u32, u32, PathBuf)> {
         let ext = path
             .extension()
             .and_then(|e| e.to_str())
@@ -314,7 +315,7 @@ impl OccupancyMap {
         if let Some(g) = georef {
             g.check_finite(w, h).map_err(|m| Error::input(path, m))?;
         }
-        Ok((w, h))
+        Ok((w, h, image_path))
     }
 
     /// The file a user named for this map: the yaml if there was one, else the image.

@@ -173,33 +173,19 @@ fn one_line(e: &impl std::fmt::Display) -> String {
     e.to_string().replace('\n', " ")
 }
 
-/// The deepest nesting of flow collections (`[`, `{`) in yaml text, outside quotes and comments: an upper
-/// bound of what the parser will recurse into.
+/// The deepest nesting of flow collections (`[`, `{`) in yaml text, counting every bracket, quoted or
+/// not: an upper bound of what the parser will recurse into that no stray quote can hide.
 pub(super) fn nesting_depth(text: &str) -> usize {
     let (mut depth, mut max) = (0usize, 0usize);
-    let mut quote: Option<char> = None;
-    let mut comment = false;
-    let mut prev = '\n';
-    for c in text.chars() {
-        if comment {
-            comment = c != '\n';
-        } else if let Some(q) = quote {
-            if c == q {
-                quote = None;
+    for c in text.bytes() {
+        match c {
+            b'[' | b'{' => {
+                depth += 1;
+                max = max.max(depth);
             }
-        } else {
-            match c {
-                '"' | '\'' => quote = Some(c),
-                '#' if prev.is_whitespace() => comment = true,
-                '[' | '{' => {
-                    depth += 1;
-                    max = max.max(depth);
-                }
-                ']' | '}' => depth = depth.saturating_sub(1),
-                _ => {}
-            }
+            b']' | b'}' => depth = depth.saturating_sub(1),
+            _ => {}
         }
-        prev = c;
     }
     max
 }
