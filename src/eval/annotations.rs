@@ -103,29 +103,14 @@ impl RecallRecord {
 
 /// Marked points within `radius` of some keypoint.
 pub fn hits(points: &[(f64, f64)], keypoints: &[Keypoint], radius: f64) -> usize {
-    // A grid of `radius`-wide cells: a keypoint near a point lies in the 3 x 3 cells around it.
-    let cell = radius.max(1.0);
-    let key = |x: f64, y: f64| ((x / cell).floor() as i64, (y / cell).floor() as i64);
-    let mut grid: HashMap<(i64, i64), Vec<(f64, f64)>> = HashMap::new();
-    for k in keypoints {
-        let (x, y) = (f64::from(k.x), f64::from(k.y));
-        grid.entry(key(x, y)).or_default().push((x, y));
-    }
-    let r2 = radius * radius;
+    let kps: Vec<(f64, f64)> = keypoints
+        .iter()
+        .map(|k| (f64::from(k.x), f64::from(k.y)))
+        .collect();
+    let grid = super::PointGrid::new(&kps, radius);
     points
         .iter()
-        .filter(|&&(x, y)| {
-            let (cx, cy) = key(x, y);
-            (-1..=1).any(|dy| {
-                (-1..=1).any(|dx| {
-                    grid.get(&(cx.saturating_add(dx), cy.saturating_add(dy)))
-                        .is_some_and(|v| {
-                            v.iter()
-                                .any(|&(kx, ky)| (kx - x).powi(2) + (ky - y).powi(2) <= r2)
-                        })
-                })
-            })
-        })
+        .filter(|&&(x, y)| grid.has_within(x, y))
         .count()
 }
 

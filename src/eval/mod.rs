@@ -179,31 +179,57 @@ pub fn score(pair: &Pair, a: &[Keypoint], b: &[Keypoint], tolerance: f64) -> Opt
     if n == 0 {
         return None;
     }
-    let t2 = tolerance * tolerance;
-    // The second set in a grid of cells at least `tolerance` wide: a match lies in the 3 x 3 cells around
-    // a point, so dense maps cost linear time, not all pairs.
-    let cell = tolerance.max(1.0);
-    let key = |x: f64, y: f64| ((x / cell).floor() as i64, (y / cell).floor() as i64);
-    let mut grid: std::collections::HashMap<(i64, i64), Vec<(f64, f64)>> = Default::default();
-    for &(bx, by) in &b {
-        grid.entry(key(bx, by)).or_default().push((bx, by));
-    }
+    let grid = PointGrid::new(&b, tolerance);
     let matched = mapped
         .iter()
-        .filter(|&&(x, y)| {
-            let (cx, cy) = key(x, y);
-            (-1..=1).any(|dy| {
-                (-1..=1).any(|dx| {
-                    let k = (cx.saturating_add(dx), cy.saturating_add(dy));
-                    grid.get(&k).is_some_and(|v| {
-                        v.iter()
-                            .any(|&(bx, by)| (bx - x).powi(2) + (by - y).powi(2) <= t2)
-                    })
-                })
-            })
-        })
+        .filter(|&&(x, y)| grid.has_within(x, y))
         .count();
     Some(matched.min(n) as f64 / n as f64)
+}
+
+/// Points in a grid of cells at least `radius` wide, to ask whether any lies within `radius` of a place:
+/// such a point is in the 3 x 3 cells around it, so dense sets cost linear time, not all pairs.
+pub(crate) struct PointGrid {
+    cell: f64,
+    r2: f64,
+    cells: std::collections::HashMap<(i64, i64), Vec<(f64, f64)>>,
+}
+
+impl PointGrid {
+    pub(crate) fn new(points: &[(f64, f64)], radius: f64) -> Self {
+        let mut g = PointGrid {
+            cell: radius.max(1.0),
+            r2: radius * radius,
+            cells: Default::default(),
+        };
+        for &(x, y) in points {
+            let k = g.key(x, y);
+            g.cells.entry(k).or_default().push((x, y));
+        }
+        g
+    }
+
+    fn key(&self, x: f64, y: f64) -> (i64, i64) {
+        (
+            (x / self.cell).floor() as i64,
+            (y / self.cell).floor() as i64,
+        )
+    }
+
+    /// Whether some point lies within the radius of (x, y).
+    pub(crate) fn has_within(&self, x: f64, y: f64) -> bool {
+        let (cx, cy) = self.key(x, y);
+        (-1..=1).any(|dy| {
+            (-1..=1).any(|dx| {
+                self.cells
+                    .get(&(cx.saturating_add(dx), cy.saturating_add(dy)))
+                    .is_some_and(|v| {
+                        v.iter()
+                            .any(|&(px, py)| (px - x).powi(2) + (py - y).powi(2) <= self.r2)
+                    })
+            })
+        })
+    }
 }
 
 /// Turns a map 90 degrees clockwise: pixel (x, y) goes to (h - 1 - y, x).
