@@ -48,6 +48,11 @@ pub fn remove_pending_and_exit(code: i32) -> ! {
 ///
 /// A target that exists and is not a regular file (`/dev/null`, a fifo, a terminal) is written directly:
 /// renaming onto it would replace the device, and such targets have no old content to protect.
+///
+/// Replacing by rename differs from rewriting in place as `mv` does: a read-only target is replaced, hard
+/// links to the old file keep the old content, and the new file belongs to whoever ran the tool (its mode is
+/// kept). Where a rename cannot replace the target (EBUSY: a single file bind-mounted into a container;
+/// EXDEV) the file is rewritten in place, with a warning.
 pub struct AtomicFile {
     target: PathBuf,
     /// None only after [`AtomicFile::commit`] took it.
