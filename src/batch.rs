@@ -8,7 +8,7 @@ use std::time::Instant;
 
 use indicatif::{ProgressBar, ProgressStyle};
 
-use ogm_corners::files::{self, FileId, Inputs};
+use ogm_corners::files::{self, Inputs};
 pub use ogm_corners::map::{map_name, output_names};
 use ogm_corners::memory::Budget;
 use ogm_corners::output::{self, Format};
@@ -61,7 +61,7 @@ pub fn detect_many(
     for p in maps {
         inputs.add(p);
         // A yaml's image too; the yaml is read again (bounded, small) when the map loads.
-        if let Some(img) = yaml_image(p) {
+        if let Some(img) = ogm_corners::map::yaml_image(p) {
             inputs.add(&img);
         }
     }
@@ -192,16 +192,4 @@ pub fn detect_many(
     } else {
         Error::Internal(message)
     })
-}
-
-/// The image a map yaml names, if `p` is a readable map yaml.
-fn yaml_image(p: &Path) -> Option<PathBuf> {
-    let ext = p.extension()?.to_str()?.to_ascii_lowercase();
-    if ext != "yaml" && ext != "yml" {
-        return None;
-    }
-    let text = files::read_small_text(p, ogm_corners::map::MAX_YAML_BYTES, "a map yaml").ok()?;
-    let meta = ogm_corners::map::MapYaml::parse(&text).ok()?;
-    let img = p.parent().unwrap_or(Path::new("")).join(meta.image);
-    FileId::of(&img).map(|_| img)
 }

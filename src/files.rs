@@ -225,33 +225,17 @@ pub fn write_atomic(path: &Path, f: impl FnOnce(&mut dyn Write) -> io::Result<()
 
 /// Writes a PNG atomically.
 pub fn write_png(path: &Path, img: &image::RgbImage) -> Result<()> {
+    use image::ImageEncoder as _;
     write_atomic(path, |w| {
-        let mut buf = io::BufWriter::new(w);
-        img.write_to(&mut WriteSeek(&mut buf), image::ImageFormat::Png)
-            .map_err(io::Error::other)?;
-        buf.flush()
+        image::codecs::png::PngEncoder::new(w)
+            .write_image(
+                img.as_raw(),
+                img.width(),
+                img.height(),
+                image::ExtendedColorType::Rgb8,
+            )
+            .map_err(io::Error::other)
     })
-}
-
-/// The image crate's encoders want `Seek`; PNG encoding only ever writes forward, so seeking is refused.
-struct WriteSeek<W>(W);
-
-impl<W: Write> Write for WriteSeek<W> {
-    fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
-        self.0.write(buf)
-    }
-    fn flush(&mut self) -> io::Result<()> {
-        self.0.flush()
-    }
-}
-
-impl<W: Write> io::Seek for WriteSeek<W> {
-    fn seek(&mut self, _: io::SeekFrom) -> io::Result<u64> {
-        Err(io::Error::new(
-            io::ErrorKind::Unsupported,
-            "the PNG encoder tried to seek",
-        ))
-    }
 }
 
 /// Creates `dir` (and its parents) unless it exists; a file in its place is a usage error (exit 2), not

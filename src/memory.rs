@@ -187,11 +187,6 @@ fn cgroup_limit() -> Option<u64> {
         .min()
 }
 
-/// `a * b` in bytes, saturating: estimates of absurd sizes must compare as huge, not wrap.
-pub fn mul(a: u64, b: u64) -> u64 {
-    a.saturating_mul(b)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;

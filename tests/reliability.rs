@@ -104,6 +104,11 @@ fn busy_pgm(dir: &Path, name: &str, w: u32, h: u32, seed: u64) -> PathBuf {
     p
 }
 
+/// A small synthetic office map written as a PGM at `path`.
+fn office_pgm(path: &Path, seed: u64) {
+    office_map(64, 64, seed).unwrap().write_pgm(path).unwrap();
+}
+
 fn pgm_bytes(w: u32, h: u32, maxval: u32, samples: &[u8]) -> Vec<u8> {
     let mut b = format!("P5\n{w} {h}\n{maxval}\n").into_bytes();
     b.extend_from_slice(samples);
@@ -295,14 +300,8 @@ fn link_loops_in_a_batch_folder_visit_each_map_once() {
     let d = tmp();
     let maps = d.path().join("maps");
     fs::create_dir_all(maps.join("sub")).unwrap();
-    office_map(64, 64, 1)
-        .unwrap()
-        .write_pgm(&maps.join("a.pgm"))
-        .unwrap();
-    office_map(64, 64, 2)
-        .unwrap()
-        .write_pgm(&maps.join("sub/b.pgm"))
-        .unwrap();
+    office_pgm(&maps.join("a.pgm"), 1);
+    office_pgm(&maps.join("sub/b.pgm"), 2);
     std::os::unix::fs::symlink(".", maps.join("loop")).unwrap();
     std::os::unix::fs::symlink("..", maps.join("sub/up")).unwrap();
     let out = d.path().join("out");
@@ -334,10 +333,7 @@ fn a_device_or_fifo_as_image_is_refused_at_once() {
     let o = ogm(&["detect", s(&fifo)]);
     refused(&o, "not a regular file (a fifo)");
     // In a batch folder: skipped with an error, the other maps done, exit 2 at the end.
-    office_map(64, 64, 1)
-        .unwrap()
-        .write_pgm(&d.path().join("ok.pgm"))
-        .unwrap();
+    office_pgm(&d.path().join("ok.pgm"), 1);
     let out = d.path().join("out");
     let o = ogm(&["detect", s(d.path()), "-o", s(&out)]);
     refused(&o, "pipe.pgm: not a regular file");
@@ -442,7 +438,7 @@ fn compressed_metadata_is_not_inflated() {
 fn absurd_option_values_are_refused() {
     let d = tmp();
     let map = d.path().join("m.pgm");
-    office_map(64, 64, 1).unwrap().write_pgm(&map).unwrap();
+    office_pgm(&map, 1);
     for args in [
         vec!["eval", "--trials", "4294967295", s(&map)],
         vec!["eval", "--trials", "1001", s(&map)],
@@ -486,21 +482,12 @@ fn unreadable_entries_are_skipped_and_the_batch_fails_at_the_end() {
     let d = tmp();
     let maps = d.path().join("maps");
     fs::create_dir_all(maps.join("locked")).unwrap();
-    office_map(64, 64, 1)
-        .unwrap()
-        .write_pgm(&maps.join("a.pgm"))
-        .unwrap();
-    office_map(64, 64, 2)
-        .unwrap()
-        .write_pgm(&maps.join("locked/b.pgm"))
-        .unwrap();
+    office_pgm(&maps.join("a.pgm"), 1);
+    office_pgm(&maps.join("locked/b.pgm"), 2);
     fs::write(maps.join("latin1.yaml"), b"# caf\xe9\nimage: a.pgm\n").unwrap();
     fs::write(maps.join("params.yaml"), "controller_frequency: 5.0\n").unwrap();
     // A map yaml with a bad value is an error, and its image is not detected as a bare image instead.
-    office_map(64, 64, 3)
-        .unwrap()
-        .write_pgm(&maps.join("c.pgm"))
-        .unwrap();
+    office_pgm(&maps.join("c.pgm"), 3);
     fs::write(
         maps.join("c.yaml"),
         "image: c.pgm\nresolution: 0.05\norigin: [0, 0, 0]\nfree_thresh: 1.5\n",
@@ -730,10 +717,7 @@ fn a_batch_piped_into_head_still_writes_every_map() {
     let maps = d.path().join("maps");
     fs::create_dir(&maps).unwrap();
     for i in 0..6 {
-        office_map(64, 64, i)
-            .unwrap()
-            .write_pgm(&maps.join(format!("m{i}.pgm")))
-            .unwrap();
+        office_pgm(&maps.join(format!("m{i}.pgm")), i);
     }
     let out = d.path().join("out");
     let o = sh(&format!(
@@ -760,10 +744,7 @@ fn long_runs_check_every_map_before_they_start() {
     let d = tmp();
     let maps = d.path().join("maps");
     fs::create_dir(&maps).unwrap();
-    office_map(64, 64, 1)
-        .unwrap()
-        .write_pgm(&maps.join("good.pgm"))
-        .unwrap();
+    office_pgm(&maps.join("good.pgm"), 1);
     let bad = d.path().join("trunc.pgm");
     fs::write(&bad, b"P5\n64 64\n255\n\x00\x00").unwrap();
     let out = d.path().join("cmp");
@@ -821,10 +802,7 @@ fn a_folder_named_twice_is_searched_once_and_mixed_failures_say_so() {
     let d = tmp();
     let maps = d.path().join("maps");
     fs::create_dir_all(maps.join("sub")).unwrap();
-    office_map(64, 64, 1)
-        .unwrap()
-        .write_pgm(&maps.join("sub/a.pgm"))
-        .unwrap();
+    office_pgm(&maps.join("sub/a.pgm"), 1);
     let out = d.path().join("out");
     let o = ogm(&["detect", s(&maps), s(&maps.join("sub")), "-o", s(&out)]);
     assert!(o.status.success(), "{}", stderr(&o));

@@ -35,6 +35,19 @@ pub(super) struct DetectArgs {
     overlay: Option<PathBuf>,
 }
 
+impl DetectArgs {
+    /// What detecting in a `w` x `h` map allocates beside the map: the backend's buffers, and the overlay
+    /// when one is asked for.
+    fn extra_bytes(&self, w: u32, h: u32) -> u64 {
+        let overlay = if self.overlay.is_some() {
+            overlay::overlay_bytes(w, h)
+        } else {
+            0
+        };
+        self.opts.working_bytes(w, h).saturating_add(overlay)
+    }
+}
+
 pub(super) fn run(a: DetectArgs, budget: &Budget) -> Result<()> {
     let format = match a.format {
         FormatArg::Csv => Format::Csv,
@@ -49,18 +62,7 @@ pub(super) fn run(a: DetectArgs, budget: &Budget) -> Result<()> {
     }
     // The map before the backend, so a bad map is the only message; the map, the backend's buffers and
     // the overlay are counted from the header, before the pixels are read.
-    let overlay_bytes = |w, h| {
-        if a.overlay.is_some() {
-            overlay::overlay_bytes(w, h)
-        } else {
-            0
-        }
-    };
-    let map = OccupancyMap::load_within(path, budget, &|w, h| {
-        a.opts
-            .working_bytes(w, h)
-            .saturating_add(overlay_bytes(w, h))
-    })?;
+    let map = OccupancyMap::load_within(path, budget, &|w, h| a.extra_bytes(w, h))?;
     for w in &map.warnings {
         ogm_corners::say!("ogm-corners: warning: {w}");
     }
@@ -116,15 +118,7 @@ fn run_batch(a: DetectArgs, format: Format, budget: &Budget) -> Result<()> {
     if found.maps.is_empty() {
         return Err(Error::invalid("no maps to detect in (see above)"));
     }
-    let with_overlay = a.overlay.is_some();
-    let extra = |w: u32, h: u32| {
-        let overlay = if with_overlay {
-            overlay::overlay_bytes(w, h)
-        } else {
-            0
-        };
-        a.opts.working_bytes(w, h).saturating_add(overlay)
-    };
+    let extra = |w: u32, h: u32| a.extra_bytes(w, h);
     let plan = batch::Plan {
         format,
         out_dir: out,

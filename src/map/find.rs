@@ -51,10 +51,7 @@ pub fn find_maps(inputs: &[PathBuf]) -> FoundMaps {
         };
         // The images the yamls name, compared as file identities (links and spellings alike).
         let mut named = HashSet::new();
-        for y in files
-            .iter()
-            .filter(|p| matches!(ext(p).as_str(), "yaml" | "yml"))
-        {
+        for y in files.iter().filter(|p| super::is_yaml(p)) {
             let text = match files::read_small_text(y, MAX_YAML_BYTES, "a map yaml") {
                 Ok(t) => t,
                 Err(e) if e.to_string().contains("too large") => {

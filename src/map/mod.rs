@@ -15,7 +15,7 @@ use crate::memory::Budget;
 
 pub use find::{find_maps, map_name, output_names, FoundMaps};
 use yaml::read_yaml;
-pub use yaml::{MapYaml, MAX_YAML_BYTES, MAX_YAML_NESTING};
+pub use yaml::{is_yaml, yaml_image, MapYaml, MAX_YAML_BYTES, MAX_YAML_NESTING};
 
 /// Largest decoded image the loader accepts, in bytes: a 65536 x 65536 8-bit map. Guards against a
 /// header that claims an absurd size, which would otherwise abort the process when allocating.
@@ -236,11 +236,7 @@ impl OccupancyMap {
         budget: &Budget,
         extra: &dyn Fn(u32, u32) -> u64,
     ) -> Result<Self> {
-        let ext = path
-            .extension()
-            .and_then(|e| e.to_str())
-            .map(|e| e.to_ascii_lowercase());
-        if matches!(ext.as_deref(), Some("yaml") | Some("yml")) {
+        if is_yaml(path) {
             return Self::load_yaml_within(path, budget, extra);
         }
         let (image, warnings) = load_image_within(path, budget, extra, None)?;
@@ -262,10 +258,7 @@ impl OccupancyMap {
         extra: &dyn Fn(u32, u32) -> u64,
     ) -> Result<Self> {
         let (meta, image_path) = read_yaml(path)?;
-        let georef = GeoRef {
-            resolution: meta.resolution,
-            origin: meta.origin,
-        };
+        let georef = meta.georef();
         let check = |w: u32, h: u32| georef.check_finite(w, h).map_err(|m| Error::input(path, m));
         let (image, mut warnings) = load_image_within(&image_path, budget, extra, Some(&check))?;
         if !meta.origin[2].is_finite() {
@@ -289,28 +282,13 @@ impl OccupancyMap {
     /// without the pixels, and returns the map's size and its image file: to refuse a bad map, and to
     /// protect its image from the run's outputs, before a long run starts.
     pub fn probe(path: &Path) -> Result<(u32, u32, PathBuf)> {
-        let ext = path
-            .extension()
-            .and_then(|e| e.to_str())
-            .map(|e| e.to_ascii_lowercase());
-        let (image_path, georef) = if matches!(ext.as_deref(), Some("yaml") | Some("yml")) {
+        let (image_path, georef) = if is_yaml(path) {
             let (meta, image_path) = read_yaml(path)?;
-            let georef = GeoRef {
-                resolution: meta.resolution,
-                origin: meta.origin,
-            };
-            (image_path, Some(georef))
+            (image_path, Some(meta.georef()))
         } else {
             (path.to_path_buf(), None)
         };
-        let (file, len) = files::open_regular(&image_path)?;
-        let dec = Decoder::new(
-            BufReader::with_capacity(1 << 16, file),
-            Some(len),
-            kind_hint(&image_path),
-            Budget::default().limit(),
-        )
-        .map_err(|m| Error::input(&image_path, m))?;
+        let dec = open_image(&image_path, &Budget::default())?;
         let (w, h) = (dec.header().width, dec.header().height);
         if let Some(g) = georef {
             g.check_finite(w, h).map_err(|m| Error::input(path, m))?;
@@ -359,9 +337,8 @@ pub fn load_image_within(
     extra: &dyn Fn(u32, u32) -> u64,
     check: Option<SizeCheck>,
 ) -> Result<(MapImage, Vec<String>)> {
-    let (file, len) = files::open_regular(path)?;
-    let reader = BufReader::with_capacity(1 << 16, file);
-    decode_within(reader, len, kind_hint(path), budget, extra, check)
+    let dec = open_image(path, budget)?;
+    decode_rows(dec, budget, extra, check)
         .map_err(|e| match e {
             Error::Input {
                 path: None,
@@ -378,16 +355,21 @@ pub fn load_image_within(
         })
 }
 
-/// The one decoding path of files and bytes: header, checks, budget, then the rows.
-fn decode_within<R: std::io::BufRead>(
-    reader: R,
-    len: u64,
-    hint: Option<ImageKind>,
+/// The image file at `path` (a regular file), its header read.
+fn open_image(path: &Path, budget: &Budget) -> Result<Decoder<BufReader<std::fs::File>>> {
+    let (file, len) = files::open_regular(path)?;
+    let reader = BufReader::with_capacity(1 << 16, file);
+    Decoder::new(reader, Some(len), kind_hint(path), budget.limit())
+        .map_err(|m| Error::input(path, m))
+}
+
+/// The one decoding path of files and bytes once the header is read: checks, budget, then the rows.
+fn decode_rows<R: std::io::BufRead>(
+    mut dec: Decoder<R>,
     budget: &Budget,
     extra: &dyn Fn(u32, u32) -> u64,
     check: Option<SizeCheck>,
 ) -> Result<(MapImage, Vec<String>)> {
-    let mut dec = Decoder::new(reader, Some(len), hint, budget.limit()).map_err(Error::invalid)?;
     let (w, h) = (dec.header().width, dec.header().height);
     if let Some(check) = check {
         check(w, h)?;
@@ -410,14 +392,9 @@ pub fn decode_image(
     bytes: &[u8],
     hint: Option<ImageKind>,
 ) -> std::result::Result<MapImage, String> {
-    decode_within(
-        bytes,
-        bytes.len() as u64,
-        hint,
-        &Budget::default(),
-        &|_, _| 0,
-        None,
-    )
-    .map(|(img, _)| img)
-    .map_err(|e| e.to_string())
+    let budget = Budget::default();
+    let dec = Decoder::new(bytes, Some(bytes.len() as u64), hint, budget.limit())?;
+    decode_rows(dec, &budget, &|_, _| 0, None)
+        .map(|(img, _)| img)
+        .map_err(|e| e.to_string())
 }

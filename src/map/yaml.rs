@@ -16,6 +16,19 @@ pub const MAX_YAML_NESTING: usize = 16;
 /// from being read whole or parsed for minutes.
 pub const MAX_YAML_BYTES: u64 = 64 << 10;
 
+/// Whether `path` names a yaml file (`.yaml` or `.yml`, any case): a map yaml, as opposed to an image.
+pub fn is_yaml(path: &Path) -> bool {
+    path.extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| e.eq_ignore_ascii_case("yaml") || e.eq_ignore_ascii_case("yml"))
+}
+
+/// The image a valid map yaml at `path` names, if it is one and the image exists.
+pub fn yaml_image(path: &Path) -> Option<PathBuf> {
+    let (_, image) = read_yaml(path).ok()?;
+    image.exists().then_some(image)
+}
+
 /// A map yaml's fields and the path of the image it names (relative to the yaml's folder).
 pub(super) fn read_yaml(path: &Path) -> Result<(MapYaml, PathBuf)> {
     let text = files::read_small_text(path, MAX_YAML_BYTES, "a map yaml")?;
@@ -44,6 +57,14 @@ pub struct MapYaml {
 }
 
 impl MapYaml {
+    /// Where the map lies in the world, as the yaml says.
+    pub fn georef(&self) -> super::GeoRef {
+        super::GeoRef {
+            resolution: self.resolution,
+            origin: self.origin,
+        }
+    }
+
     /// Parses the yaml text; the error is a one-line description of the first problem found.
     pub fn parse(text: &str) -> std::result::Result<Self, String> {
         // Editors on Windows start UTF-8 files with a byte-order mark; it is not part of the yaml.

@@ -77,34 +77,40 @@ pub fn detect(img: &MapImage, rules: RuleSet, unknown_as_occupied: bool) -> Vec<
 /// The folder of real maps (`$OGM_MAPS_DIR`, else `../shared/maps` beside the project), or None with a
 /// clear message. Under CI=true a missing folder is a failure, so the real-map checks never silently skip.
 pub fn shared_maps() -> Option<PathBuf> {
-    let dir = std::env::var_os("OGM_MAPS_DIR")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/maps"));
-    if dir.is_dir() {
-        return Some(dir);
-    }
-    let msg = format!(
-        "real maps not found at {}: the real-map checks did NOT run",
-        dir.display()
-    );
-    if std::env::var("CI").is_ok_and(|v| v == "true") {
-        panic!("{msg} (CI=true requires them)");
-    }
-    eprintln!("SKIPPED: {msg}");
-    None
+    shared_dir("OGM_MAPS_DIR", "maps", None, "real maps", "real-map checks")
 }
 
 /// The merge-pairs data set (`$OGM_MERGE_PAIRS_DIR`, else `../shared/merge-pairs`), or None with a clear
 /// message; under CI=true a missing folder is a failure.
 pub fn merge_pairs() -> Option<PathBuf> {
-    let dir = std::env::var_os("OGM_MERGE_PAIRS_DIR")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/merge-pairs"));
-    if dir.join("corners.json").is_file() {
+    shared_dir(
+        "OGM_MERGE_PAIRS_DIR",
+        "merge-pairs",
+        Some("corners.json"),
+        "merge-pairs data",
+        "annotated-corner checks",
+    )
+}
+
+/// `$var`, else `../shared/<name>` beside the project, when it is a folder (holding `marker`, if given);
+/// otherwise None after saying which `checks` did not run, or a panic under CI=true.
+fn shared_dir(
+    var: &str,
+    name: &str,
+    marker: Option<&str>,
+    what: &str,
+    checks: &str,
+) -> Option<PathBuf> {
+    let dir = std::env::var_os(var).map(PathBuf::from).unwrap_or_else(|| {
+        PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+            .join("../shared")
+            .join(name)
+    });
+    if dir.is_dir() && marker.is_none_or(|m| dir.join(m).is_file()) {
         return Some(dir);
     }
     let msg = format!(
-        "merge-pairs data not found at {}: the annotated-corner checks did NOT run",
+        "{what} not found at {}: the {checks} did NOT run",
         dir.display()
     );
     if std::env::var("CI").is_ok_and(|v| v == "true") {
