@@ -33,8 +33,9 @@ mod common;
 
 const SIZES: [u32; 3] = [1024, 4096, 16384];
 
-const DETECTORS: [DetectorKind; 4] = [
+const DETECTORS: [DetectorKind; 5] = [
     DetectorKind::Ogm,
+    DetectorKind::OgmRobust,
     DetectorKind::Baseline(Baseline::Harris),
     DetectorKind::Baseline(Baseline::ShiTomasi),
     DetectorKind::Baseline(Baseline::Trajkovic),
@@ -154,6 +155,14 @@ fn bench_map(
                 b.iter(|| {
                     match kind {
                         DetectorKind::Ogm => backend.detect(image, &classes, &rules, false),
+                        DetectorKind::OgmRobust => ogm_corners::robust::detect(
+                            &mut **backend,
+                            image,
+                            &classes,
+                            &rules,
+                            &Default::default(),
+                        )
+                        .map(|r| r.0),
                         DetectorKind::Baseline(k) => backend.baseline_keypoints(k, image, &params),
                     }
                     .expect("detection")

@@ -128,8 +128,17 @@ pub fn detect(data: &[u8]) {
         t2: u32::from(*p2) * 300,
     };
     let map = OccupancyMap::from_image(image);
+    let robust = ogm_corners::robust::RobustParams {
+        min_scale: u32::from(p0 % 4),
+        max_scale: u32::from(p1 % 18),
+        nms_radius: u32::from(p2 % 9),
+        min_strength: u32::from(p3 % 5),
+        convex: flags & 4 != 0,
+        angle: (flags & 8 != 0).then_some(f64::from(*p0) - 128.0),
+    };
     for detector in [
         DetectorKind::Ogm,
+        DetectorKind::OgmRobust,
         DetectorKind::Baseline(ogm_corners::Baseline::Harris),
         DetectorKind::Baseline(ogm_corners::Baseline::ShiTomasi),
         DetectorKind::Baseline(ogm_corners::Baseline::Trajkovic),
@@ -143,6 +152,8 @@ pub fn detect(data: &[u8]) {
                 RuleSet::PaperMod2
             },
             unknown_as_occupied: flags & 2 != 0,
+            robust,
+            max_corners: (flags & 0x20 != 0).then_some(usize::from(*p2 % 9)),
         };
         let fast = Detector::new(options).detect(&map);
         let reference = Detector::with_backend(options, Box::new(CpuBackend)).detect(&map);

@@ -7,7 +7,9 @@ use serde::Serialize;
 
 use crate::baselines::{self, Baseline, BaselineParams, ExactParams};
 use crate::error::Result;
+use crate::grid::RotatedGrid;
 use crate::map::MapImage;
+use crate::robust::RobustParams;
 use crate::rules::{RuleSet, RuleTable};
 use crate::states::ClassTable;
 
@@ -22,8 +24,13 @@ pub struct Keypoint {
     pub rule: u8,
     /// The 8-neighbour code (bit order in [`crate::rules`]); 0 for the baselines.
     pub code: u8,
-    /// The baselines' integer response (see [`crate::baselines`]); 0 for the OGM detector.
+    /// The baselines' integer response (see [`crate::baselines`]); the robust detector's strength (the
+    /// shorter wall of the corner, pixels); 0 for the paper's OGM detector.
     pub score: i64,
+    /// The robust detector's coarse scale (map pixels a cell side) the rule fired at; 1 otherwise.
+    pub scale: u8,
+    /// A convex corner of the robust detector (an occupied cell, roles swapped); false otherwise.
+    pub convex: bool,
 }
 
 impl Keypoint {
@@ -35,6 +42,21 @@ impl Keypoint {
             rule: 0,
             code: 0,
             score,
+            scale: 1,
+            convex: false,
+        }
+    }
+
+    /// A keypoint of the paper's OGM detector: position, rule and code.
+    pub fn ogm(x: u32, y: u32, rule: u8, code: u8) -> Self {
+        Keypoint {
+            y,
+            x,
+            rule,
+            code,
+            score: 0,
+            scale: 1,
+            convex: false,
         }
     }
 }
@@ -45,6 +67,9 @@ pub enum DetectorKind {
     /// The OGM corner detector of the paper (the default).
     #[default]
     Ogm,
+    /// The OGM rules made robust for real maps: turned to the walls, at several scales, concave and
+    /// convex corners, ranked by strength ([`crate::robust`]).
+    OgmRobust,
     /// One of the paper's baselines.
     Baseline(Baseline),
 }
@@ -54,6 +79,7 @@ impl DetectorKind {
     pub fn name(self) -> &'static str {
         match self {
             DetectorKind::Ogm => "ogm",
+            DetectorKind::OgmRobust => "ogm-robust",
             DetectorKind::Baseline(Baseline::Harris) => "harris",
             DetectorKind::Baseline(Baseline::ShiTomasi) => "shi-tomasi",
             DetectorKind::Baseline(Baseline::Trajkovic) => "trajkovic",
@@ -70,8 +96,14 @@ pub struct DetectOptions {
     pub baseline: BaselineParams,
     /// Which reading of the paper's rules.
     pub rules: RuleSet,
-    /// Count unknown neighbours as occupied (by default they count as not occupied).
+    /// Count unknown neighbours as occupied (by default they count as not occupied); the paper's detector
+    /// only.
     pub unknown_as_occupied: bool,
+    /// The robust detector's options.
+    pub robust: RobustParams,
+    /// Keep at most this many keypoints, strongest first (ties in (y, x) order); the paper's detector has
+    /// no strength, so it refuses a cap it would exceed.
+    pub max_corners: Option<usize>,
 }
 
 /// Something that runs the classification and corner kernels: the CPU reference, or a GPU.
@@ -119,6 +151,21 @@ pub trait Backend {
         )
     }
 
+    /// The coarse maps of `image` sampled on `grid`, one per scale, exactly as
+    /// [`crate::cpu::coarsen::coarsen`] computes them (the default).
+    fn coarsen(
+        &mut self,
+        image: &MapImage,
+        classes: &ClassTable,
+        grid: &RotatedGrid,
+        scales: &[u32],
+    ) -> Result<Vec<MapImage>> {
+        Ok(scales
+            .iter()
+            .map(|&s| crate::cpu::coarsen::coarsen(image, classes, grid, s))
+            .collect())
+    }
+
     /// Bytes this backend allocates on the host to detect with `options` in a `width` x `height` map,
     /// beyond the map itself and the keypoints it returns (24 bytes each, data-dependent): what a caller
     /// adds to the map's size before checking a memory budget. An upper bound of the buffers that grow
@@ -136,6 +183,7 @@ pub fn reference_working_bytes(options: &DetectOptions, width: u32, height: u32)
     let px = u64::from(width) * u64::from(height);
     match options.detector {
         DetectorKind::Ogm => px,
+        DetectorKind::OgmRobust => crate::robust::robust_working_bytes(width, height),
         DetectorKind::Baseline(Baseline::Harris) => px.saturating_mul(25),
         DetectorKind::Baseline(Baseline::ShiTomasi) => px.saturating_mul(25).max(
             px.saturating_mul(8)

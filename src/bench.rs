@@ -417,6 +417,10 @@ impl Runner {
         let end_to_end = |b: &mut dyn Backend| -> Result<Vec<Keypoint>> {
             match kind {
                 DetectorKind::Ogm => b.detect(image, &classes, &rules, false),
+                DetectorKind::OgmRobust => {
+                    crate::robust::detect(b, image, &classes, &rules, &Default::default())
+                        .map(|r| r.0)
+                }
                 DetectorKind::Baseline(k) => b.baseline_keypoints(k, image, &params),
             }
         };
@@ -461,6 +465,15 @@ impl Runner {
                             let states = classify(image, &classes);
                             ogm_corners(&states, w, h, &rules, false).len()
                         }
+                        DetectorKind::OgmRobust => crate::robust::detect(
+                            &mut CpuBackend,
+                            image,
+                            &classes,
+                            &rules,
+                            &Default::default(),
+                        )?
+                        .0
+                        .len(),
                         DetectorKind::Baseline(k) => baselines::cpu_scores(k, image, &exact).len(),
                     })
                 })?;

@@ -83,7 +83,7 @@ pub fn contact_sheet(
     let (label_h, title_h) = (22u32, 34u32);
     let mut sheet = RgbImage::from_pixel(
         2 * PANEL + 30,
-        title_h + 2 * (PANEL + label_h) + 30,
+        title_h + (found.len() as u32).div_ceil(2).max(1) * (PANEL + label_h + 10) + 20,
         image::Rgb([255, 255, 255]),
     );
     let black = image::Rgb([0, 0, 0]);

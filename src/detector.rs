@@ -1,14 +1,15 @@
 //! The detector API: a [`Detector`] runs one of the detectors on a backend and returns a [`Detection`].
 
 pub use crate::backend::{Backend, DetectOptions, DetectorKind, Keypoint};
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::fast::FastCpuBackend;
 use crate::map::{MapImage, OccupancyMap, Thresholds};
+use crate::robust::RobustInfo;
 use crate::rules::RuleTable;
 use crate::states::ClassTable;
 
 /// The keypoints found in one map.
-#[derive(Clone, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct Detection {
     /// Map width in pixels.
     pub width: u32,
@@ -16,6 +17,8 @@ pub struct Detection {
     pub height: u32,
     /// Keypoints sorted by (y, x).
     pub keypoints: Vec<Keypoint>,
+    /// What the robust detector measured (its grid angle); `None` for the other detectors.
+    pub robust: Option<RobustInfo>,
 }
 
 /// Detects corners in maps; keep one and reuse it so backend set-up is paid once.
@@ -81,7 +84,20 @@ impl Detector {
 
     /// Detects corners in an image, reading its pixels with `thresholds`.
     pub fn detect_image(&mut self, image: &MapImage, thresholds: &Thresholds) -> Result<Detection> {
-        let keypoints = match self.options.detector {
+        let mut robust = None;
+        let mut keypoints = match self.options.detector {
+            DetectorKind::OgmRobust => {
+                let classes = ClassTable::new(thresholds);
+                let (k, info) = crate::robust::detect(
+                    &mut *self.backend,
+                    image,
+                    &classes,
+                    &self.rules,
+                    &self.options.robust,
+                )?;
+                robust = Some(info);
+                k
+            }
             DetectorKind::Ogm => {
                 let classes = ClassTable::new(thresholds);
                 self.backend.detect(
@@ -96,10 +112,37 @@ impl Detector {
                     .baseline_keypoints(kind, image, &self.options.baseline)?
             }
         };
+        if let Some(n) = self.options.max_corners {
+            keypoints = strongest(keypoints, n, self.options.detector)?;
+        }
         Ok(Detection {
             width: image.width(),
             height: image.height(),
             keypoints,
+            robust,
         })
     }
+}
+
+/// The `n` strongest keypoints (ties: (y, x) order), back in (y, x) order. The paper's detector has no
+/// strength to rank by: a cap it would exceed is refused rather than cut at an arbitrary place.
+pub fn strongest(
+    mut keypoints: Vec<Keypoint>,
+    n: usize,
+    kind: DetectorKind,
+) -> Result<Vec<Keypoint>> {
+    if keypoints.len() <= n {
+        return Ok(keypoints);
+    }
+    if kind == DetectorKind::Ogm {
+        return Err(Error::invalid(format!(
+            "the paper's OGM detector has no strength to keep the {n} strongest of {} keypoints by; \
+             use --detector ogm-robust or a baseline with --max-corners",
+            keypoints.len()
+        )));
+    }
+    keypoints.sort_by(|a, b| b.score.cmp(&a.score).then(a.cmp(b)));
+    keypoints.truncate(n);
+    keypoints.sort_unstable();
+    Ok(keypoints)
 }

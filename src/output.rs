@@ -36,8 +36,8 @@ pub fn md_cell(s: &str) -> String {
 /// Output formats of `detect`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Format {
-    /// A header line `x,y,rule,code[,world_x,world_y]` (baselines: `x,y,score[,...]`), then one keypoint a
-    /// line.
+    /// A header line `x,y,rule,code[,world_x,world_y]` (robust detector: `x,y,score,scale,convex,rule,code`;
+    /// baselines: `x,y,score`), then one keypoint a line.
     Csv,
     /// One object with the map's size and the keypoint list.
     Json,
@@ -58,16 +58,21 @@ pub fn write_keypoints(
     }
 }
 
-/// CSV: `x,y,rule,code` for the OGM detector, `x,y,score` for the baselines, plus `world_x,world_y` in
-/// metres when the map has a yaml.
+/// CSV: `x,y,rule,code` for the OGM detector, `x,y,score,scale,convex,rule,code` for the robust one
+/// (score: its strength in pixels), `x,y,score` for the baselines, plus `world_x,world_y` in metres when
+/// the map has a yaml.
 pub fn write_csv(
     out: &mut dyn Write,
     map: &OccupancyMap,
     det: &Detection,
     detector: DetectorKind,
 ) -> std::io::Result<()> {
-    let ogm = detector == DetectorKind::Ogm;
-    write!(out, "{}", if ogm { "x,y,rule,code" } else { "x,y,score" })?;
+    let header = match detector {
+        DetectorKind::Ogm => "x,y,rule,code",
+        DetectorKind::OgmRobust => "x,y,score,scale,convex,rule,code",
+        DetectorKind::Baseline(_) => "x,y,score",
+    };
+    write!(out, "{header}")?;
     writeln!(
         out,
         "{}",
@@ -78,10 +83,14 @@ pub fn write_csv(
         }
     )?;
     for k in &det.keypoints {
-        if ogm {
-            write!(out, "{},{},{},{}", k.x, k.y, k.rule, k.code)?;
-        } else {
-            write!(out, "{},{},{}", k.x, k.y, k.score)?;
+        match detector {
+            DetectorKind::Ogm => write!(out, "{},{},{},{}", k.x, k.y, k.rule, k.code)?,
+            DetectorKind::OgmRobust => write!(
+                out,
+                "{},{},{},{},{},{},{}",
+                k.x, k.y, k.score, k.scale, k.convex, k.rule, k.code
+            )?,
+            DetectorKind::Baseline(_) => write!(out, "{},{},{}", k.x, k.y, k.score)?,
         }
         if let Some(g) = &map.georef {
             let (wx, wy) = g.pixel_to_world(k.x, k.y, det.height);
@@ -103,6 +112,10 @@ struct JsonKeypoint {
     #[serde(skip_serializing_if = "Option::is_none")]
     score: Option<i64>,
     #[serde(skip_serializing_if = "Option::is_none")]
+    scale: Option<u8>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    convex: Option<bool>,
+    #[serde(skip_serializing_if = "Option::is_none")]
     world: Option<[f64; 2]>,
 }
 
@@ -118,6 +131,9 @@ struct JsonDetection<'a> {
     detector: &'a str,
     rules: &'a str,
     unknown_as_occupied: bool,
+    /// The robust detector's grid angle, degrees.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    angle_deg: Option<f64>,
     backend: &'a str,
     count: usize,
     keypoints: JsonKeypoints<'a>,
@@ -127,7 +143,7 @@ struct JsonDetection<'a> {
 struct JsonKeypoints<'a> {
     det: &'a Detection,
     georef: Option<crate::map::GeoRef>,
-    ogm: bool,
+    detector: DetectorKind,
 }
 
 impl Serialize for JsonKeypoints<'_> {
@@ -135,12 +151,18 @@ impl Serialize for JsonKeypoints<'_> {
         use serde::ser::SerializeSeq;
         let mut seq = s.serialize_seq(Some(self.det.keypoints.len()))?;
         for k in &self.det.keypoints {
+            let (ogm, robust) = (
+                self.detector == DetectorKind::Ogm,
+                self.detector == DetectorKind::OgmRobust,
+            );
             seq.serialize_element(&JsonKeypoint {
                 x: k.x,
                 y: k.y,
-                rule: self.ogm.then_some(k.rule),
-                code: self.ogm.then_some(k.code),
-                score: (!self.ogm).then_some(k.score),
+                rule: (ogm || robust).then_some(k.rule),
+                code: (ogm || robust).then_some(k.code),
+                score: (!ogm).then_some(k.score),
+                scale: robust.then_some(k.scale),
+                convex: robust.then_some(k.convex),
                 world: self.georef.map(|g| {
                     let (wx, wy) = g.pixel_to_world(k.x, k.y, self.det.height);
                     [wx, wy]
@@ -151,8 +173,9 @@ impl Serialize for JsonKeypoints<'_> {
     }
 }
 
-/// JSON: `{"map", "width", "height", ["resolution", "origin",] "rules", "unknown_as_occupied", "backend",
-/// "count", "keypoints": [{"x", "y", "rule", "code", ["world": [x, y]]}]}`.
+/// JSON: `{"map", "width", "height", ["resolution", "origin",] "detector", "rules", "unknown_as_occupied",
+/// ["angle_deg",] "backend", "count", "keypoints": [{"x", "y", ["rule", "code",] ["score",] ["scale",
+/// "convex",] ["world": [x, y]]}]}` (the fields each detector has, as in the CSV).
 pub fn write_json(
     out: &mut dyn Write,
     map: &OccupancyMap,
@@ -160,7 +183,6 @@ pub fn write_json(
     options: &DetectOptions,
     backend: &str,
 ) -> std::io::Result<()> {
-    let ogm = options.detector == DetectorKind::Ogm;
     let doc = JsonDetection {
         map: map.source().map(|p| p.display().to_string()),
         width: det.width,
@@ -173,12 +195,13 @@ pub fn write_json(
         detector: options.detector.name(),
         rules: options.rules.name(),
         unknown_as_occupied: options.unknown_as_occupied,
+        angle_deg: det.robust.map(|r| r.angle),
         backend,
         count: det.keypoints.len(),
         keypoints: JsonKeypoints {
             det,
             georef: map.georef,
-            ogm,
+            detector: options.detector,
         },
     };
     serde_json::to_writer_pretty(&mut *out, &doc)?;

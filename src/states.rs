@@ -44,6 +44,11 @@ impl ClassTable {
         ClassTable { states }
     }
 
+    /// A table given state by state (the robust detector reads its coarse maps so).
+    pub fn from_states(states: [CellState; 256]) -> Self {
+        ClassTable { states }
+    }
+
     /// The state of pixel value `v`.
     #[inline]
     pub fn state(&self, v: u8) -> CellState {

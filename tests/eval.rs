@@ -86,13 +86,7 @@ fn the_metric_counts_matches_over_the_smaller_set_in_the_shared_region() {
     let pair = Pair::new(&map, Transform::Overlap { overlap: 0.5 }).unwrap();
     // The crops are 67 px wide, the second starting at x = 33.
     assert_eq!((pair.first.width(), pair.second.width()), (67, 67));
-    let k = |x, y| Keypoint {
-        x,
-        y,
-        rule: 5,
-        code: 0,
-        score: 0,
-    };
+    let k = |x, y| Keypoint::ogm(x, y, 5, 0);
     // First map: (40, 10) is shared and (5, 10) is not; second map: (7, 10) is (40, 10) moved by -33,
     // (8, 30) has no partner, (60, 50) lies outside what the first crop saw.
     let a = [k(40, 10), k(5, 10), k(50, 50)];

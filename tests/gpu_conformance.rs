@@ -415,3 +415,66 @@ fn maps_stream_through_in_bands_under_a_byte_budget() {
         assert!(gpu.upload_time(&img).unwrap() > std::time::Duration::ZERO);
     }
 }
+
+/// The coarsening kernel: the GPU's coarse maps equal the CPU twin's on random maps, angles and scales,
+/// in one tile and split into many small ones.
+#[test]
+fn coarsening_matches_the_reference_at_every_angle_and_scale() {
+    use ogm_corners::cpu::coarsen::coarsen;
+    use ogm_corners::grid::RotatedGrid;
+    for max_tile_bytes in [64 << 20, 700] {
+        let Some(mut gpu) = common::gpu_backend(GpuOptions {
+            max_tile_bytes,
+            ..GpuOptions::default()
+        }) else {
+            return;
+        };
+        let classes = ClassTable::default();
+        let mut rng = Rng::new(11);
+        for seed in 0..12u64 {
+            let (w, h) = (rng.range(1, 120), rng.range(1, 120));
+            let img = common::random_map(w, h, seed);
+            let deg = [0.0, 45.0, -45.0, 90.0, 17.3, -8.6, 33.0, 1.0][seed as usize % 8];
+            let grid = RotatedGrid::new(w, h, deg).unwrap();
+            let scales: Vec<u32> = if seed % 3 == 0 {
+                (1..=16).collect()
+            } else {
+                vec![2, 3, 5, 8, 10]
+            };
+            let got = gpu.coarsen(&img, &classes, &grid, &scales).unwrap();
+            if max_tile_bytes == 700 && w * h > 4000 {
+                assert!(gpu.stats().tiles > scales.len(), "{w}x{h} was not split");
+            }
+            for (&s, g) in scales.iter().zip(&got) {
+                assert_eq!(
+                    g,
+                    &coarsen(&img, &classes, &grid, s),
+                    "{w}x{h} at {deg} degrees, scale {s}, tile budget {max_tile_bytes}"
+                );
+            }
+        }
+    }
+}
+
+/// The whole robust detector: the GPU backend's keypoints equal the reference's.
+#[test]
+fn robust_keypoints_match_the_reference() {
+    use ogm_corners::robust::{self, RobustParams};
+    let Some(mut gpu) = common::gpu_backend(GpuOptions::default()) else {
+        return;
+    };
+    let classes = ClassTable::default();
+    let rules = RuleTable::new(RuleSet::Paper);
+    let mut maps: Vec<MapImage> = (0..3u64)
+        .map(|s| common::turned_rooms(200, 14.0 * s as f64 - 9.0, s).0)
+        .collect();
+    maps.push(office_map(300, 220, 5).unwrap());
+    maps.push(common::random_map(90, 70, 2));
+    for (i, img) in maps.iter().enumerate() {
+        let params = RobustParams::default();
+        let want = robust::detect(&mut CpuBackend, img, &classes, &rules, &params).unwrap();
+        let got = robust::detect(&mut gpu, img, &classes, &rules, &params).unwrap();
+        assert!(!want.0.is_empty() || i == 4, "map {i} has corners");
+        assert_eq!(got, want, "map {i}");
+    }
+}

@@ -41,7 +41,7 @@ fn rotate_kps(kps: &[Keypoint], h: u32) -> Vec<Keypoint> {
             y: k.x,
             rule: k.rule,
             code: rotate_code(k.code, 1),
-            score: k.score,
+            ..*k
         })
         .collect();
     v.sort();

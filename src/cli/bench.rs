@@ -25,13 +25,15 @@ use ogm_corners::bench::{
 pub(super) enum DetectorChoice {
     /// The OGM corner detector of the paper.
     Ogm,
+    /// The robust OGM detector.
+    OgmRobust,
     /// Harris.
     Harris,
     /// Shi-Tomasi.
     ShiTomasi,
     /// Trajkovic-Hedley.
     Trajkovic,
-    /// The four.
+    /// All five.
     All,
 }
 
@@ -123,6 +125,7 @@ fn detector_list(choice: &[DetectorChoice]) -> Vec<DetectorKind> {
             choice.iter().any(|c| match c {
                 DetectorChoice::All => true,
                 DetectorChoice::Ogm => *k == DetectorKind::Ogm,
+                DetectorChoice::OgmRobust => *k == DetectorKind::OgmRobust,
                 DetectorChoice::Harris => *k == DetectorKind::Baseline(Baseline::Harris),
                 DetectorChoice::ShiTomasi => *k == DetectorKind::Baseline(Baseline::ShiTomasi),
                 DetectorChoice::Trajkovic => *k == DetectorKind::Baseline(Baseline::Trajkovic),
@@ -157,7 +160,7 @@ fn bench_bytes(kinds: &[DetectorKind], w: u32, h: u32) -> u64 {
                 ..DetectOptions::default()
             };
             reference_working_bytes(&options, w, h).saturating_add(match detector {
-                DetectorKind::Ogm => 0,
+                DetectorKind::Ogm | DetectorKind::OgmRobust => 0,
                 DetectorKind::Baseline(_) => px.saturating_mul(8),
             })
         })

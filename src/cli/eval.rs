@@ -40,6 +40,8 @@ pub(super) struct EvalArgs {
     /// and recall at a budget of 1x and 3x the marked points (strongest first), per map and pooled.
     #[arg(long, value_name = "FILE", conflicts_with = "plot")]
     annotations: Option<PathBuf>,
+    #[command(flatten)]
+    robust: super::RobustArgs,
 }
 
 pub(super) fn run(a: EvalArgs, budget: &Budget) -> Result<()> {
@@ -72,10 +74,14 @@ pub(super) fn run(a: EvalArgs, budget: &Budget) -> Result<()> {
             inputs.claim_output(&dir.join(file), "--plot")?;
         }
     }
-    // Every detector with its default (the paper's) options.
-    let mut detector = detector_on(a.backend, DetectOptions::default())?;
+    // Every detector with its default (the paper's) options; the robust one with those given.
+    let base = DetectOptions {
+        robust: a.robust.params(),
+        ..DetectOptions::default()
+    };
+    let mut detector = detector_on(a.backend, base)?;
     if let Some(file) = &a.annotations {
-        return annotated(&a, file, &maps, &mut detector, budget);
+        return annotated(&a, file, &maps, &mut detector, &base, budget);
     }
     let mut rows = Vec::new();
     // One map in memory at a time.
@@ -86,6 +92,7 @@ pub(super) fn run(a: EvalArgs, budget: &Budget) -> Result<()> {
             &p.display().to_string(),
             &map.image,
             &ALL_DETECTORS,
+            &base,
             a.trials,
             a.seed,
             a.tolerance,
@@ -108,6 +115,7 @@ fn annotated(
     file: &std::path::Path,
     maps: &[PathBuf],
     detector: &mut ogm_corners::Detector,
+    base: &DetectOptions,
     budget: &Budget,
 ) -> Result<()> {
     use ogm_corners::eval::annotations::{pooled, recall, write_table, Annotations};
@@ -139,14 +147,14 @@ fn annotated(
         // The paper's detector both ways of reading unknown neighbours, then the baselines.
         let unknown_blocks = DetectOptions {
             unknown_as_occupied: true,
-            ..DetectOptions::default()
+            ..*base
         };
-        let runs = std::iter::once((DetectOptions::default(), "ogm"))
+        let runs = std::iter::once((*base, "ogm"))
             .chain([(unknown_blocks, "ogm-unknown-as-occupied")])
             .chain(ALL_DETECTORS[1..].iter().map(|&d| {
                 let o = DetectOptions {
                     detector: d,
-                    ..DetectOptions::default()
+                    ..*base
                 };
                 (o, d.name())
             }));

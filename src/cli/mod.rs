@@ -18,6 +18,7 @@ use ogm_corners::cpu::CpuBackend;
 use ogm_corners::fast::FastCpuBackend;
 use ogm_corners::gpu::{GpuBackend, GpuOptions};
 use ogm_corners::memory::{self, Budget};
+use ogm_corners::robust::RobustParams;
 use ogm_corners::{
     Backend, Baseline, BaselineParams, DetectOptions, Detector, DetectorKind, Error, Result,
     RuleSet,
@@ -94,8 +95,11 @@ enum FormatArg {
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 enum DetectorArg {
-    /// The OGM corner detector of the paper.
+    /// The OGM corner detector of the paper, exactly as it describes it.
     Ogm,
+    /// The paper's rules made robust for real maps: turned to the walls, at several scales, concave and
+    /// convex corners, ranked by strength.
+    OgmRobust,
     /// Harris (Gaussian blur, Sobel, structure tensor, k; OpenCV's cornerHarris).
     Harris,
     /// Shi-Tomasi (minimum eigenvalue, OpenCV's goodFeaturesToTrack selection).
@@ -108,6 +112,7 @@ impl From<DetectorArg> for DetectorKind {
     fn from(d: DetectorArg) -> Self {
         match d {
             DetectorArg::Ogm => DetectorKind::Ogm,
+            DetectorArg::OgmRobust => DetectorKind::OgmRobust,
             DetectorArg::Harris => DetectorKind::Baseline(Baseline::Harris),
             DetectorArg::ShiTomasi => DetectorKind::Baseline(Baseline::ShiTomasi),
             DetectorArg::Trajkovic => DetectorKind::Baseline(Baseline::Trajkovic),
@@ -130,8 +135,10 @@ struct BaselineArgs {
     /// Shi-Tomasi minimum distance between keypoints, pixels.
     #[arg(long, default_value_t = 3.0)]
     min_distance: f64,
-    /// Shi-Tomasi maximum number of keypoints, strongest first (default: all).
-    #[arg(long)]
+    /// Keep at most N keypoints, strongest first (default: all): the robust detector and the baselines
+    /// (Shi-Tomasi as goodFeaturesToTrack's maxCorners, before its minimum distance); the paper's detector
+    /// has no strength and refuses a cap it would exceed.
+    #[arg(long, value_name = "N")]
     max_corners: Option<usize>,
     /// Trajkovic low-resolution threshold T1 (squared grey levels).
     #[arg(long, default_value_t = 10_000)]
@@ -155,6 +162,42 @@ impl BaselineArgs {
     }
 }
 
+/// The robust detector's options ([`ogm_corners::robust::RobustParams`]).
+#[derive(Args, Debug, Clone)]
+pub(super) struct RobustArgs {
+    /// Robust detector: smallest coarse scale, pixels a cell side.
+    #[arg(long, default_value_t = RobustParams::default().min_scale)]
+    min_scale: u32,
+    /// Robust detector: largest coarse scale (at most 16).
+    #[arg(long, default_value_t = RobustParams::default().max_scale)]
+    max_scale: u32,
+    /// Robust detector: the map's wall direction in degrees, instead of estimating it.
+    #[arg(long, value_name = "DEGREES", allow_negative_numbers = true)]
+    angle: Option<f64>,
+    /// Robust detector: drop keypoints within this many pixels of a stronger one.
+    #[arg(long, default_value_t = RobustParams::default().nms_radius)]
+    nms_radius: u32,
+    /// Robust detector: drop corners whose shorter wall runs fewer pixels than this.
+    #[arg(long, default_value_t = RobustParams::default().min_strength)]
+    min_strength: u32,
+    /// Robust detector: concave corners only (no wall ends or outer corners).
+    #[arg(long)]
+    no_convex: bool,
+}
+
+impl RobustArgs {
+    pub(super) fn params(&self) -> RobustParams {
+        RobustParams {
+            min_scale: self.min_scale,
+            max_scale: self.max_scale,
+            nms_radius: self.nms_radius,
+            min_strength: self.min_strength,
+            convex: !self.no_convex,
+            angle: self.angle,
+        }
+    }
+}
+
 #[derive(Args, Debug)]
 struct DetectOpts {
     /// Which detector.
@@ -162,6 +205,8 @@ struct DetectOpts {
     detector: DetectorArg,
     #[command(flatten)]
     baseline: BaselineArgs,
+    #[command(flatten)]
+    robust: RobustArgs,
     /// Which reading of the paper's rules to use (OGM detector).
     #[arg(long, value_enum, default_value = "paper")]
     rules: RulesArg,
@@ -180,6 +225,8 @@ impl DetectOpts {
             baseline: self.baseline.params(),
             rules: self.rules.into(),
             unknown_as_occupied: self.unknown_as_occupied,
+            robust: self.robust.params(),
+            max_corners: self.baseline.max_corners,
         }
     }
 
@@ -360,8 +407,9 @@ impl From<TableFormat> for ogm_corners::output::TableFormat {
     }
 }
 
-const ALL_DETECTORS: [DetectorKind; 4] = [
+const ALL_DETECTORS: [DetectorKind; 5] = [
     DetectorKind::Ogm,
+    DetectorKind::OgmRobust,
     DetectorKind::Baseline(Baseline::Harris),
     DetectorKind::Baseline(Baseline::ShiTomasi),
     DetectorKind::Baseline(Baseline::Trajkovic),

@@ -3,6 +3,7 @@
 //! These are the oracle the other backends are tested against, so they favour obviousness over speed.
 
 pub mod classify;
+pub mod coarsen;
 pub mod gaussian_blur;
 pub mod harris;
 pub mod ogm_corners;

@@ -71,13 +71,7 @@ pub fn ogm_corners(
                 neighbour_code(states, width, height, x, y, unknown_as_occupied)
             };
             if let Some(rule) = rules.rule(code) {
-                out.push(Keypoint {
-                    x,
-                    y,
-                    rule,
-                    code,
-                    score: 0,
-                });
+                out.push(Keypoint::ogm(x, y, rule, code));
             }
         }
     }

@@ -87,11 +87,15 @@ pub struct RecallRecord {
     pub hits_5: usize,
     /// See `hits_5`.
     pub hits_10: usize,
-    /// Within 10 px, keeping only the strongest `marked` keypoints (1x) and `3 * marked` (3x); None when
-    /// the detector has more keypoints than the budget and no strength to rank them by (the paper's OGM
-    /// detector: every keypoint scores 0).
+    /// Within 5 px, keeping only the strongest `marked` keypoints (1x); None when the detector has more
+    /// keypoints than the budget and no strength to rank them by (the paper's OGM detector: every
+    /// keypoint scores 0).
+    pub hits_5_budget_1x: Option<usize>,
+    /// Within 5 px, the strongest `3 * marked` keypoints (3x).
+    pub hits_5_budget_3x: Option<usize>,
+    /// Within 10 px, the strongest `marked` keypoints.
     pub hits_10_budget_1x: Option<usize>,
-    /// See `hits_10_budget_1x`.
+    /// Within 10 px, the strongest `3 * marked` keypoints.
     pub hits_10_budget_3x: Option<usize>,
 }
 
@@ -128,10 +132,10 @@ pub fn recall(
         v
     };
     let has_strength = keypoints.iter().any(|k| k.score != keypoints[0].score);
-    let budget = |times: usize| {
+    let budget = |times: usize, radius: f64| {
         let n = times * points.len();
         (n >= ranked.len() || has_strength)
-            .then(|| hits(points, &ranked[..n.min(ranked.len())], RADII[1]))
+            .then(|| hits(points, &ranked[..n.min(ranked.len())], radius))
     };
     RecallRecord {
         map: map.to_string(),
@@ -140,8 +144,10 @@ pub fn recall(
         keypoints: keypoints.len(),
         hits_5: hits(points, keypoints, RADII[0]),
         hits_10: hits(points, keypoints, RADII[1]),
-        hits_10_budget_1x: budget(BUDGETS[0]),
-        hits_10_budget_3x: budget(BUDGETS[1]),
+        hits_5_budget_1x: budget(BUDGETS[0], RADII[0]),
+        hits_5_budget_3x: budget(BUDGETS[1], RADII[0]),
+        hits_10_budget_1x: budget(BUDGETS[0], RADII[1]),
+        hits_10_budget_3x: budget(BUDGETS[1], RADII[1]),
     }
 }
 
@@ -155,14 +161,11 @@ pub fn pooled(rows: &[RecallRecord]) -> Vec<RecallRecord> {
                 o.keypoints += r.keypoints;
                 o.hits_5 += r.hits_5;
                 o.hits_10 += r.hits_10;
-                o.hits_10_budget_1x = o
-                    .hits_10_budget_1x
-                    .zip(r.hits_10_budget_1x)
-                    .map(|(a, b)| a + b);
-                o.hits_10_budget_3x = o
-                    .hits_10_budget_3x
-                    .zip(r.hits_10_budget_3x)
-                    .map(|(a, b)| a + b);
+                let add = |a: Option<usize>, b: Option<usize>| a.zip(b).map(|(a, b)| a + b);
+                o.hits_5_budget_1x = add(o.hits_5_budget_1x, r.hits_5_budget_1x);
+                o.hits_5_budget_3x = add(o.hits_5_budget_3x, r.hits_5_budget_3x);
+                o.hits_10_budget_1x = add(o.hits_10_budget_1x, r.hits_10_budget_1x);
+                o.hits_10_budget_3x = add(o.hits_10_budget_3x, r.hits_10_budget_3x);
             }
             None => out.push(RecallRecord {
                 map: "all".to_string(),
@@ -190,37 +193,42 @@ pub fn write_table(
         TableFormat::Csv => {
             writeln!(
                 out,
-                "map,detector,marked,keypoints,hits_5,hits_10,hits_10_budget_1x,hits_10_budget_3x"
+                "map,detector,marked,keypoints,hits_5,hits_10,hits_5_budget_1x,hits_5_budget_3x,\
+                 hits_10_budget_1x,hits_10_budget_3x"
             )?;
             let opt = |h: Option<usize>| h.map_or(String::new(), |h| h.to_string());
             for r in rows {
                 writeln!(
                     out,
-                    "{},{},{},{},{},{},{},{}",
+                    "{},{},{},{},{},{},{},{},{},{}",
                     csv_field(&r.map),
                     r.detector,
                     r.marked,
                     r.keypoints,
                     r.hits_5,
                     r.hits_10,
+                    opt(r.hits_5_budget_1x),
+                    opt(r.hits_5_budget_3x),
                     opt(r.hits_10_budget_1x),
                     opt(r.hits_10_budget_3x)
                 )?;
             }
         }
         TableFormat::Md => {
-            writeln!(out, "| map | detector | marked | keypoints | within 5 px | within 10 px | 10 px, 1x budget | 10 px, 3x budget |")?;
-            writeln!(out, "|---|---|---|---|---|---|---|---|")?;
+            writeln!(out, "| map | detector | marked | keypoints | within 5 px | within 10 px | 5 px, 1x budget | 5 px, 3x budget | 10 px, 1x budget | 10 px, 3x budget |")?;
+            writeln!(out, "|---|---|---|---|---|---|---|---|---|---|")?;
             for r in rows {
                 writeln!(
                     out,
-                    "| {} | {} | {} | {} | {} | {} | {} | {} |",
+                    "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
                     md_cell(&r.map),
                     r.detector,
                     r.marked,
                     r.keypoints,
                     pct(r, Some(r.hits_5)),
                     pct(r, Some(r.hits_10)),
+                    pct(r, r.hits_5_budget_1x),
+                    pct(r, r.hits_5_budget_3x),
                     pct(r, r.hits_10_budget_1x),
                     pct(r, r.hits_10_budget_3x)
                 )?;

@@ -405,13 +405,16 @@ pub struct EvalRecord {
     pub trials: u32,
 }
 
-/// Every detector of `kinds` (with default options otherwise) on `map` under every condition: `trials`
-/// random trials per random condition, one per exact one. One transformed pair is in memory at a time.
+/// Every detector of `kinds` (with the options of `base` otherwise) on `map` under every condition:
+/// `trials` random trials per random condition, one per exact one. One transformed pair is in memory at
+/// a time.
+#[allow(clippy::too_many_arguments)]
 pub fn evaluate(
     detector: &mut Detector,
     name: &str,
     map: &MapImage,
     kinds: &[DetectorKind],
+    base: &DetectOptions,
     trials: u32,
     seed: u64,
     tolerance: f64,
@@ -436,7 +439,7 @@ pub fn evaluate(
             for (kind, s) in kinds.iter().zip(&mut scores) {
                 detector.set_options(DetectOptions {
                     detector: *kind,
-                    ..DetectOptions::default()
+                    ..*base
                 });
                 s.extend(repeatability(detector, &pair, tolerance)?);
             }

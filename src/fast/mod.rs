@@ -9,11 +9,13 @@ mod baseline_tensor;
 mod baseline_trajkovic;
 pub mod baselines;
 pub mod bitplanes;
+pub mod coarsen;
 pub mod ogm;
 
 use crate::backend::{reference_working_bytes, Backend, DetectOptions, DetectorKind, Keypoint};
 use crate::baselines::{Baseline, BaselineParams, ExactParams};
 use crate::error::Result;
+use crate::grid::RotatedGrid;
 use crate::map::MapImage;
 use crate::rules::RuleTable;
 use crate::states::ClassTable;
@@ -35,6 +37,16 @@ impl Backend for FastCpuBackend {
         unknown_as_occupied: bool,
     ) -> Result<Vec<Keypoint>> {
         Ok(ogm::ogm_corners(image, classes, rules, unknown_as_occupied))
+    }
+
+    fn coarsen(
+        &mut self,
+        image: &MapImage,
+        classes: &ClassTable,
+        grid: &RotatedGrid,
+        scales: &[u32],
+    ) -> Result<Vec<MapImage>> {
+        Ok(coarsen::coarsen(image, classes, grid, scales))
     }
 
     fn baseline_scores(
@@ -63,6 +75,7 @@ impl Backend for FastCpuBackend {
         let (w, h) = (u64::from(width), u64::from(height));
         let per_band = match options.detector {
             DetectorKind::Ogm => 7 * 8 * w.div_ceil(64),
+            DetectorKind::OgmRobust => return crate::robust::robust_working_bytes(width, height),
             DetectorKind::Baseline(kind) => {
                 let covered = options
                     .baseline

@@ -209,13 +209,7 @@ fn corners_in_row(
                 .fold(0u8, |c, (i, &p)| c | ((((p >> j) & 1) as u8) << i));
             let rule = plan.table[code as usize];
             if rule != 0 {
-                out.push(Keypoint {
-                    y,
-                    x: (k * 64) as u32 + j,
-                    rule,
-                    code,
-                    score: 0,
-                });
+                out.push(Keypoint::ogm((k * 64) as u32 + j, y, rule, code));
             }
         }
     }

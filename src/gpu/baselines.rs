@@ -50,11 +50,8 @@ impl GpuBackend {
         self.native_int64
     }
 
-    pub(super) fn baseline_pipeline(
-        &mut self,
-        name: &'static str,
-    ) -> Result<wgpu::ComputePipeline> {
-        if let Some(p) = self.baseline_pipelines.get(name) {
+    pub(super) fn kernel_pipeline(&mut self, name: &'static str) -> Result<wgpu::ComputePipeline> {
+        if let Some(p) = self.kernel_pipelines.get(name) {
             return Ok(p.clone());
         }
         let src = shader_source(name, self.native_int64)
@@ -76,7 +73,7 @@ impl GpuBackend {
                 cache: None,
             });
         self.check()?;
-        self.baseline_pipelines.insert(name, p.clone());
+        self.kernel_pipelines.insert(name, p.clone());
         Ok(p)
     }
 
@@ -157,21 +154,21 @@ impl GpuBackend {
                     "shi_tomasi"
                 };
                 passes.push(BaselinePass(
-                    self.baseline_pipeline("gaussian_blur")?,
+                    self.kernel_pipeline("gaussian_blur")?,
                     self.bp_buf.clone(),
                     raw,
                     blurred.clone(),
                     (bgx, bgy),
                 ));
                 passes.push(BaselinePass(
-                    self.baseline_pipeline("structure_tensor")?,
+                    self.kernel_pipeline("structure_tensor")?,
                     self.bp_buf.clone(),
                     blurred,
                     tensor.clone(),
                     (bgx, bgy),
                 ));
                 passes.push(BaselinePass(
-                    self.baseline_pipeline(score_kernel)?,
+                    self.kernel_pipeline(score_kernel)?,
                     self.bp_core.clone(),
                     tensor,
                     scores.clone(),
@@ -179,7 +176,7 @@ impl GpuBackend {
                 ));
             }
             Baseline::Trajkovic => passes.push(BaselinePass(
-                self.baseline_pipeline("trajkovic")?,
+                self.kernel_pipeline("trajkovic")?,
                 self.bp_core.clone(),
                 raw,
                 scores.clone(),

@@ -6,6 +6,7 @@
 
 mod adapter;
 mod baselines;
+mod coarsen;
 mod ogm;
 pub mod tiles;
 
@@ -58,6 +59,7 @@ struct Params {
 pub fn shader_source(kernel: &str, native_int64: bool) -> Option<String> {
     let body = match kernel {
         "classify" => return Some(include_str!("../../shaders/classify.wgsl").to_string()),
+        "coarsen" => return Some(include_str!("../../shaders/coarsen.wgsl").to_string()),
         "ogm_corners" => return Some(include_str!("../../shaders/ogm_corners.wgsl").to_string()),
         "gaussian_blur" => include_str!("../../shaders/gaussian_blur.wgsl"),
         "structure_tensor" => include_str!("../../shaders/structure_tensor.wgsl"),
@@ -181,7 +183,7 @@ pub struct GpuBackend {
     stats: GpuStats,
     staging: Vec<u8>,
     native_int64: bool,
-    baseline_pipelines: std::collections::HashMap<&'static str, wgpu::ComputePipeline>,
+    kernel_pipelines: std::collections::HashMap<&'static str, wgpu::ComputePipeline>,
     bp_buf: wgpu::Buffer,
     bp_core: wgpu::Buffer,
     blurred: Slot,
@@ -311,7 +313,7 @@ impl GpuBackend {
         let bp_core = uniform("baseline params (core pixels)");
         let backend = GpuBackend {
             native_int64,
-            baseline_pipelines: Default::default(),
+            kernel_pipelines: Default::default(),
             bp_buf,
             bp_core,
             blurred: Slot::new("blurred", wgpu::BufferUsages::STORAGE),
@@ -565,6 +567,9 @@ pub fn gpu_working_bytes(
     let scores = (u64::from(width) * u64::from(height)).saturating_mul(8);
     match options.detector {
         DetectorKind::Ogm => tiles,
+        DetectorKind::OgmRobust => {
+            crate::robust::robust_working_bytes(width, height).saturating_add(tiles)
+        }
         DetectorKind::Baseline(crate::baselines::Baseline::ShiTomasi) => scores
             .saturating_add(crate::backend::shi_tomasi_selection_bytes(
                 options, width, height,
@@ -607,6 +612,16 @@ impl Backend for GpuBackend {
 
     fn name(&self) -> String {
         format!("gpu ({}, {})", self.adapter.name, self.adapter.backend)
+    }
+
+    fn coarsen(
+        &mut self,
+        image: &MapImage,
+        classes: &ClassTable,
+        grid: &crate::grid::RotatedGrid,
+        scales: &[u32],
+    ) -> Result<Vec<MapImage>> {
+        self.coarsen_maps(image, classes, grid, scales)
     }
 
     /// The host side: two tiles' staging and readback (bounded by [`GpuOptions::max_tile_bytes`]), and for

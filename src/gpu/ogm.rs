@@ -147,13 +147,7 @@ impl GpuBackend {
             out.extend(raw.chunks_exact(16).take(len as usize).map(|c| {
                 let w =
                     |i: usize| u32::from_le_bytes(c[4 * i..4 * i + 4].try_into().expect("4 bytes"));
-                Keypoint {
-                    x: w(0),
-                    y: w(1),
-                    rule: w(2) as u8,
-                    code: w(3) as u8,
-                    score: 0,
-                }
+                Keypoint::ogm(w(0), w(1), w(2) as u8, w(3) as u8)
             }));
             start += len;
         }

@@ -171,3 +171,61 @@ pub fn gpu_backend(options: ogm_corners::gpu::GpuOptions) -> Option<ogm_corners:
         }
     }
 }
+
+/// A map of rectangular rooms with jagged walls about 3 px thick, turned by `degrees` about the map's
+/// centre, unknown outside the rooms; and the rooms' true corners (where the walls' centre lines meet),
+/// in map pixels. Deterministic in `seed`.
+pub fn turned_rooms(size: u32, degrees: f64, seed: u64) -> (MapImage, Vec<(f64, f64)>) {
+    let c = f64::from(size) / 2.0;
+    let s = f64::from(size) * 0.7;
+    // Rooms in the turned frame, about the centre: (u0, v0, u1, v1).
+    let rooms = [
+        (-0.3 * s, -0.3 * s, 0.05 * s, 0.02 * s),
+        (0.05 * s, -0.3 * s, 0.3 * s, 0.1 * s),
+        (-0.3 * s, 0.02 * s, 0.05 * s, 0.3 * s),
+    ];
+    let (sn, cs) = degrees.to_radians().sin_cos();
+    let hash = |x: u32, y: u32| {
+        let mut z = (u64::from(x) << 32 | u64::from(y)) ^ seed.wrapping_mul(0x9e37_79b9_7f4a_7c15);
+        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        ((z ^ (z >> 31)) % 1000) as f64 / 1000.0
+    };
+    let mut px = vec![UNKNOWN; (size * size) as usize];
+    for y in 0..size {
+        for x in 0..size {
+            let (dx, dy) = (f64::from(x) - c, f64::from(y) - c);
+            // Inverse turn: map -> room frame.
+            let (u, v) = (dx * cs + dy * sn, -dx * sn + dy * cs);
+            let half = 1.5 + 0.9 * (hash(x, y) - 0.5);
+            let mut state = UNKNOWN;
+            for &(u0, v0, u1, v1) in &rooms {
+                let inside = u > u0 - half && u < u1 + half && v > v0 - half && v < v1 + half;
+                if !inside {
+                    continue;
+                }
+                let edge = (u - u0)
+                    .abs()
+                    .min((u - u1).abs())
+                    .min((v - v0).abs())
+                    .min((v - v1).abs());
+                if edge <= half {
+                    state = OCCUPIED;
+                    break;
+                }
+                state = FREE;
+            }
+            px[(y * size + x) as usize] = state;
+        }
+    }
+    let mut corners: Vec<(f64, f64)> = Vec::new();
+    for &(u0, v0, u1, v1) in &rooms {
+        for (u, v) in [(u0, v0), (u1, v0), (u0, v1), (u1, v1)] {
+            let p = (c + u * cs - v * sn, c + u * sn + v * cs);
+            if !corners.iter().any(|q| (q.0 - p.0).hypot(q.1 - p.1) < 3.0) {
+                corners.push(p);
+            }
+        }
+    }
+    (MapImage::new(size, size, px).unwrap(), corners)
+}

@@ -1,0 +1,238 @@
+//! The rotated sampling grid of the robust detector ([`crate::robust`]): the map resampled, by nearest
+//! neighbour, on a grid turned to the map's dominant wall direction, so that walls run along rows and
+//! columns.
+//!
+//! Every backend samples through the same integer arithmetic, so the CPU and the GPU agree bit for bit:
+//! cosine and sine are fixed-point integers with [`FRAC_BITS`] fraction bits, and sample (p, q) reads map
+//! pixel `((ox + p cos - q sin + h) >> F, (oy + p sin + q cos + h) >> F)` with `h = 2^(F-1)` (rounding
+//! to the nearest pixel centre). Every intermediate fits an `i32` (WGSL has no 64-bit integers by default)
+//! for maps up to [`MAX_SIDE`] pixels a side.
+
+use crate::error::{Error, Result};
+
+/// Fraction bits of the fixed-point cosine and sine: angles are resolved to about 0.06 degrees, and the
+/// sample positions stay exact integers in `i32` up to [`MAX_SIDE`].
+pub const FRAC_BITS: u32 = 10;
+
+/// Largest map width or height the rotated grid handles: `ox + p cos - q sin` stays below 2^31.
+pub const MAX_SIDE: u32 = 1 << 18;
+
+const ONE: i32 = 1 << FRAC_BITS;
+const HALF: i32 = 1 << (FRAC_BITS - 1);
+
+/// A grid of samples turned by an angle against the map, covering the whole map.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct RotatedGrid {
+    /// cos(angle) in fixed point ([`FRAC_BITS`]).
+    pub cos: i32,
+    /// sin(angle) in fixed point.
+    pub sin: i32,
+    /// Map x of sample (0, 0), fixed point.
+    pub ox: i32,
+    /// Map y of sample (0, 0), fixed point.
+    pub oy: i32,
+    /// Samples per grid row.
+    pub width: u32,
+    /// Grid rows.
+    pub height: u32,
+    /// Width of the sampled map.
+    pub map_width: u32,
+    /// Height of the sampled map.
+    pub map_height: u32,
+}
+
+impl RotatedGrid {
+    /// The grid turned by `degrees` (a positive angle turns clockwise on screen, since y points down),
+    /// centred on a `map_width` x `map_height` map with a margin of two samples around it.
+    pub fn new(map_width: u32, map_height: u32, degrees: f64) -> Result<Self> {
+        if map_width > MAX_SIDE || map_height > MAX_SIDE {
+            return Err(Error::invalid(format!(
+                "the robust detector handles maps up to {MAX_SIDE} pixels a side; this one is \
+                 {map_width} x {map_height}"
+            )));
+        }
+        if !degrees.is_finite() {
+            return Err(Error::Internal(format!(
+                "grid angle {degrees} is not finite"
+            )));
+        }
+        let t = degrees.to_radians();
+        let cos = (t.cos() * f64::from(ONE)).round() as i32;
+        let sin = (t.sin() * f64::from(ONE)).round() as i32;
+        let (c, s) = (
+            f64::from(cos) / f64::from(ONE),
+            f64::from(sin) / f64::from(ONE),
+        );
+        let det = c * c + s * s;
+        let (xc, yc) = (
+            (f64::from(map_width) - 1.0) / 2.0,
+            (f64::from(map_height) - 1.0) / 2.0,
+        );
+        // The map's corners in the grid's frame (the inverse of [[c, -s], [s, c]]), about its centre.
+        let (mut pmin, mut pmax, mut qmin, mut qmax) = (0f64, 0f64, 0f64, 0f64);
+        for (x, y) in [
+            (-0.5, -0.5),
+            (f64::from(map_width) - 0.5, -0.5),
+            (-0.5, f64::from(map_height) - 0.5),
+            (f64::from(map_width) - 0.5, f64::from(map_height) - 0.5),
+        ] {
+            let (dx, dy) = (x - xc, y - yc);
+            let p = (c * dx + s * dy) / det;
+            let q = (-s * dx + c * dy) / det;
+            pmin = pmin.min(p);
+            pmax = pmax.max(p);
+            qmin = qmin.min(q);
+            qmax = qmax.max(q);
+        }
+        let (p0, q0) = (pmin.floor() as i64 - 2, qmin.floor() as i64 - 2);
+        let width = (pmax.ceil() as i64 + 2 - p0 + 1) as u32;
+        let height = (qmax.ceil() as i64 + 2 - q0 + 1) as u32;
+        // Centre in fixed point is exact: (W - 1) / 2 * 2^F.
+        let xcf = (i64::from(map_width) - 1) << (FRAC_BITS - 1);
+        let ycf = (i64::from(map_height) - 1) << (FRAC_BITS - 1);
+        let ox = xcf + p0 * i64::from(cos) - q0 * i64::from(sin);
+        let oy = ycf + p0 * i64::from(sin) + q0 * i64::from(cos);
+        Ok(RotatedGrid {
+            cos,
+            sin,
+            ox: i32::try_from(ox).map_err(|_| Error::Internal("grid origin overflows".into()))?,
+            oy: i32::try_from(oy).map_err(|_| Error::Internal("grid origin overflows".into()))?,
+            width,
+            height,
+            map_width,
+            map_height,
+        })
+    }
+
+    /// The grid's angle in degrees, as quantised.
+    pub fn degrees(&self) -> f64 {
+        f64::from(self.sin).atan2(f64::from(self.cos)).to_degrees()
+    }
+
+    /// Whether the grid is the map itself shifted (angle 0): sample (p, q) reads pixel (p + dx, q + dy).
+    pub fn is_axis_aligned(&self) -> bool {
+        self.sin == 0 && self.cos == ONE
+    }
+
+    /// The map pixel sample (p, q) reads, possibly outside the map.
+    #[inline(always)]
+    pub fn source(&self, p: i32, q: i32) -> (i32, i32) {
+        let x = self.ox.wrapping_add(p.wrapping_mul(self.cos)) - q.wrapping_mul(self.sin);
+        let y = self.oy.wrapping_add(p.wrapping_mul(self.sin)) + q.wrapping_mul(self.cos);
+        ((x + HALF) >> FRAC_BITS, (y + HALF) >> FRAC_BITS)
+    }
+
+    /// The row-major index of the map pixel sample (p, q) reads, or `None` outside the map.
+    #[inline(always)]
+    pub fn source_index(&self, p: i32, q: i32) -> Option<usize> {
+        let (x, y) = self.source(p, q);
+        (x >= 0 && y >= 0 && (x as u32) < self.map_width && (y as u32) < self.map_height)
+            .then(|| y as usize * self.map_width as usize + x as usize)
+    }
+
+    /// A point of the grid's frame (samples, fractional) in map pixel coordinates.
+    pub fn to_map(&self, p: f64, q: f64) -> (f64, f64) {
+        let one = f64::from(ONE);
+        let (c, s) = (f64::from(self.cos) / one, f64::from(self.sin) / one);
+        (
+            f64::from(self.ox) / one + p * c - q * s,
+            f64::from(self.oy) / one + p * s + q * c,
+        )
+    }
+
+    /// Cells of the coarse grid of `scale` x `scale` samples: (columns, rows).
+    pub fn coarse_size(&self, scale: u32) -> (u32, u32) {
+        (self.width.div_ceil(scale), self.height.div_ceil(scale))
+    }
+
+    /// The map rows that samples of rows `q0..q1` and columns `p0..p1` read, clamped to the map:
+    /// `None` when none of them falls on a map row. The source y is monotonic in p and in q, so the
+    /// extremes are at the rectangle's corners.
+    pub fn source_rows(&self, p0: u32, p1: u32, q0: u32, q1: u32) -> Option<(u32, u32)> {
+        self.source_range(p0, p1, q0, q1, |x, y| (y, x), self.map_height)
+    }
+
+    /// The map columns samples of rows `q0..q1`, columns `p0..p1` read, clamped (see
+    /// [`RotatedGrid::source_rows`]).
+    pub fn source_cols(&self, p0: u32, p1: u32, q0: u32, q1: u32) -> Option<(u32, u32)> {
+        self.source_range(p0, p1, q0, q1, |x, y| (x, y), self.map_width)
+    }
+
+    fn source_range(
+        &self,
+        p0: u32,
+        p1: u32,
+        q0: u32,
+        q1: u32,
+        pick: impl Fn(i32, i32) -> (i32, i32),
+        limit: u32,
+    ) -> Option<(u32, u32)> {
+        if p0 >= p1 || q0 >= q1 {
+            return None;
+        }
+        let (mut lo, mut hi) = (i32::MAX, i32::MIN);
+        for (p, q) in [(p0, q0), (p1 - 1, q0), (p0, q1 - 1), (p1 - 1, q1 - 1)] {
+            let (x, y) = self.source(p as i32, q as i32);
+            let v = pick(x, y).0;
+            lo = lo.min(v);
+            hi = hi.max(v);
+        }
+        let lo = lo.max(0);
+        let hi = hi.min(limit as i32 - 1);
+        (lo <= hi).then_some((lo as u32, hi as u32 + 1))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_grid_covers_every_map_pixel_and_zero_degrees_is_a_shift() {
+        for deg in [0.0, 3.7, -12.0, 30.0, 44.9, -45.0] {
+            let g = RotatedGrid::new(37, 23, deg).unwrap();
+            let mut seen = vec![false; 37 * 23];
+            for q in 0..g.height as i32 {
+                for p in 0..g.width as i32 {
+                    if let Some(i) = g.source_index(p, q) {
+                        seen[i] = true;
+                    }
+                }
+            }
+            // Nearest-neighbour sampling at an angle skips a few pixels; most are read.
+            let read = seen.iter().filter(|&&s| s).count();
+            assert!(
+                read * 10 >= seen.len() * 9,
+                "{deg}: {read} of {}",
+                seen.len()
+            );
+        }
+        let g = RotatedGrid::new(10, 6, 0.0).unwrap();
+        assert!(g.is_axis_aligned());
+        let (dx, dy) = g.source(0, 0);
+        for (p, q) in [(3, 4), (7, 1)] {
+            assert_eq!(g.source(p, q), (p + dx, q + dy));
+        }
+    }
+
+    #[test]
+    fn to_map_inverts_source_at_sample_centres_and_ranges_bound_the_samples() {
+        let g = RotatedGrid::new(500, 300, 17.0).unwrap();
+        for (p, q) in [(0, 0), (100, 50), (g.width as i32 - 1, g.height as i32 - 1)] {
+            let (x, y) = g.to_map(f64::from(p), f64::from(q));
+            assert_eq!((x.round() as i32, y.round() as i32), g.source(p, q));
+        }
+        let (r0, r1) = g.source_rows(10, 200, 40, 90).unwrap();
+        let (c0, c1) = g.source_cols(10, 200, 40, 90).unwrap();
+        for q in 40..90 {
+            for p in 10..200 {
+                let (x, y) = g.source(p, q);
+                if (0..500).contains(&x) && (0..300).contains(&y) {
+                    assert!((r0 as i32..r1 as i32).contains(&y));
+                    assert!((c0 as i32..c1 as i32).contains(&x));
+                }
+            }
+        }
+        assert!(RotatedGrid::new(MAX_SIDE + 1, 4, 0.0).is_err());
+    }
+}
