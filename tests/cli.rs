@@ -379,7 +379,7 @@ fn bench_json_covers_every_detector_and_cpu_backend() {
         })
         .collect();
     let mut want = Vec::new();
-    for d in ["ogm", "harris", "shi-tomasi", "trajkovic"] {
+    for d in ["ogm", "ogm-robust", "harris", "shi-tomasi", "trajkovic"] {
         want.push((d, "cpu", "end_to_end"));
         want.push((d, "reference", "end_to_end"));
         want.push((d, "reference", "kernel"));
@@ -793,7 +793,7 @@ fn eval_reports_every_detector_and_condition() {
         Some("map,detector,condition,level,repeatability,trials")
     );
     let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
-    assert_eq!(rows.len(), 4 * ogm_corners::eval::conditions().len());
+    assert_eq!(rows.len(), 5 * ogm_corners::eval::conditions().len());
     for r in rows
         .iter()
         .filter(|r| r[1] == "ogm" && ["rot90", "rot180", "rot270", "mirror"].contains(&r[2]))
@@ -860,7 +860,10 @@ fn compare_writes_the_table_and_a_contact_sheet_per_map() {
         .iter()
         .map(|r| r["detector"].as_str().unwrap())
         .collect();
-    assert_eq!(dets, ["ogm", "harris", "shi-tomasi", "trajkovic"]);
+    assert_eq!(
+        dets,
+        ["ogm", "ogm-robust", "harris", "shi-tomasi", "trajkovic"]
+    );
     for r in rows {
         assert_eq!(r["map"], "demo-map");
         assert!(r["keypoints"].as_u64().unwrap() > 0);
@@ -876,7 +879,7 @@ fn compare_writes_the_table_and_a_contact_sheet_per_map() {
     assert!(md.starts_with(
         "| map | size | detector | keypoints | CPU end-to-end ms | reference kernel ms |"
     ));
-    assert_eq!(md.lines().count(), 2 + 4);
+    assert_eq!(md.lines().count(), 2 + 5);
     let sheet = image::open(out.join("demo-map-contact-sheet.png"))
         .unwrap()
         .to_rgb8();

@@ -44,6 +44,14 @@ fn ogm_kernels_validate_and_share_the_parameter_layout() {
 }
 
 #[test]
+fn the_coarsening_kernel_validates_and_its_parameters_match_the_host() {
+    let m = validate_kernel("coarsen", false);
+    assert_eq!(entries(&m), ["coarsen"]);
+    // src/gpu/coarsen.rs CParams: 24 four-byte fields.
+    assert_eq!(struct_size(&m, "Params"), 96);
+}
+
+#[test]
 fn baseline_kernels_validate_with_both_int64_libraries() {
     for k in [
         "gaussian_blur",
@@ -84,5 +92,5 @@ fn every_kernel_has_a_cpu_twin_of_the_same_name() {
         );
         kernels += 1;
     }
-    assert_eq!(kernels, 7);
+    assert_eq!(kernels, 8);
 }

@@ -36,6 +36,11 @@ struct CParams {
     _pad: [u32; 3],
 }
 
+const _: () = assert!(
+    std::mem::size_of::<CParams>() == 96,
+    "matches shaders/coarsen.wgsl"
+);
+
 /// A tile of coarse cells, `[u0, u1) x [v0, v1)`.
 #[derive(Clone, Copy, Debug)]
 struct CellTile {

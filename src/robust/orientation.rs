@@ -28,12 +28,34 @@ pub fn dominant_angle(image: &MapImage, classes: &ClassTable) -> f64 {
             pick(best, d, profile(&points, d, 2.0, &mut hist))
         })
         .0;
-    let fine = (-10..=10)
-        .map(|k| coarse + f64::from(k) / 10.0)
-        .fold((f64::NAN, -1.0), |best, d| {
-            pick(best, d, profile(&points, d, 1.0, &mut hist))
+    let fine: Vec<(f64, f64)> = (-10..=10)
+        .map(|k| {
+            let d = coarse + f64::from(k) / 10.0;
+            (d, profile(&points, d, 1.0, &mut hist))
         })
-        .0;
+        .collect();
+    // A wall of n pixels scores the same over about 1/n radians: take the middle of the plateau of
+    // near-best angles around the best one, not its first angle.
+    let best = fine
+        .iter()
+        .enumerate()
+        .fold(0, |b, (i, f)| if f.1 > fine[b].1 { i } else { b });
+    let near = |i: usize| fine[i].1 >= fine[best].1 * (1.0 - 1e-3);
+    let (mut lo, mut hi) = (best, best);
+    while lo > 0 && near(lo - 1) {
+        lo -= 1;
+    }
+    while hi + 1 < fine.len() && near(hi + 1) {
+        hi += 1;
+    }
+    if std::env::var("OGM_DEBUG_ANGLE").is_ok() {
+        eprintln!(
+            "coarse {coarse} n {} best {best} lo {lo} hi {hi} {:?}",
+            points.len(),
+            fine
+        );
+    }
+    let fine = (fine[lo].0 + fine[hi].0) / 2.0;
     // Back into [-45, 45).
     (fine + 45.0).rem_euclid(90.0) - 45.0
 }
