@@ -87,11 +87,11 @@ fn recall_on_the_shared_annotated_maps() {
     // detector finds 273 keypoints, 31 marked points within 5 px and 55 within 10 px (5.8%, 10.3%);
     // Harris 13971 keypoints, 443 and 512 (83.0%, 95.9%), 98 and 223 with its strongest 3 per mark.
     eprintln!("{out}");
-    // The robust detector (README): 3106 keypoints; with the strongest 3 per marked point, 330 within
-    // 5 px (61.8%) and 420 within 10 px (78.7%), about twice Harris at the same budget.
+    // The robust detector (README): 2428 keypoints; with the strongest 3 per marked point, 323 within
+    // 5 px (60.5%) and 419 within 10 px (78.5%), about twice Harris at the same budget.
     assert_eq!(
         row("ogm-robust"),
-        "all,ogm-robust,534,3106,358,438,264,330,328,420"
+        "all,ogm-robust,534,2428,340,430,265,323,336,419"
     );
     assert!(
         row("harris").ends_with(",40,98,83,223"),

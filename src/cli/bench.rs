@@ -49,7 +49,7 @@ pub(super) struct BenchArgs {
     /// Seed of the synthetic maps.
     #[arg(long, default_value_t = 1)]
     seed: u64,
-    /// Detectors: ogm, harris, shi-tomasi, trajkovic or all; comma-separated or repeated.
+    /// Detectors: ogm, ogm-robust, harris, shi-tomasi, trajkovic or all; comma-separated or repeated.
     #[arg(long, value_enum, value_delimiter = ',', default_value = "ogm")]
     detector: Vec<DetectorChoice>,
     /// Backends: cpu, reference, gpu or all; comma-separated or repeated (e.g. --backend cpu,gpu).

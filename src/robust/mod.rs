@@ -26,7 +26,8 @@ use crate::grid::RotatedGrid;
 use crate::map::MapImage;
 use crate::rules::RuleTable;
 use crate::states::{CellState, ClassTable};
-use corners::{concave_arms, convex_arms, Cells, Sampler};
+use corners::{concave_arms, convex_arms, Arms, Cells, Sampler};
+use rayon::prelude::*;
 
 /// Options of the robust detector.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -151,37 +152,28 @@ pub fn detect(
                 continue;
             }
             let hits = backend.detect(map, &coarse_classes(convex), rules, false)?;
-            for k in hits {
-                let (u, v) = (k.x as i32, k.y as i32);
-                let arms = if convex {
-                    convex_arms(&cells, u, v)
-                } else {
-                    concave_arms(&cells, u, v)
-                };
-                let Some(arms) = arms else {
-                    if params.min_strength > 0 {
-                        continue;
-                    }
-                    found.push(candidate(&grid, centre(u, v, scale), k, scale, convex, 0));
-                    continue;
-                };
-                // Convex corners count half: most are wall ends and door jambs, which people rarely mark
-                // (calibrated on half of the annotated maps, see the README).
-                let strength = if convex {
-                    arms.cells as u32 * scale / 2
-                } else {
-                    arms.cells as u32 * scale
-                };
-                if strength < params.min_strength {
-                    continue;
-                }
-                let (p, q) = sampler.place(centre(u, v, scale), &arms, convex, scale as i32);
-                found.push(candidate(&grid, (p, q), k, scale, convex, strength));
-            }
+            found.extend(
+                hits.iter()
+                    .filter_map(|&k| score(&cells, &grid, k, scale, convex, params.min_strength)),
+            );
         }
     }
     let candidates = found.len();
-    let mut kept = suppress(found, params.nms_radius);
+    // Suppression on the cell positions first, so only the survivors are placed on the map's pixels
+    // (placing reads dozens of samples a corner); then again on the placed positions.
+    let survivors = suppress_candidates(found, params.nms_radius);
+    let placed: Vec<Keypoint> = survivors
+        .par_iter()
+        .map(|c| match c.arms {
+            Some(arms) => {
+                let k = c.keypoint;
+                let at = sampler.place(c.centre, &arms, k.convex, i32::from(k.scale));
+                candidate(&grid, at, k, u32::from(k.scale), k.convex, k.score as u32)
+            }
+            None => c.keypoint,
+        })
+        .collect();
+    let mut kept = suppress(placed, params.nms_radius);
     kept.sort_unstable();
     Ok((
         kept,
@@ -190,6 +182,77 @@ pub fn detect(
             candidates,
         },
     ))
+}
+
+/// A corner found on a coarse map, at its cell's position, before it is placed on the map's pixels.
+struct Candidate {
+    /// The keypoint at the cell position (the corner of the free cell where its walls meet; the
+    /// occupied cell itself for a convex corner).
+    keypoint: Keypoint,
+    /// Its walls; `None` for a corner without two perpendicular walls (kept with `min_strength` 0).
+    arms: Option<Arms>,
+    /// The cell's middle sample.
+    centre: (i32, i32),
+}
+
+/// The candidate of a rule that fired at coarse cell (`k.x`, `k.y`): its walls' strength; `None` below
+/// `min_strength`.
+fn score(
+    cells: &Cells,
+    grid: &RotatedGrid,
+    k: Keypoint,
+    scale: u32,
+    convex: bool,
+    min_strength: u32,
+) -> Option<Candidate> {
+    let (u, v) = (k.x as i32, k.y as i32);
+    let c = centre(u, v, scale);
+    let arms = if convex {
+        convex_arms(cells, u, v)
+    } else {
+        concave_arms(cells, u, v)
+    };
+    let Some(arms) = arms else {
+        return (min_strength == 0).then(|| Candidate {
+            keypoint: candidate(grid, c, k, scale, convex, 0),
+            arms: None,
+            centre: c,
+        });
+    };
+    // Convex corners count half: most are wall ends and door jambs, which people rarely mark
+    // (calibrated on half of the annotated maps, see the README).
+    let strength = if convex {
+        arms.cells as u32 * scale / 2
+    } else {
+        arms.cells as u32 * scale
+    };
+    if strength < min_strength {
+        return None;
+    }
+    let s = scale as i32 / 2;
+    let at = if convex {
+        c
+    } else {
+        (
+            c.0 + (arms.d1.0 + arms.d2.0) * s,
+            c.1 + (arms.d1.1 + arms.d2.1) * s,
+        )
+    };
+    Some(Candidate {
+        keypoint: candidate(grid, at, k, scale, convex, strength),
+        arms: Some(arms),
+        centre: c,
+    })
+}
+
+/// [`suppress`] over candidates, keeping their walls.
+fn suppress_candidates(found: Vec<Candidate>, radius: u32) -> Vec<Candidate> {
+    let keys: Vec<Keypoint> = found.iter().map(|c| c.keypoint).collect();
+    let mut slots: Vec<Option<Candidate>> = found.into_iter().map(Some).collect();
+    suppressed_order(&keys, radius)
+        .into_iter()
+        .filter_map(|i| slots[i].take())
+        .collect()
 }
 
 /// The middle sample of coarse cell (u, v).
@@ -239,19 +302,30 @@ impl From<(f64, f64)> for Pos {
 /// Greedy suppression: strongest first (ties: larger scale, then (y, x), then the rest of the keypoint,
 /// so the result does not depend on the order found), a keypoint is kept unless a kept one lies within
 /// `radius` pixels.
-pub fn suppress(mut found: Vec<Keypoint>, radius: u32) -> Vec<Keypoint> {
-    found.sort_unstable_by(|a, b| {
+pub fn suppress(found: Vec<Keypoint>, radius: u32) -> Vec<Keypoint> {
+    suppressed_order(&found, radius)
+        .into_iter()
+        .map(|i| found[i])
+        .collect()
+}
+
+/// [`suppress`] as indices into `found`, strongest first.
+fn suppressed_order(found: &[Keypoint], radius: u32) -> Vec<usize> {
+    let mut order: Vec<usize> = (0..found.len()).collect();
+    order.sort_unstable_by(|&i, &j| {
+        let (a, b) = (&found[i], &found[j]);
         b.score
             .cmp(&a.score)
             .then(b.scale.cmp(&a.scale))
             .then(a.cmp(b))
+            .then(i.cmp(&j))
     });
     let cell = radius.max(1);
     let r2 = i64::from(radius) * i64::from(radius);
-    let mut buckets: std::collections::HashMap<(u32, u32), Vec<(u32, u32)>> =
-        std::collections::HashMap::new();
+    let mut buckets: Buckets = Default::default();
     let mut kept = Vec::new();
-    for k in found {
+    for i in order {
+        let k = &found[i];
         let (bx, by) = (k.x / cell, k.y / cell);
         let near = (bx.saturating_sub(1)..=bx + 1).any(|x| {
             (by.saturating_sub(1)..=by + 1).any(|y| {
@@ -268,8 +342,40 @@ pub fn suppress(mut found: Vec<Keypoint>, radius: u32) -> Vec<Keypoint> {
         });
         if !near {
             buckets.entry((bx, by)).or_default().push((k.x, k.y));
-            kept.push(k);
+            kept.push(i);
         }
     }
     kept
+}
+
+/// Kept keypoints by bucket of `radius` pixels.
+type Buckets = std::collections::HashMap<
+    (u32, u32),
+    Vec<(u32, u32)>,
+    std::hash::BuildHasherDefault<CellHasher>,
+>;
+
+/// A multiplicative hasher for bucket coordinates: the keys are small integers, not attacker-chosen,
+/// and SipHash would be most of the suppression's time.
+#[derive(Default)]
+struct CellHasher(u64);
+
+impl std::hash::Hasher for CellHasher {
+    fn finish(&self) -> u64 {
+        self.0
+    }
+
+    fn write(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.write_u64(u64::from(b));
+        }
+    }
+
+    fn write_u32(&mut self, v: u32) {
+        self.write_u64(u64::from(v));
+    }
+
+    fn write_u64(&mut self, v: u64) {
+        self.0 = (self.0.rotate_left(29) ^ v).wrapping_mul(0x9e37_79b9_7f4a_7c15);
+    }
 }

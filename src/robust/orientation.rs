@@ -6,12 +6,14 @@
 //! largest sum of squared counts wins (straight walls pile their pixels into a few bins). Host code,
 //! shared by every backend, so the angle is the same whatever runs the kernels.
 
+use rayon::prelude::*;
+
 use crate::fast::bitplanes::{plane_row, words, ValueSet};
 use crate::map::MapImage;
 use crate::states::{CellState, ClassTable};
 
 /// Boundary pixels used at most: a deterministic, evenly strided subset beyond this.
-pub const MAX_POINTS: usize = 32768;
+pub const MAX_POINTS: usize = 16384;
 
 /// The dominant wall direction in degrees, in [-45, 45): the angle to turn the map by so that its walls
 /// run along rows and columns. 0 when the map has no wall boundary.
@@ -20,18 +22,24 @@ pub fn dominant_angle(image: &MapImage, classes: &ClassTable) -> f64 {
     if points.is_empty() {
         return 0.0;
     }
-    let mut hist = Vec::new();
     // 1-degree steps with 2-pixel bins find the basin; 0.1-degree steps with 1-pixel bins refine it.
-    let coarse = (-45..45)
-        .map(f64::from)
-        .fold((f64::NAN, -1.0), |best, d| {
-            pick(best, d, profile(&points, d, 2.0, &mut hist))
+    // Every angle on every core; the scores come back in angle order, so the choice is the same.
+    let scores: Vec<(f64, f64)> = (-45..45)
+        .into_par_iter()
+        .map_init(Vec::new, |hist, d| {
+            let d = f64::from(d);
+            (d, profile(&points, d, 2.0, hist))
         })
+        .collect();
+    let coarse = scores
+        .iter()
+        .fold((f64::NAN, -1.0), |best, &(d, s)| pick(best, d, s))
         .0;
     let fine: Vec<(f64, f64)> = (-10..=10)
-        .map(|k| {
+        .into_par_iter()
+        .map_init(Vec::new, |hist, k| {
             let d = coarse + f64::from(k) / 10.0;
-            (d, profile(&points, d, 1.0, &mut hist))
+            (d, profile(&points, d, 1.0, hist))
         })
         .collect();
     // A wall of n pixels scores the same over about 1/n radians: take the middle of the plateau of
@@ -47,13 +55,6 @@ pub fn dominant_angle(image: &MapImage, classes: &ClassTable) -> f64 {
     }
     while hi + 1 < fine.len() && near(hi + 1) {
         hi += 1;
-    }
-    if std::env::var("OGM_DEBUG_ANGLE").is_ok() {
-        eprintln!(
-            "coarse {coarse} n {} best {best} lo {lo} hi {hi} {:?}",
-            points.len(),
-            fine
-        );
     }
     let fine = (fine[lo].0 + fine[hi].0) / 2.0;
     // Back into [-45, 45).
@@ -80,8 +81,12 @@ fn profile(points: &[(f64, f64)], degrees: f64, bin: f64, hist: &mut Vec<u32>) -
                 -x * s + y * c
             }
         };
-        let lo = points.iter().map(proj).fold(f64::INFINITY, f64::min);
-        let hi = points.iter().map(proj).fold(f64::NEG_INFINITY, f64::max);
+        let (lo, hi) = points
+            .iter()
+            .map(proj)
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
+                (lo.min(v), hi.max(v))
+            });
         hist.clear();
         hist.resize(((hi - lo) / bin) as usize + 2, 0);
         for pt in points {
