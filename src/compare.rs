@@ -37,14 +37,52 @@ pub struct CompareRecord {
 /// Side of one contact-sheet panel, pixels.
 pub const PANEL: u32 = 560;
 
-/// Bytes of one contact sheet (RGB), for memory budgets.
-pub const SHEET_BYTES: u64 = 3 * (2 * PANEL as u64 + 30) * (34 + 2 * (PANEL as u64 + 22) + 30);
+/// Bytes of one contact sheet of `compare` (RGB, five panels), for memory budgets.
+pub const SHEET_BYTES: u64 = sheet_bytes(5);
 
-/// Four panels (one per detector) of the map's explored part with the keypoints marked, labelled.
+/// Bytes of a sheet of `panels` panels, two a row.
+pub const fn sheet_bytes(panels: u32) -> u64 {
+    let rows = panels.div_ceil(2) as u64;
+    3 * (2 * PANEL as u64 + 30) * (34 + rows * (PANEL as u64 + 32) + 20)
+}
+
+/// Colour of the rings around hand-marked points.
+pub const MARK_COLOUR: image::Rgb<u8> = image::Rgb([0, 170, 0]);
+
+/// One panel per detector of the map's explored part with the keypoints marked, labelled.
 pub fn contact_sheet(
     name: &str,
     map: &OccupancyMap,
     found: &[(DetectorKind, Vec<crate::Keypoint>)],
+) -> RgbImage {
+    let panels: Vec<(String, &[crate::Keypoint])> = found
+        .iter()
+        .map(|(kind, kps)| {
+            (
+                format!("{}: {} KEYPOINTS", kind.name(), kps.len()),
+                &kps[..],
+            )
+        })
+        .collect();
+    labelled_sheet(
+        &format!(
+            "{name}: {}X{}, CROPPED TO THE EXPLORED AREA",
+            map.image.width(),
+            map.image.height()
+        ),
+        map,
+        &panels,
+        &[],
+    )
+}
+
+/// Panels of the map's explored part, two a row, each with its label and keypoints, and `marks` (points
+/// a person marked, pixel coordinates) ringed in [`MARK_COLOUR`] on every panel.
+pub fn labelled_sheet(
+    title: &str,
+    map: &OccupancyMap,
+    found: &[(String, &[crate::Keypoint])],
+    marks: &[(f64, f64)],
 ) -> RgbImage {
     use crate::plot::{draw_text, fill};
     // Crop to what the robot saw (anything not unknown), with a margin: the rest is empty grey.
@@ -87,15 +125,8 @@ pub fn contact_sheet(
         image::Rgb([255, 255, 255]),
     );
     let black = image::Rgb([0, 0, 0]);
-    draw_text(
-        &mut sheet,
-        10,
-        8,
-        &format!("{name}: {w}X{h}, CROPPED TO THE EXPLORED AREA"),
-        2,
-        black,
-    );
-    for (i, (kind, kps)) in found.iter().enumerate() {
+    draw_text(&mut sheet, 10, 8, title, 2, black);
+    for (i, (label, kps)) in found.iter().enumerate() {
         let shifted: Vec<crate::Keypoint> = kps
             .iter()
             .filter(|k| k.x >= x0 && k.x < x1 && k.y >= y0 && k.y < y1)
@@ -105,7 +136,23 @@ pub fn contact_sheet(
                 ..*k
             })
             .collect();
-        let panel = crate::overlay::render_overlay_at(&crop, &shifted, zoom, shrink);
+        let mut panel = crate::overlay::render_overlay_at(&crop, &shifted, zoom, shrink);
+        for &(mx, my) in marks {
+            // The mark's pixel centre in the panel, in doubled coordinates.
+            let (px, py) = (
+                (mx - f64::from(x0)) / f64::from(shrink),
+                (my - f64::from(y0)) / f64::from(shrink),
+            );
+            if px < -0.5 || py < -0.5 {
+                continue;
+            }
+            let z = f64::from(zoom);
+            let (cx2, cy2) = (
+                (2.0 * px * z + z).round() as i64,
+                (2.0 * py * z + z).round() as i64,
+            );
+            crate::overlay::ring(&mut panel, cx2, cy2, i64::from(3 * zoom + 3), MARK_COLOUR);
+        }
         let (ox, oy) = (
             10 + (i as u32 % 2) * (PANEL + 10),
             title_h + (i as u32 / 2) * (PANEL + label_h + 10),
@@ -114,7 +161,7 @@ pub fn contact_sheet(
             &mut sheet,
             i64::from(ox),
             i64::from(oy) + 4,
-            &format!("{}: {} KEYPOINTS", kind.name(), kps.len()),
+            label,
             2,
             black,
         );

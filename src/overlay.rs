@@ -74,7 +74,7 @@ pub fn render_overlay_at(map: &MapImage, keypoints: &[Keypoint], s: u32, d: u32)
 }
 
 /// A one-pixel-wide circle of `radius` around the doubled-coordinate centre (cx2 / 2, cy2 / 2).
-fn ring(img: &mut RgbImage, cx2: i64, cy2: i64, radius: i64, colour: Rgb<u8>) {
+pub fn ring(img: &mut RgbImage, cx2: i64, cy2: i64, radius: i64, colour: Rgb<u8>) {
     let (w, h) = (img.width() as i64, img.height() as i64);
     let (r_in, r_out) = (2 * radius - 1, 2 * radius + 1);
     let x0 = (cx2 / 2 - radius - 1).max(0);

@@ -87,16 +87,36 @@ fn recall_on_the_shared_annotated_maps() {
     // detector finds 273 keypoints, 31 marked points within 5 px and 55 within 10 px (5.8%, 10.3%);
     // Harris 13971 keypoints, 443 and 512 (83.0%, 95.9%), 98 and 223 with its strongest 3 per mark.
     eprintln!("{out}");
-    // The robust detector (README): 2428 keypoints; with the strongest 3 per marked point, 323 within
-    // 5 px (60.5%) and 419 within 10 px (78.5%), about twice Harris at the same budget.
+    // The robust detector (README), by default corners with walls of 8 px or more: 587 keypoints (1.1
+    // per marked point), 273 marked points within 5 px (51.1%) and 351 within 10 px (65.7%); with the
+    // strongest as many as the marked points, 259 and 330, where Harris has 40 and 83.
     assert_eq!(
         row("ogm-robust"),
-        "all,ogm-robust,534,2428,340,430,265,323,336,419"
+        "all,ogm-robust,534,587,273,351,259,273,330,351"
     );
     assert!(
         row("harris").ends_with(",40,98,83,223"),
         "{}",
         row("harris")
+    );
+    // Every corner, --min-strength 1: 2180 keypoints; the strongest 3 per marked point have 326 within
+    // 5 px (61.0%) and 418 within 10 px (78.3%).
+    let (all, err, code) = eval(&[
+        "--backend",
+        "cpu",
+        "--format",
+        "csv",
+        "--min-strength",
+        "1",
+        "--annotations",
+        dir.join("corners.json").to_str().unwrap(),
+        dir.join("maps").to_str().unwrap(),
+    ]);
+    assert_eq!(code, Some(0), "{err}");
+    assert!(
+        all.lines()
+            .any(|l| l == "all,ogm-robust,534,2180,330,423,260,326,332,418"),
+        "{all}"
     );
     assert!(
         row("ogm").starts_with("all,ogm,534,273,31,55,"),

@@ -32,13 +32,15 @@ pub(super) struct EvalArgs {
     /// Where to run the detectors.
     #[arg(long, value_enum, default_value = "auto")]
     backend: BackendArg,
-    /// Also write plots of repeatability against noise and rotation (averaged over the maps) to DIR.
+    /// Also write plots of repeatability against noise and rotation (averaged over the maps) to DIR; with
+    /// --annotations, a picture per annotated map instead (`NAME-marked.png`: the marked points, the
+    /// paper's keypoints and the robust detector's strongest three per marked point).
     #[arg(long, value_name = "DIR")]
     plot: Option<PathBuf>,
     /// Instead of repeatability: recall of the hand-marked points in FILE (`{"maps": {NAME: [[x, y],
     /// ...]}}`, NAME a map's file stem, pixel centres at integers) within 5 and 10 px, keypoints per map,
     /// and recall at a budget of 1x and 3x the marked points (strongest first), per map and pooled.
-    #[arg(long, value_name = "FILE", conflicts_with = "plot")]
+    #[arg(long, value_name = "FILE")]
     annotations: Option<PathBuf>,
     #[command(flatten)]
     robust: super::RobustArgs,
@@ -70,8 +72,16 @@ pub(super) fn run(a: EvalArgs, budget: &Budget) -> Result<()> {
     };
     let (maps, mut inputs) = super::map_inputs(&a.maps, budget, &extra)?;
     if let Some(dir) = &a.plot {
-        for file in eval::PLOT_FILES {
-            inputs.claim_output(&dir.join(file), "--plot")?;
+        if a.annotations.is_some() {
+            for p in &maps {
+                let name = p.file_stem().and_then(|s| s.to_str()).unwrap_or("");
+                let file = eval::annotations::marked_sheet_file(name);
+                inputs.claim_output(&dir.join(file), "--plot")?;
+            }
+        } else {
+            for file in eval::PLOT_FILES {
+                inputs.claim_output(&dir.join(file), "--plot")?;
+            }
         }
     }
     // Every detector with its default (the paper's) options; the robust one with those given.
@@ -143,6 +153,11 @@ fn annotated(
                 })
                 .max()
                 .unwrap_or(0)
+                .saturating_add(if a.plot.is_some() {
+                    ogm_corners::eval::annotations::MARKED_SHEET_BYTES
+                } else {
+                    0
+                })
         })?;
         // The paper's detector both ways of reading unknown neighbours, then the baselines.
         let unknown_blocks = DetectOptions {
@@ -158,10 +173,25 @@ fn annotated(
                 };
                 (o, d.name())
             }));
+        let mut paper = Vec::new();
+        let mut robust = Vec::new();
         for (options, label) in runs {
             detector.set_options(options);
             let found = detector.detect(&map)?;
             rows.push(recall(name, label, points, &found.keypoints));
+            match label {
+                "ogm" => paper = found.keypoints,
+                "ogm-robust" => robust = found.keypoints,
+                _ => {}
+            }
+        }
+        if let Some(dir) = &a.plot {
+            files::create_dir(dir)?;
+            let path = dir.join(ogm_corners::eval::annotations::marked_sheet_file(name));
+            let sheet =
+                ogm_corners::eval::annotations::marked_sheet(name, &map, points, &paper, &robust);
+            files::write_png(&path, &sheet)?;
+            ogm_corners::say!("ogm-corners: wrote {}", path.display());
         }
     }
     if rows.is_empty() {

@@ -176,6 +176,42 @@ pub fn pooled(rows: &[RecallRecord]) -> Vec<RecallRecord> {
     out
 }
 
+/// The before/after picture of one annotated map: the paper's detector's keypoints, and the robust
+/// detector's strongest three per marked point (the 3x budget), the marked points ringed in green on both.
+pub fn marked_sheet(
+    name: &str,
+    map: &crate::OccupancyMap,
+    points: &[(f64, f64)],
+    paper: &[Keypoint],
+    robust: &[Keypoint],
+) -> image::RgbImage {
+    let budget = BUDGETS[1] * points.len();
+    let strongest =
+        crate::detector::strongest(robust.to_vec(), budget, crate::DetectorKind::OgmRobust)
+            .unwrap_or_default();
+    let panels = [
+        (format!("PAPER OGM: {} KEYPOINTS", paper.len()), paper),
+        (
+            format!("OGM-ROBUST: STRONGEST {}", strongest.len()),
+            &strongest[..],
+        ),
+    ];
+    crate::compare::labelled_sheet(
+        &format!("{name}: {} MARKED POINTS (GREEN RINGS)", points.len()),
+        map,
+        &panels,
+        points,
+    )
+}
+
+/// Bytes of [`marked_sheet`]'s picture, for memory budgets.
+pub const MARKED_SHEET_BYTES: u64 = crate::compare::sheet_bytes(2);
+
+/// The file [`marked_sheet`] is written to in a `--plot` folder, for map `name`.
+pub fn marked_sheet_file(name: &str) -> String {
+    format!("{name}-marked.png")
+}
+
 /// Writes the rows (per map, then the pooled rows) as Markdown, CSV or JSON.
 pub fn write_table(
     out: &mut dyn Write,

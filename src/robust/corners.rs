@@ -15,6 +15,9 @@ pub const MAX_ARM_CELLS: i32 = 64;
 /// two lines of occupied pixels with unknown ones between them, and a person marks the middle of it.
 pub const WALL_GAP: i32 = 8;
 
+/// The scale whose layout of cross-sections places every corner finally, whatever scale found it.
+pub const CANONICAL_SCALE: i32 = 4;
+
 /// Cross-sections of a wall measured at most, per wall of a corner.
 pub const MAX_SECTIONS: i32 = 9;
 
@@ -195,7 +198,35 @@ impl Sampler<'_> {
 
     /// The corner's position in grid samples: where the centre lines of its two walls cross, measured on
     /// cross-sections along each arm near the corner. `centre` is the corner cell's middle sample.
+    ///
+    /// The first estimate comes from cross-sections laid out from the coarse cell at its scale; it is then
+    /// measured twice more from the estimate itself, at [`CANONICAL_SCALE`] whatever scale found the
+    /// corner, so that where a corner lands depends on its walls, not on where the grid's cells fell or
+    /// which scale won the suppression (repeatability under turns and crops gains 1-4 points).
     pub fn place(&self, centre: (i32, i32), arms: &Arms, convex: bool, scale: i32) -> (f64, f64) {
+        let mut at = self.place_from(centre, arms, convex, scale);
+        let (d1, d2) = (arms.d1, arms.d2);
+        // Concave corners are measured from inside the free corner, this far back from the estimate.
+        let back = 2 + CANONICAL_SCALE / 2;
+        let arms = Arms { cells: 3, ..*arms };
+        for _ in 0..2 {
+            let corner = (at.0.round() as i32, at.1.round() as i32);
+            let base = if convex {
+                corner
+            } else {
+                (
+                    corner.0 - (d1.0 + d2.0) * back,
+                    corner.1 - (d1.1 + d2.1) * back,
+                )
+            };
+            at = self.place_from(base, &arms, convex, CANONICAL_SCALE);
+        }
+        at
+    }
+
+    /// One measurement of [`Sampler::place`] from `centre` (the free cell's middle for a concave corner,
+    /// the corner for a convex one), its cross-sections laid out for `scale`.
+    fn place_from(&self, centre: (i32, i32), arms: &Arms, convex: bool, scale: i32) -> (f64, f64) {
         let (d1, d2) = (arms.d1, arms.d2);
         let len = (arms.cells * scale).clamp(scale, 3 * scale);
         let at = |m1: f64, m2: f64, n1: (i32, i32), n2: (i32, i32)| {

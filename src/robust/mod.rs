@@ -54,7 +54,7 @@ impl Default for RobustParams {
             min_scale: 2,
             max_scale: 10,
             nms_radius: 4,
-            min_strength: 1,
+            min_strength: 8,
             convex: true,
             angle: None,
         }
