@@ -894,3 +894,119 @@ fn compare_writes_the_table_and_a_contact_sheet_per_map() {
     );
     assert_eq!(run(&["compare"]).status.code(), Some(2));
 }
+
+#[test]
+fn robust_detector_outputs_strength_scale_and_angle_and_checks_its_options() {
+    let d = tmpdir("robust");
+    let o = run(&["demo", "-o", d.to_str().unwrap(), "--size", "400x300"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let yaml = d.join("demo-map.yaml");
+    let y = yaml.to_str().unwrap();
+    let o = run(&["detect", "--detector", "ogm-robust", "--backend", "cpu", y]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let csv = stdout(&o);
+    let mut lines = csv.lines();
+    assert_eq!(
+        lines.next(),
+        Some("x,y,score,scale,convex,rule,code,world_x,world_y")
+    );
+    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+    assert!(rows.len() > 10, "{csv}");
+    for r in &rows {
+        // Strength at least the default 8 px, scale 2-10, rule 4-6.
+        assert!(r[2].parse::<i64>().unwrap() >= 8, "{r:?}");
+        assert!((2..=10).contains(&r[3].parse::<u8>().unwrap()), "{r:?}");
+        assert!(["true", "false"].contains(&r[4]), "{r:?}");
+        assert!((4..=6).contains(&r[5].parse::<u8>().unwrap()), "{r:?}");
+    }
+    let o = run(&[
+        "detect",
+        "--detector",
+        "ogm-robust",
+        "--backend",
+        "cpu",
+        "--format",
+        "json",
+        y,
+    ]);
+    let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    assert_eq!(v["detector"], "ogm-robust");
+    // The synthetic office is axis-aligned: the estimated wall direction is 0.
+    assert!(
+        v["angle_deg"].as_f64().unwrap().abs() < 0.01,
+        "{}",
+        v["angle_deg"]
+    );
+    assert_eq!(v["count"].as_u64().unwrap() as usize, rows.len());
+    let k = &v["keypoints"][0];
+    for f in [
+        "x", "y", "score", "scale", "convex", "rule", "code", "world",
+    ] {
+        assert!(!k[f].is_null(), "{f} in {k}");
+    }
+    // --max-corners keeps the strongest.
+    let o = run(&[
+        "detect",
+        "--detector",
+        "ogm-robust",
+        "--backend",
+        "cpu",
+        "--max-corners",
+        "3",
+        y,
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(stdout(&o).lines().count(), 1 + 3);
+    // Bad options: one line, exit 2.
+    for args in [
+        vec![
+            "--detector",
+            "ogm-robust",
+            "--min-scale",
+            "5",
+            "--max-scale",
+            "3",
+        ],
+        vec!["--detector", "ogm-robust", "--max-scale", "17"],
+        vec!["--detector", "ogm-robust", "--angle", "nan"],
+        vec!["--detector", "ogm", "--max-corners", "1"],
+    ] {
+        let mut all = vec!["detect", "--backend", "cpu"];
+        all.extend(&args);
+        all.push(y);
+        let o = run(&all);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {}", stderr(&o));
+        assert_eq!(stderr(&o).lines().count(), 1, "{args:?}: {}", stderr(&o));
+    }
+}
+
+#[test]
+fn eval_annotations_plot_draws_each_annotated_map() {
+    let d = tmpdir("marked");
+    let o = run(&["demo", "-o", d.to_str().unwrap(), "--size", "300x200"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let marks = d.join("marks.json");
+    fs::write(&marks, r#"{"maps": {"demo-map": [[20, 20], [100, 60]]}}"#).unwrap();
+    let plots = d.join("plots");
+    let o = run(&[
+        "eval",
+        "--backend",
+        "cpu",
+        "--annotations",
+        marks.to_str().unwrap(),
+        "--plot",
+        plots.to_str().unwrap(),
+        d.join("demo-map.yaml").to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let sheet = image::open(plots.join("demo-map-marked.png"))
+        .unwrap()
+        .to_rgb8();
+    assert!(sheet.width() > 1000);
+    assert!(
+        sheet
+            .pixels()
+            .any(|p| p.0 == ogm_corners::compare::MARK_COLOUR.0),
+        "marked points ringed"
+    );
+}

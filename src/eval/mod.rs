@@ -525,6 +525,7 @@ pub fn repeatability_plots(rows: &[EvalRecord]) -> Vec<(&'static str, RgbImage)>
     let mut plots = Vec::new();
     let colours = [
         ("ogm", Rgb([220, 20, 20])),
+        ("ogm-robust", Rgb([130, 0, 160])),
         ("harris", Rgb([30, 90, 220])),
         ("shi-tomasi", Rgb([20, 160, 60])),
         ("trajkovic", Rgb([240, 140, 0])),

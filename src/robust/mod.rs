@@ -115,13 +115,12 @@ pub fn robust_working_bytes(width: u32, height: u32) -> u64 {
     grid_samples(width, height)
 }
 
-/// An upper bound of a rotated grid's samples over any angle: the square of the map's diagonal-ish
-/// extent `(w + h) / sqrt 2`, plus the margins.
+/// An upper bound of a rotated grid's samples over any angle: a `w` x `h` map turned by t needs
+/// `(w |cos t| + h |sin t|) (w |sin t| + h |cos t|) = w h + (w^2 + h^2) |cos t sin t|` samples, most at 45
+/// degrees, `(w + h)^2 / 2`; plus the margins.
 pub fn grid_samples(width: u32, height: u32) -> u64 {
     let side = (u64::from(width) + u64::from(height)) * 7072 / 10000 + 8;
-    let (w, h) = (u64::from(width) + 8, u64::from(height) + 8);
-    // Never more than the axis-aligned extent times the diagonal one.
-    (side * side).min(w.max(h) * side).max(w * h)
+    side * side
 }
 
 /// Runs the robust detector on `backend`: keypoints in (y, x) order, `score` the strength in pixels,
@@ -377,5 +376,21 @@ impl std::hash::Hasher for CellHasher {
 
     fn write_u64(&mut self, v: u64) {
         self.0 = (self.0.rotate_left(29) ^ v).wrapping_mul(0x9e37_79b9_7f4a_7c15);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_sample_bound_holds_at_every_angle() {
+        for (w, h) in [(1, 1), (10, 1000), (1585, 1585), (4096, 300)] {
+            for deg in [0.0, 10.0, 30.0, 44.0, 45.0, -45.0, 77.0] {
+                let g = RotatedGrid::new(w, h, deg).unwrap();
+                let n = u64::from(g.width) * u64::from(g.height);
+                assert!(n <= grid_samples(w, h), "{w}x{h} at {deg}: {n}");
+            }
+        }
     }
 }
