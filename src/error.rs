@@ -24,6 +24,8 @@ pub enum Error {
     Unavailable(String),
     /// A bug or an environment failure that is nobody's input.
     Internal(String),
+    /// `merge` was not confident enough to merge (the verdict has been printed; exit status 3).
+    Declined(String),
 }
 
 impl Error {
@@ -51,11 +53,13 @@ impl Error {
         }
     }
 
-    /// The process exit status the command-line tool uses: 2 for bad input, 1 otherwise.
+    /// The process exit status the command-line tool uses: 2 for bad input, 3 for a declined merge, 1
+    /// otherwise.
     pub fn exit_code(&self) -> i32 {
         match self {
             Error::Input { .. } => 2,
             Error::Output { .. } | Error::Unavailable(_) | Error::Internal(_) => 1,
+            Error::Declined(_) => 3,
         }
     }
 }
@@ -79,6 +83,7 @@ impl fmt::Display for Error {
             }
             Error::Unavailable(m) => write!(f, "{}", one_line(m)),
             Error::Internal(m) => write!(f, "internal error: {}", one_line(m)),
+            Error::Declined(m) => write!(f, "not merged: {}", one_line(m)),
         }
     }
 }

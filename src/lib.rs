@@ -45,6 +45,7 @@ pub mod gpu;
 pub mod grid;
 pub mod map;
 pub mod memory;
+pub mod merge;
 pub mod output;
 pub mod overlay;
 pub mod plot;

@@ -53,7 +53,10 @@ fn main() -> ExitCode {
     match std::panic::catch_unwind(|| cli::run(parsed)) {
         Ok(Ok(())) => ExitCode::SUCCESS,
         Ok(Err(e)) => {
-            ogm_corners::say!("ogm-corners: error: {e}");
+            // A declined merge is a verdict, already printed on standard output, not an error.
+            if !matches!(e, ogm_corners::Error::Declined(_)) {
+                ogm_corners::say!("ogm-corners: error: {e}");
+            }
             ExitCode::from(e.exit_code() as u8)
         }
         // The panic hook has said what happened.

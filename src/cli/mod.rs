@@ -7,6 +7,8 @@ mod demo;
 mod detect;
 mod eval;
 mod info;
+mod merge;
+mod merge_eval;
 mod rules;
 
 use std::io::{BufWriter, Write};
@@ -56,6 +58,18 @@ enum Command {
     /// The paper's Table I with timings: every detector's keypoint count and median times per backend on
     /// each map, and a contact sheet PNG per map.
     Compare(compare::CompareArgs),
+    /// Align map B onto map A with no initial pose; write the merged map when confident (exit 0 merged,
+    /// 3 declined, 2 bad input, 1 internal failure).
+    Merge(merge::MergeArgs),
+    /// Run the map merger over a pair set with ground truth: accepted and accurate, wrong accepts, times.
+    MergeEval(merge_eval::MergeEvalArgs),
+}
+
+/// A summary table or JSON records.
+#[derive(Clone, Copy, Debug, ValueEnum)]
+enum TextOrJsonMd {
+    Md,
+    Json,
 }
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
@@ -338,6 +352,8 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Bench(a) => bench::bench(a, &budget),
         Command::Eval(a) => eval::run(a, &budget),
         Command::Compare(a) => compare::run(a, &budget),
+        Command::Merge(a) => merge::run(a, &budget),
+        Command::MergeEval(a) => merge_eval::run(a),
     }
 }
 

@@ -229,3 +229,81 @@ pub fn turned_rooms(size: u32, degrees: f64, seed: u64) -> (MapImage, Vec<(f64, 
     }
     (MapImage::new(size, size, px).unwrap(), corners)
 }
+
+/// The synthetic office with furniture: occupied boxes of 6-40 px at seeded random free places, so that
+/// the map does not look the same turned by 180 degrees (the bare office's grid of rooms nearly does), and
+/// its top-right corner unexplored.
+pub fn cluttered_office(w: u32, h: u32, seed: u64) -> MapImage {
+    let mut img = ogm_corners::synth::office_map(w, h, seed).unwrap();
+    let mut rng = ogm_corners::synth::Rng::new(seed ^ 0x5eed);
+    let boxes = (w * h / 4000).max(4);
+    for _ in 0..boxes {
+        let (bw, bh) = (rng.range(6, 40), rng.range(6, 40));
+        let (x0, y0) = (rng.range(0, w - bw), rng.range(0, h - bh));
+        if img.get(x0, y0) != FREE || img.get(x0 + bw - 1, y0 + bh - 1) != FREE {
+            continue;
+        }
+        for y in y0..y0 + bh {
+            for x in x0..x0 + bw {
+                img.pixels_mut()[(y * w + x) as usize] = OCCUPIED;
+            }
+        }
+    }
+    // And an unexplored corner, so the known area has no symmetry either.
+    for y in 0..h * 2 / 5 {
+        for x in w * 3 / 5..w {
+            img.pixels_mut()[(y * w + x) as usize] = UNKNOWN;
+        }
+    }
+    img
+}
+
+/// An aperiodic floor plan: the map split recursively at seeded random places into rooms (walls 3 px,
+/// a door of 12-20 px in each split wall), free inside, unknown around the building: unlike the
+/// synthetic office's grid of equal rooms, no shift or turn maps it onto itself.
+pub fn floor_plan(w: u32, h: u32, seed: u64) -> MapImage {
+    let mut px = vec![UNKNOWN; (w * h) as usize];
+    let (x0, y0, x1, y1) = (10, 10, w - 10, h - 10);
+    for y in y0..y1 {
+        for x in x0..x1 {
+            let edge = x < x0 + 3 || y < y0 + 3 || x >= x1 - 3 || y >= y1 - 3;
+            px[(y * w + x) as usize] = if edge { OCCUPIED } else { FREE };
+        }
+    }
+    let mut rng = ogm_corners::synth::Rng::new(seed);
+    let mut rooms = vec![(x0 + 3, y0 + 3, x1 - 3, y1 - 3)];
+    while let Some((ax, ay, bx, by)) = rooms.pop() {
+        let (rw, rh) = (bx - ax, by - ay);
+        if rw < 90 && rh < 90 {
+            continue;
+        }
+        if rw >= rh {
+            let cut = ax + rng.range(rw / 4, rw * 3 / 4);
+            let door = ay + rng.range(5, rh.saturating_sub(25).max(6));
+            let dlen = rng.range(12, 21);
+            for y in ay..by {
+                for x in cut..cut + 3 {
+                    if !(door..door + dlen).contains(&y) {
+                        px[(y * w + x) as usize] = OCCUPIED;
+                    }
+                }
+            }
+            rooms.push((ax, ay, cut, by));
+            rooms.push((cut + 3, ay, bx, by));
+        } else {
+            let cut = ay + rng.range(rh / 4, rh * 3 / 4);
+            let door = ax + rng.range(5, rw.saturating_sub(25).max(6));
+            let dlen = rng.range(12, 21);
+            for y in cut..cut + 3 {
+                for x in ax..bx {
+                    if !(door..door + dlen).contains(&x) {
+                        px[(y * w + x) as usize] = OCCUPIED;
+                    }
+                }
+            }
+            rooms.push((ax, ay, bx, cut));
+            rooms.push((ax, cut + 3, bx, by));
+        }
+    }
+    MapImage::new(w, h, px).unwrap()
+}

@@ -1,0 +1,207 @@
+//! `ogm-corners merge A B`: align map B onto map A with no initial pose, and write the merged map when the
+//! alignment is confident (see [`ogm_corners::merge`]).
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use clap::Args;
+use serde::Serialize;
+
+use ogm_corners::files;
+use ogm_corners::memory::Budget;
+use ogm_corners::merge::align::{prepared_bytes, Features};
+use ogm_corners::merge::transform::{to_world, WorldRigid};
+use ogm_corners::merge::{align, compose, MergeOptions, Rigid};
+use ogm_corners::{Error, OccupancyMap, Result};
+
+use super::write_stdout;
+
+#[derive(Args, Debug)]
+pub(super) struct MergeArgs {
+    /// The reference map (yaml or image): the merged map is in its frame.
+    a: PathBuf,
+    /// The map to place onto A.
+    b: PathBuf,
+    /// Write the merged map: `NAME.yaml` (with `NAME.pgm` beside it) or `NAME.pgm`. Only when merged.
+    #[arg(short, long, value_name = "MERGED.yaml|.pgm")]
+    output: Option<PathBuf>,
+    /// Write a picture of the alignment (A and B in two colours, agreement and conflicts). Only when
+    /// merged.
+    #[arg(long, value_name = "PNG")]
+    overlay: Option<PathBuf>,
+    /// Output format of the verdict.
+    #[arg(long, value_enum, default_value = "text")]
+    format: super::TextOrJson,
+}
+
+/// The JSON verdict.
+#[derive(Serialize)]
+struct Verdict<'a> {
+    accepted: bool,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    reason: Option<&'a str>,
+    /// B's pixels to A's (B at A's resolution when they differ).
+    transform: Rigid,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    world: Option<WorldRigid>,
+    /// B's pixels per A pixel before aligning (1 when the resolutions agree).
+    b_scale: f64,
+    score: f64,
+    overlap: f64,
+    features: Features,
+    seconds: f64,
+}
+
+pub(super) fn run(a: MergeArgs, budget: &Budget) -> Result<()> {
+    super::check_stdout()?;
+    let mut inputs = files::Inputs::new();
+    for p in [&a.a, &a.b] {
+        let (w, h, image) = OccupancyMap::probe(p)?;
+        budget.check(
+            format_args!("{}: a {w}x{h} map", p.display()),
+            (u64::from(w) * u64::from(h)).saturating_add(prepared_bytes(w, h)),
+        )?;
+        inputs.add(p);
+        inputs.add(&image);
+    }
+    let (yaml_out, pgm_out) = match &a.output {
+        Some(o)
+            if o.extension()
+                .is_some_and(|e| e.eq_ignore_ascii_case("yaml")) =>
+        {
+            (Some(o.clone()), Some(o.with_extension("pgm")))
+        }
+        Some(o) if o.extension().is_some_and(|e| e.eq_ignore_ascii_case("pgm")) => {
+            (None, Some(o.clone()))
+        }
+        Some(o) => {
+            return Err(Error::invalid(format!(
+                "{}: the merged map is written as NAME.yaml (with NAME.pgm) or NAME.pgm",
+                o.display()
+            )))
+        }
+        None => (None, None),
+    };
+    for (p, what) in [
+        (&yaml_out, "-o"),
+        (&pgm_out, "-o"),
+        (&a.overlay, "--overlay"),
+    ] {
+        if let Some(p) = p {
+            inputs.claim_output(p, what)?;
+        }
+    }
+    let map_a = OccupancyMap::load(&a.a)?;
+    let mut map_b = OccupancyMap::load(&a.b)?;
+    let mut b_scale = 1.0;
+    if let (Some(ga), Some(gb)) = (map_a.georef, map_b.georef) {
+        if (ga.resolution - gb.resolution).abs() > 1e-9 * ga.resolution {
+            b_scale = gb.resolution / ga.resolution;
+            map_b = compose::resample(&map_b, ga.resolution)?;
+        }
+    }
+    let start = Instant::now();
+    let al = align(&map_a, &map_b, &MergeOptions::default())?;
+    let seconds = start.elapsed().as_secs_f64();
+    let world = match (map_a.georef, map_b.georef) {
+        (Some(ga), Some(gb)) => Some(to_world(
+            &al.transform,
+            &ga,
+            map_a.image.height(),
+            &gb,
+            map_b.image.height(),
+        )),
+        _ => None,
+    };
+    write_stdout(|out| match a.format {
+        super::TextOrJson::Json => {
+            serde_json::to_writer_pretty(
+                &mut *out,
+                &Verdict {
+                    accepted: al.accepted,
+                    reason: al.reason.as_deref(),
+                    transform: al.transform,
+                    world,
+                    b_scale,
+                    score: al.score,
+                    overlap: al.features.inside,
+                    features: al.features,
+                    seconds,
+                },
+            )?;
+            writeln!(out)
+        }
+        super::TextOrJson::Text => {
+            let t = &al.transform;
+            let verdict = if al.accepted {
+                "merged".to_string()
+            } else {
+                format!(
+                    "not merged: {}",
+                    al.reason.as_deref().unwrap_or("not confident")
+                )
+            };
+            write!(
+                out,
+                "{verdict}; score {:.2}, overlap {:.0}%; B -> A: {:.2} deg, ({:.1}, {:.1}) px",
+                al.score,
+                100.0 * al.features.inside,
+                t.theta_deg,
+                t.tx,
+                t.ty
+            )?;
+            if let Some(w) = world {
+                write!(
+                    out,
+                    " = {:.2} deg, ({:.3}, {:.3}) m",
+                    w.yaw.to_degrees(),
+                    w.x,
+                    w.y
+                )?;
+            }
+            writeln!(out, "; {:.0} ms", seconds * 1e3)
+        }
+    })?;
+    if !al.accepted {
+        return Err(Error::Declined(
+            al.reason.unwrap_or_else(|| "not confident".to_string()),
+        ));
+    }
+    if let Some(pgm) = &pgm_out {
+        let merged = compose::compose(&map_a, &map_b, &al.transform)?;
+        merged.image.write_pgm(pgm)?;
+        if let Some(yaml) = &yaml_out {
+            write_yaml(yaml, pgm, &merged)?;
+        }
+        ogm_corners::say!("ogm-corners: wrote {}", pgm.display());
+    }
+    if let Some(png) = &a.overlay {
+        let picture = compose::overlay(&map_a, &map_b, &al.transform)?;
+        files::write_png(png, &picture)?;
+        ogm_corners::say!("ogm-corners: wrote {}", png.display());
+    }
+    Ok(())
+}
+
+/// The merged map's yaml: its image beside it, A's resolution, the origin that keeps A's cells in place.
+fn write_yaml(yaml: &Path, pgm: &Path, merged: &OccupancyMap) -> Result<()> {
+    let image = pgm
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let text = match merged.georef {
+        Some(g) => format!(
+            "image: {image}\nresolution: {}\norigin: [{}, {}, {}]\nnegate: 0\noccupied_thresh: 0.65\n\
+             free_thresh: 0.196\nmode: trinary\n",
+            g.resolution,
+            g.origin[0],
+            g.origin[1],
+            if g.origin[2].is_finite() { g.origin[2] } else { 0.0 }
+        ),
+        None => format!(
+            "# A had no yaml: resolution 1 and origin 0 are placeholders.\nimage: {image}\nresolution: 1.0\n\
+             origin: [0.0, 0.0, 0.0]\nnegate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.196\nmode: trinary\n"
+        ),
+    };
+    files::write_atomic(yaml, |out| out.write_all(text.as_bytes()))
+}

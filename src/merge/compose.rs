@@ -1,0 +1,322 @@
+//! The merged map: A's frame, its canvas grown to hold B, every cell from both maps.
+//!
+//! Cell rule: a cell known in one map takes that map's state; known in both, occupied if either says
+//! occupied (a wall one robot saw is not erased by the other's free space: the conservative choice for
+//! planning), else free. B's cells are read by nearest neighbour through the inverse transform. Written with
+//! ROS map_server's values (0 occupied, 254 free, 205 unknown), and, when A has a georeference, with the
+//! origin moved so that every cell of A keeps its world coordinates.
+
+use super::transform::Rigid;
+use crate::cpu::coarsen::{FREE, OCCUPIED, UNKNOWN};
+use crate::error::{Error, Result};
+use crate::map::{GeoRef, MapImage, OccupancyMap, Thresholds};
+use crate::states::{CellState, ClassTable};
+
+/// Largest merged canvas, pixels, relative to the two maps together: a transform that would grow the
+/// canvas beyond this is not a merge of maps of one place.
+pub const MAX_CANVAS_FACTOR: u64 = 4;
+
+/// The canvas of the merge, in A's pixel frame: `[x0, x1) x [y0, y1)`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Canvas {
+    /// First column, in A's pixels (0 or negative).
+    pub x0: i64,
+    /// First row.
+    pub y0: i64,
+    /// One past the last column.
+    pub x1: i64,
+    /// One past the last row.
+    pub y1: i64,
+}
+
+impl Canvas {
+    /// The canvas holding A (`wa` x `ha`) and B (`wb` x `hb`) placed by `t`.
+    pub fn of(wa: u32, ha: u32, wb: u32, hb: u32, t: &Rigid) -> Canvas {
+        // The canvas pixels are those whose centres B's pixel centres reach (nearest neighbour).
+        let (mut x0, mut y0, mut x1, mut y1) =
+            (0f64, 0f64, f64::from(wa) - 1.0, f64::from(ha) - 1.0);
+        let (bw, bh) = (f64::from(wb.max(1)) - 1.0, f64::from(hb.max(1)) - 1.0);
+        for (x, y) in [(0.0, 0.0), (bw, 0.0), (0.0, bh), (bw, bh)] {
+            let (px, py) = t.apply((x, y));
+            x0 = x0.min(px.round());
+            y0 = y0.min(py.round());
+            x1 = x1.max(px.round());
+            y1 = y1.max(py.round());
+        }
+        Canvas {
+            x0: x0 as i64,
+            y0: y0 as i64,
+            x1: x1 as i64 + 1,
+            y1: y1 as i64 + 1,
+        }
+    }
+
+    /// Width, pixels.
+    pub fn width(&self) -> u64 {
+        (self.x1 - self.x0) as u64
+    }
+
+    /// Height, pixels.
+    pub fn height(&self) -> u64 {
+        (self.y1 - self.y0) as u64
+    }
+}
+
+/// The state of B's cell under A-frame pixel (x, y), through `inv` (A to B), unknown outside B.
+#[inline]
+fn b_state(b: &MapImage, classes: &ClassTable, inv: &Rigid, x: f64, y: f64) -> CellState {
+    let (bx, by) = inv.apply((x, y));
+    let (bx, by) = (bx.round(), by.round());
+    if bx < 0.0 || by < 0.0 || bx >= f64::from(b.width()) || by >= f64::from(b.height()) {
+        return CellState::Unknown;
+    }
+    classes.state(b.get(bx as u32, by as u32))
+}
+
+/// The merge cell rule.
+#[inline]
+pub fn merge_cell(a: CellState, b: CellState) -> CellState {
+    match (a, b) {
+        (CellState::Occupied, _) | (_, CellState::Occupied) => CellState::Occupied,
+        (CellState::Free, _) | (_, CellState::Free) => CellState::Free,
+        _ => CellState::Unknown,
+    }
+}
+
+/// The merged map of `a` and `b`, B placed by `t` (B's pixels to A's). Fails when the canvas would be
+/// larger than [`MAX_CANVAS_FACTOR`] times the two maps.
+pub fn compose(a: &OccupancyMap, b: &OccupancyMap, t: &Rigid) -> Result<OccupancyMap> {
+    let (ia, ib) = (&a.image, &b.image);
+    let canvas = Canvas::of(ia.width(), ia.height(), ib.width(), ib.height(), t);
+    let limit = (ia.len() as u64 + ib.len() as u64).saturating_mul(MAX_CANVAS_FACTOR);
+    let px = canvas.width().saturating_mul(canvas.height());
+    if px > limit || canvas.width() > u64::from(u32::MAX) || canvas.height() > u64::from(u32::MAX) {
+        return Err(Error::invalid(format!(
+            "the merged map would be {}x{}: B lands far from A",
+            canvas.width(),
+            canvas.height()
+        )));
+    }
+    let (ca, cb) = (
+        ClassTable::new(&a.thresholds),
+        ClassTable::new(&b.thresholds),
+    );
+    let inv = t.inverse();
+    let (w, h) = (canvas.width() as u32, canvas.height() as u32);
+    let mut out = Vec::with_capacity(px as usize);
+    for cy in 0..h {
+        let y = i64::from(cy) + canvas.y0;
+        for cx in 0..w {
+            let x = i64::from(cx) + canvas.x0;
+            let sa = if x >= 0 && y >= 0 && x < i64::from(ia.width()) && y < i64::from(ia.height())
+            {
+                ca.state(ia.get(x as u32, y as u32))
+            } else {
+                CellState::Unknown
+            };
+            let sb = b_state(ib, &cb, &inv, x as f64, y as f64);
+            out.push(match merge_cell(sa, sb) {
+                CellState::Occupied => OCCUPIED,
+                CellState::Free => FREE,
+                CellState::Unknown => UNKNOWN,
+            });
+        }
+    }
+    let image = MapImage::new(w, h, out)?;
+    let georef = a.georef.map(|g| grown_georef(&g, ia.height(), &canvas));
+    Ok(OccupancyMap {
+        image,
+        thresholds: Thresholds::default(),
+        georef,
+        image_path: None,
+        yaml_path: None,
+        warnings: Vec::new(),
+    })
+}
+
+/// Colours of the merge overlay: walls of A only, of B only, of both; free space of both; of one only;
+/// conflicts (a wall of one map on the other's free space).
+pub const OVERLAY_COLOURS: [(&str, [u8; 3]); 6] = [
+    ("walls of A only", [30, 90, 220]),
+    ("walls of B only", [230, 120, 0]),
+    ("walls of both (within 2 px)", [0, 0, 0]),
+    ("free in both", [255, 255, 255]),
+    ("free in one", [215, 215, 215]),
+    (
+        "a wall on the other map's free space, no wall of it within 2 px",
+        [220, 0, 180],
+    ),
+];
+
+/// The picture of a merge: both maps on the merged canvas in the [`OVERLAY_COLOURS`], so a person sees at
+/// a glance whether walls line up (black), or one map's walls cross the other's free space (magenta).
+pub fn overlay(a: &OccupancyMap, b: &OccupancyMap, t: &Rigid) -> Result<image::RgbImage> {
+    let (ia, ib) = (&a.image, &b.image);
+    let canvas = Canvas::of(ia.width(), ia.height(), ib.width(), ib.height(), t);
+    let limit = (ia.len() as u64 + ib.len() as u64).saturating_mul(MAX_CANVAS_FACTOR);
+    if canvas.width().saturating_mul(canvas.height()) > limit {
+        return Err(Error::invalid(
+            "the overlay would be far larger than both maps",
+        ));
+    }
+    let (ca, cb) = (
+        ClassTable::new(&a.thresholds),
+        ClassTable::new(&b.thresholds),
+    );
+    let inv = t.inverse();
+    let c = |i: usize| image::Rgb(OVERLAY_COLOURS[i].1);
+    let unknown = image::Rgb([150, 150, 150]);
+    Ok(image::RgbImage::from_fn(
+        canvas.width() as u32,
+        canvas.height() as u32,
+        |cx, cy| {
+            let (x, y) = (i64::from(cx) + canvas.x0, i64::from(cy) + canvas.y0);
+            let sa = if x >= 0 && y >= 0 && x < i64::from(ia.width()) && y < i64::from(ia.height())
+            {
+                ca.state(ia.get(x as u32, y as u32))
+            } else {
+                CellState::Unknown
+            };
+            let sb = b_state(ib, &cb, &inv, x as f64, y as f64);
+            // Walls within 2 px of the other map's walls agree: maps of one place differ by a pixel or two.
+            let a_near = || {
+                (-2..=2).any(|dy| {
+                    (-2..=2).any(|dx| {
+                        let (xx, yy) = (x + dx, y + dy);
+                        xx >= 0
+                            && yy >= 0
+                            && xx < i64::from(ia.width())
+                            && yy < i64::from(ia.height())
+                            && ca.state(ia.get(xx as u32, yy as u32)) == CellState::Occupied
+                    })
+                })
+            };
+            let b_near = || {
+                (-2..=2).any(|dy| {
+                    (-2..=2).any(|dx| {
+                        b_state(ib, &cb, &inv, (x + dx) as f64, (y + dy) as f64)
+                            == CellState::Occupied
+                    })
+                })
+            };
+            use CellState::*;
+            match (sa, sb) {
+                (Occupied, _) if b_near() => c(2),
+                (_, Occupied) if a_near() => c(2),
+                (Occupied, Occupied) => c(2),
+                (Occupied, Free) | (Free, Occupied) => c(5),
+                (Occupied, Unknown) => c(0),
+                (Unknown, Occupied) => c(1),
+                (Free, Free) => c(3),
+                (Free, Unknown) | (Unknown, Free) => c(4),
+                (Unknown, Unknown) => unknown,
+            }
+        },
+    ))
+}
+
+/// `map` resampled by nearest neighbour to `resolution` (metres a pixel), keeping its origin: how a map
+/// of another resolution is brought to the reference map's before aligning.
+pub fn resample(map: &OccupancyMap, resolution: f64) -> Result<OccupancyMap> {
+    let Some(g) = map.georef else {
+        return Ok(map.clone());
+    };
+    if !(resolution.is_finite() && resolution > 0.0) {
+        return Err(Error::invalid(format!("bad resolution {resolution}")));
+    }
+    let k = g.resolution / resolution; // new pixels per old pixel
+    let (w, h) = (map.image.width(), map.image.height());
+    let (nw, nh) = (
+        (f64::from(w) * k).round().max(1.0),
+        (f64::from(h) * k).round().max(1.0),
+    );
+    if nw * nh > 4.0 * (1u64 << 30) as f64 {
+        return Err(Error::invalid(format!(
+            "resampling a {w}x{h} map from {} to {resolution} m a pixel would give {nw}x{nh}",
+            g.resolution
+        )));
+    }
+    let (nw, nh) = (nw as u32, nh as u32);
+    let mut px = Vec::with_capacity(nw as usize * nh as usize);
+    for y in 0..nh {
+        // Pixel centres: old = (new + 0.5) / k - 0.5, rows counted from the bottom so the origin stays.
+        let from_bottom = f64::from(nh - 1 - y);
+        let oy = ((from_bottom + 0.5) / k - 0.5)
+            .round()
+            .clamp(0.0, f64::from(h - 1)) as u32;
+        let sy = h - 1 - oy;
+        for x in 0..nw {
+            let sx = ((f64::from(x) + 0.5) / k - 0.5)
+                .round()
+                .clamp(0.0, f64::from(w - 1)) as u32;
+            px.push(map.image.get(sx, sy));
+        }
+    }
+    Ok(OccupancyMap {
+        image: MapImage::new(nw, nh, px)?,
+        georef: Some(GeoRef { resolution, ..g }),
+        ..map.clone()
+    })
+}
+
+/// A's georeference for the grown canvas: the origin (the pose of the lower-left corner) moves to the
+/// canvas's lower-left corner, so A's cells keep their world coordinates.
+fn grown_georef(g: &GeoRef, ha: u32, canvas: &Canvas) -> GeoRef {
+    let [ox, oy, yaw] = g.origin;
+    let yaw_used = if yaw.is_finite() { yaw } else { 0.0 };
+    // In A's map frame (before yaw): the canvas's lower-left corner is x0 columns left and
+    // (y1 - ha) rows below A's lower-left corner.
+    let dx = canvas.x0 as f64 * g.resolution;
+    let dy = -((canvas.y1 - i64::from(ha)) as f64) * g.resolution;
+    let (s, c) = yaw_used.sin_cos();
+    GeoRef {
+        resolution: g.resolution,
+        origin: [ox + c * dx - s * dy, oy + s * dx + c * dy, yaw],
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_cells_keep_their_world_coordinates_and_the_rule_is_conservative() {
+        let mut ia = MapImage::filled(20, 10, 254).unwrap();
+        ia.pixels_mut()[0] = 0;
+        let a = OccupancyMap {
+            georef: Some(GeoRef {
+                resolution: 0.1,
+                origin: [-1.0, 2.0, 0.0],
+            }),
+            ..OccupancyMap::from_image(ia)
+        };
+        // B: all occupied, placed 5 px left and 3 px up of A's origin.
+        let b = OccupancyMap::from_image(MapImage::filled(8, 8, 0).unwrap());
+        let t = Rigid {
+            theta_deg: 0.0,
+            tx: -5.0,
+            ty: -3.0,
+        };
+        let m = compose(&a, &b, &t).unwrap();
+        assert_eq!((m.image.width(), m.image.height()), (25, 13));
+        let (g, ga) = (m.georef.unwrap(), a.georef.unwrap());
+        // A's pixel (0, 0) is canvas pixel (5, 3): same world position.
+        assert_eq!(
+            g.pixel_to_world(5, 3, m.image.height()),
+            ga.pixel_to_world(0, 0, 10)
+        );
+        assert_eq!(m.image.get(5, 3), OCCUPIED); // A occupied
+        assert_eq!(m.image.get(6, 4), OCCUPIED); // A free, B occupied: occupied
+        assert_eq!(m.image.get(20, 10), FREE); // A free, outside B
+        assert_eq!(m.image.get(0, 12), UNKNOWN); // neither
+        assert!(compose(
+            &a,
+            &b,
+            &Rigid {
+                tx: 1e6,
+                ..Rigid::IDENTITY
+            }
+        )
+        .is_err());
+    }
+}

@@ -1,0 +1,174 @@
+//! Rigid transforms between two maps' pixel frames: `p_a = R(theta) p_b + t`, x right, y down, pixel centres
+//! at integers, `R = [[cos, -sin], [sin, cos]]` (a positive angle turns clockwise on screen, since y points
+//! down).
+
+use serde::Serialize;
+
+use crate::map::GeoRef;
+
+/// A rigid transform from map B's pixel coordinates to map A's.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct Rigid {
+    /// Rotation, degrees.
+    pub theta_deg: f64,
+    /// Translation along x, pixels.
+    pub tx: f64,
+    /// Translation along y, pixels.
+    pub ty: f64,
+}
+
+impl Rigid {
+    /// The identity.
+    pub const IDENTITY: Rigid = Rigid {
+        theta_deg: 0.0,
+        tx: 0.0,
+        ty: 0.0,
+    };
+
+    /// Where point `p` of B lands in A.
+    pub fn apply(&self, (x, y): (f64, f64)) -> (f64, f64) {
+        let (s, c) = self.theta_deg.to_radians().sin_cos();
+        (c * x - s * y + self.tx, s * x + c * y + self.ty)
+    }
+
+    /// The transform from A to B.
+    pub fn inverse(&self) -> Rigid {
+        let (s, c) = self.theta_deg.to_radians().sin_cos();
+        // p_b = R^T (p_a - t)
+        Rigid {
+            theta_deg: -self.theta_deg,
+            tx: -(c * self.tx + s * self.ty),
+            ty: -(-s * self.tx + c * self.ty),
+        }
+    }
+
+    /// `self` after `first`: p -> self(first(p)).
+    pub fn after(&self, first: &Rigid) -> Rigid {
+        let (tx, ty) = self.apply((first.tx, first.ty));
+        Rigid {
+            theta_deg: self.theta_deg + first.theta_deg,
+            tx,
+            ty,
+        }
+    }
+
+    /// The angle in (-180, 180].
+    pub fn normalized(&self) -> Rigid {
+        let mut t = self.theta_deg.rem_euclid(360.0);
+        if t > 180.0 {
+            t -= 360.0;
+        }
+        Rigid {
+            theta_deg: t,
+            ..*self
+        }
+    }
+}
+
+/// A transform in A's map frame (metres, radians; x east, y north as ROS has it): the pose of B's map
+/// frame in A's, `w_a = R(yaw) w_b + (x, y)`.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct WorldRigid {
+    /// Rotation, radians (counter-clockwise, as ROS yaw).
+    pub yaw: f64,
+    /// Translation, metres.
+    pub x: f64,
+    /// Translation, metres.
+    pub y: f64,
+}
+
+/// The world form of a pixel transform between two georeferenced maps of heights `ha` and `hb`: maps a
+/// world point of B's frame to A's frame. Pixel rows count down and world y up, so the pixel angle flips
+/// sign; both maps' yaws are taken into account through their pixel-to-world functions.
+pub fn to_world(t: &Rigid, a: &GeoRef, ha: u32, b: &GeoRef, hb: u32) -> WorldRigid {
+    // Two points of B: their world positions in B's frame and, through the transform, in A's frame.
+    let world_a = |p: (f64, f64)| pixel_to_world_f(a, p, ha);
+    let world_b = |p: (f64, f64)| pixel_to_world_f(b, p, hb);
+    let (p0, p1) = ((0.0, 0.0), (1000.0, 0.0));
+    let (wb0, wb1) = (world_b(p0), world_b(p1));
+    let (wa0, wa1) = (world_a(t.apply(p0)), world_a(t.apply(p1)));
+    let yaw = (wa1.1 - wa0.1).atan2(wa1.0 - wa0.0) - (wb1.1 - wb0.1).atan2(wb1.0 - wb0.0);
+    let yaw =
+        (yaw + std::f64::consts::PI).rem_euclid(2.0 * std::f64::consts::PI) - std::f64::consts::PI;
+    let (s, c) = yaw.sin_cos();
+    WorldRigid {
+        yaw,
+        x: wa0.0 - (c * wb0.0 - s * wb0.1),
+        y: wa0.1 - (s * wb0.0 + c * wb0.1),
+    }
+}
+
+/// World coordinates of a (fractional) pixel position, as [`GeoRef::pixel_to_world`] for pixel centres.
+pub fn pixel_to_world_f(g: &GeoRef, (x, y): (f64, f64), height: u32) -> (f64, f64) {
+    let [ox, oy, yaw] = g.origin;
+    let yaw = if yaw.is_finite() { yaw } else { 0.0 };
+    let mx = (x + 0.5) * g.resolution;
+    let my = (f64::from(height) - 1.0 - y + 0.5) * g.resolution;
+    let (s, c) = yaw.sin_cos();
+    (ox + c * mx - s * my, oy + s * mx + c * my)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn inverse_and_composition_round_trip() {
+        let t = Rigid {
+            theta_deg: 33.0,
+            tx: 12.5,
+            ty: -40.0,
+        };
+        let p = (17.0, 5.0);
+        let q = t.apply(p);
+        let back = t.inverse().apply(q);
+        assert!((back.0 - p.0).abs() < 1e-9 && (back.1 - p.1).abs() < 1e-9);
+        let u = Rigid {
+            theta_deg: -80.0,
+            tx: 3.0,
+            ty: 7.0,
+        };
+        let both = u.after(&t).apply(p);
+        let step = u.apply(t.apply(p));
+        assert!((both.0 - step.0).abs() < 1e-9 && (both.1 - step.1).abs() < 1e-9);
+        assert_eq!(
+            Rigid {
+                theta_deg: 270.0,
+                ..t
+            }
+            .normalized()
+            .theta_deg,
+            -90.0
+        );
+    }
+
+    #[test]
+    fn world_form_maps_world_points_of_b_onto_a() {
+        let a = GeoRef {
+            resolution: 0.05,
+            origin: [-10.0, -5.0, 0.0],
+        };
+        let b = GeoRef {
+            resolution: 0.05,
+            origin: [2.0, 1.0, 0.0],
+        };
+        let t = Rigid {
+            theta_deg: 20.0,
+            tx: 30.0,
+            ty: -12.0,
+        };
+        let w = to_world(&t, &a, 400, &b, 300);
+        for p in [(10.0, 20.0), (150.0, 80.0)] {
+            let wb = pixel_to_world_f(&b, p, 300);
+            let wa = pixel_to_world_f(&a, t.apply(p), 400);
+            let (s, c) = w.yaw.sin_cos();
+            let got = (c * wb.0 - s * wb.1 + w.x, s * wb.0 + c * wb.1 + w.y);
+            assert!(
+                (got.0 - wa.0).abs() < 1e-9 && (got.1 - wa.1).abs() < 1e-9,
+                "{got:?} {wa:?}"
+            );
+        }
+        // Rows count down and world y up: a pixel angle of +20 degrees is a world yaw of -20 degrees.
+        assert!((w.yaw.to_degrees() + 20.0).abs() < 1e-9);
+    }
+}
