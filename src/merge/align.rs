@@ -353,41 +353,48 @@ fn dominant_angle(walls: &[(f64, f64)]) -> f64 {
 /// Exact Euclidean distance transform (Felzenszwalb and Huttenlocher) to the nearest `true` pixel, with
 /// the index of that pixel; `f32::MAX` and `u32::MAX` where there is none.
 fn edt(mask: &[bool], w: usize, h: usize) -> (Vec<f32>, Vec<u32>) {
+    use rayon::prelude::*;
     const INF: f64 = 1e20;
-    // Columns first: squared vertical distance and the row of the nearest seed, per pixel.
-    let mut col_d = vec![INF; w * h];
-    let mut col_y = vec![u32::MAX; w * h];
-    let mut f = vec![0f64; w.max(h)];
-    let mut arg = vec![0usize; w.max(h)];
-    let mut out = vec![0f64; w.max(h)];
-    for x in 0..w {
-        for y in 0..h {
-            f[y] = if mask[y * w + x] { 0.0 } else { INF };
-        }
-        envelope(&f[..h], &mut out[..h], &mut arg[..h]);
-        for y in 0..h {
-            col_d[y * w + x] = out[y];
-            col_y[y * w + x] = if out[y] < INF / 2.0 {
-                arg[y] as u32
-            } else {
-                u32::MAX
-            };
-        }
-    }
+    // Columns first (each on its own, every core): squared vertical distance and the row of the nearest
+    // seed, stored column by column.
+    let columns: Vec<(Vec<f64>, Vec<u32>)> = (0..w)
+        .into_par_iter()
+        .map(|x| {
+            let f: Vec<f64> = (0..h)
+                .map(|y| if mask[y * w + x] { 0.0 } else { INF })
+                .collect();
+            let (mut out, mut arg) = (vec![0f64; h], vec![0usize; h]);
+            envelope(&f, &mut out, &mut arg);
+            let rows = (0..h)
+                .map(|y| {
+                    if out[y] < INF / 2.0 {
+                        arg[y] as u32
+                    } else {
+                        u32::MAX
+                    }
+                })
+                .collect();
+            (out, rows)
+        })
+        .collect();
     let mut dist = vec![f32::MAX; w * h];
     let mut nearest = vec![u32::MAX; w * h];
-    for y in 0..h {
-        f[..w].copy_from_slice(&col_d[y * w..(y + 1) * w]);
-        envelope(&f[..w], &mut out[..w], &mut arg[..w]);
-        for x in 0..w {
-            if out[x] < INF / 2.0 {
-                let sx = arg[x];
-                let sy = col_y[y * w + sx];
-                dist[y * w + x] = out[x].sqrt() as f32;
-                nearest[y * w + x] = sy * w as u32 + sx as u32;
+    dist.par_chunks_mut(w.max(1))
+        .zip(nearest.par_chunks_mut(w.max(1)))
+        .enumerate()
+        .for_each(|(y, (drow, nrow))| {
+            let f: Vec<f64> = (0..w).map(|x| columns[x].0[y]).collect();
+            let (mut out, mut arg) = (vec![0f64; w], vec![0usize; w]);
+            envelope(&f, &mut out, &mut arg);
+            for x in 0..w {
+                if out[x] < INF / 2.0 {
+                    let sx = arg[x];
+                    let sy = columns[sx].1[y];
+                    drow[x] = out[x].sqrt() as f32;
+                    nrow[x] = sy * w as u32 + sx as u32;
+                }
             }
-        }
-    }
+        });
     (dist, nearest)
 }
 

@@ -280,6 +280,32 @@ mod tests {
     use super::*;
 
     #[test]
+    fn resampling_to_a_finer_resolution_keeps_the_world_frame() {
+        let mut img = MapImage::filled(10, 6, 254).unwrap();
+        img.pixels_mut()[2 * 10 + 3] = 0; // pixel (3, 2)
+        let m = OccupancyMap {
+            georef: Some(GeoRef {
+                resolution: 0.1,
+                origin: [1.0, -2.0, 0.0],
+            }),
+            ..OccupancyMap::from_image(img)
+        };
+        let r = resample(&m, 0.05).unwrap();
+        assert_eq!((r.image.width(), r.image.height()), (20, 12));
+        let (g, gr) = (m.georef.unwrap(), r.georef.unwrap());
+        assert_eq!(gr.origin, g.origin);
+        // The occupied pixel's world centre falls in one of the four fine pixels it became.
+        let (wx, wy) = g.pixel_to_world(3, 2, 6);
+        let (fx, fy) = (
+            ((wx - gr.origin[0]) / 0.05).floor() as u32,
+            (12.0 - (wy - gr.origin[1]) / 0.05).floor() as u32,
+        );
+        assert_eq!(r.image.get(fx, fy), 0);
+        assert_eq!(r.image.pixels().iter().filter(|&&v| v == 0).count(), 4);
+        assert!(resample(&m, f64::NAN).is_err());
+    }
+
+    #[test]
     fn a_cells_keep_their_world_coordinates_and_the_rule_is_conservative() {
         let mut ia = MapImage::filled(20, 10, 254).unwrap();
         ia.pixels_mut()[0] = 0;

@@ -166,5 +166,43 @@ pub fn write_summary(out: &mut dyn Write, rows: &[PairRecord], prep_ms: f64) -> 
         out,
         "\nPreparing a map (once per map): {prep_ms:.0} ms on average."
     )?;
+    writeln!(
+        out,
+        "\nOperating curve: the acceptance rule's threshold moved by an offset (0 is the default; the \
+         coarse ratio must stay at least {}):\n",
+        super::align::MIN_COARSE_RATIO
+    )?;
+    writeln!(
+        out,
+        "| threshold offset | accepted | accepted and accurate | wrong accepts | negatives accepted |"
+    )?;
+    writeln!(out, "|---|---|---|---|---|")?;
+    for (offset, accepted, correct, wrong, negatives) in operating_curve(rows) {
+        writeln!(
+            out,
+            "| {offset:+.2} | {accepted} | {correct} | {wrong} | {negatives} |"
+        )?;
+    }
     Ok(())
+}
+
+/// Offsets of the operating curve.
+pub const CURVE_OFFSETS: [f64; 11] = [-1.0, -0.5, -0.3, -0.2, -0.1, 0.0, 0.1, 0.2, 0.3, 0.5, 1.0];
+
+/// For each offset of [`CURVE_OFFSETS`] added to the rule's threshold: accepted pairs of one place,
+/// accepted and accurate ones, wrong accepts among them, and accepted negatives.
+pub fn operating_curve(rows: &[PairRecord]) -> Vec<(f64, usize, usize, usize, usize)> {
+    CURVE_OFFSETS
+        .iter()
+        .map(|&o| {
+            let acc = |r: &&PairRecord| {
+                r.alignment.score >= o
+                    && r.alignment.features.coarse_ratio >= super::align::MIN_COARSE_RATIO
+            };
+            let pos: Vec<&PairRecord> = rows.iter().filter(|r| !r.negative).filter(acc).collect();
+            let negatives = rows.iter().filter(|r| r.negative).filter(acc).count();
+            let correct = pos.iter().filter(|r| r.accurate).count();
+            (o, pos.len(), correct, pos.len() - correct, negatives)
+        })
+        .collect()
 }
