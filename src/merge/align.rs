@@ -545,13 +545,21 @@ pub fn align_prepared(a: &Prepared, b: &Prepared, options: &MergeOptions) -> Res
     let ca = ((src.cw as f64 - 1.0) / 2.0, (src.ch as f64 - 1.0) / 2.0);
     let cr = ((diag as f64 - 1.0) / 2.0, (diag as f64 - 1.0) / 2.0);
     let half = (CELL as f64 - 1.0) / 2.0;
-    let mut coarse: Vec<(f64, Crop)> = Vec::new();
-    for k in 0..4 {
-        for off in OFFSETS {
-            let theta = base + 90.0 * f64::from(k) + off;
+    let thetas: Vec<f64> = (0..4)
+        .flat_map(|k| {
+            OFFSETS
+                .iter()
+                .map(move |off| base + 90.0 * f64::from(k) + off)
+        })
+        .collect();
+    // Each hypothesis's correlation spectrum: src's two real masks go through one complex FFT (walls as
+    // the real part, free cells as the imaginary one) and are told apart by symmetry.
+    let spectra: Vec<Vec<Complex32>> = thetas
+        .iter()
+        .map(|&theta| {
             let (c, s) = cs(theta);
             // src's coarse masks turned by theta about their centre into a diag x diag canvas.
-            let (mut wr, mut fr) = (vec![0f32; diag * diag], vec![0f32; diag * diag]);
+            let mut z = vec![Complex32::new(0.0, 0.0); n * n];
             for j in 0..diag {
                 for i in 0..diag {
                     let (dx, dy) = (i as f64 - cr.0, j as f64 - cr.1);
@@ -561,19 +569,44 @@ pub fn align_prepared(a: &Prepared, b: &Prepared, options: &MergeOptions) -> Res
                     );
                     if ax >= 0.0 && ay >= 0.0 && (ax as usize) < src.cw && (ay as usize) < src.ch {
                         let idx = ay as usize * src.cw + ax as usize;
-                        wr[j * diag + i] = src.cwall[idx];
-                        fr[j * diag + i] = src.cfree[idx];
+                        z[j * n + i] = Complex32::new(src.cwall[idx], src.cfree[idx]);
                     }
                 }
             }
-            let fa1 = spectrum(&wr, diag, diag);
-            let fa2 = spectrum(&fr, diag, diag);
-            // corr(s) = sum_q src(q) dst(q + s) = IFFT(conj(FA) FB).
-            let mut corr: Vec<Complex32> = (0..n * n)
-                .map(|i| fa1[i].conj() * fb1[i] - fa2[i].conj() * fb_wall[i] * LAMBDA)
+            fwd.run(&mut z);
+            let half_c = Complex32::new(0.5, 0.0);
+            let minus_half_i = Complex32::new(0.0, -0.5);
+            (0..n * n)
+                .map(|idx| {
+                    let (ky, kx) = (idx / n, idx % n);
+                    let mirror = ((n - ky) % n) * n + (n - kx) % n;
+                    let (zk, zm) = (z[idx], z[mirror].conj());
+                    let fa1 = (zk + zm) * half_c; // walls
+                    let fa2 = (zk - zm) * minus_half_i; // free cells
+                                                        // corr(s) = sum_q src(q) dst(q + s) = IFFT(conj(FA) FB).
+                    fa1.conj() * fb1[idx] - fa2.conj() * fb_wall[idx] * LAMBDA
+                })
+                .collect()
+        })
+        .collect();
+    let mut coarse: Vec<(f64, Crop)> = Vec::new();
+    // Two real correlations per inverse FFT: the first as the real part, the second as the imaginary.
+    for h in (0..thetas.len()).step_by(2) {
+        let mut both: Vec<Complex32> = match spectra.get(h + 1) {
+            Some(second) => spectra[h]
+                .iter()
+                .zip(second)
+                .map(|(a, b)| a + b * Complex32::new(0.0, 1.0))
+                .collect(),
+            None => spectra[h].clone(),
+        };
+        inv.run(&mut both);
+        for (which, theta) in thetas[h..(h + 2).min(thetas.len())].iter().enumerate() {
+            let (c, s) = cs(*theta);
+            let mut vals: Vec<f32> = both
+                .iter()
+                .map(|v| if which == 0 { v.re } else { v.im })
                 .collect();
-            inv.run(&mut corr);
-            let mut vals: Vec<f32> = corr.iter().map(|v| v.re).collect();
             for _ in 0..PEAKS {
                 let (idx, &best) = vals
                     .iter()
@@ -599,7 +632,7 @@ pub fn align_prepared(a: &Prepared, b: &Prepared, options: &MergeOptions) -> Res
                 coarse.push((
                     f64::from(best),
                     Crop(Rigid {
-                        theta_deg: theta,
+                        theta_deg: *theta,
                         tx: t.0,
                         ty: t.1,
                     }),
