@@ -3,6 +3,13 @@
 
 use crate::map::Thresholds;
 
+/// ROS `map_server` value of a free cell.
+pub const FREE: u8 = 254;
+/// ROS `map_server` value of an unknown cell.
+pub const UNKNOWN: u8 = 205;
+/// ROS `map_server` value of an occupied cell.
+pub const OCCUPIED: u8 = 0;
+
 /// The state of one map cell.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 #[repr(u8)]
@@ -13,6 +20,17 @@ pub enum CellState {
     Unknown = 1,
     /// Seen as an obstacle.
     Occupied = 2,
+}
+
+impl CellState {
+    /// The value ROS `map_server` writes for this state ([`OCCUPIED`], [`FREE`], [`UNKNOWN`]).
+    pub fn map_server_value(self) -> u8 {
+        match self {
+            CellState::Occupied => OCCUPIED,
+            CellState::Free => FREE,
+            CellState::Unknown => UNKNOWN,
+        }
+    }
 }
 
 /// The state of each of the 256 pixel values, from ROS trinary semantics.

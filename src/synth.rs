@@ -5,12 +5,7 @@
 use crate::error::{Error, Result};
 use crate::map::MapImage;
 
-/// ROS `map_server` value of a free cell.
-pub const FREE: u8 = 254;
-/// ROS `map_server` value of an unknown cell.
-pub const UNKNOWN: u8 = 205;
-/// ROS `map_server` value of an occupied cell.
-pub const OCCUPIED: u8 = 0;
+pub use crate::states::{FREE, OCCUPIED, UNKNOWN};
 
 /// SplitMix64: small, fast and stable across versions, so a seed always gives the same map.
 #[derive(Clone, Debug)]

@@ -48,10 +48,9 @@ pub(super) fn run(a: DemoArgs, budget: &Budget) -> Result<()> {
     image.write_pgm(&pgm)?;
     drop(image);
     let yaml_text = format!(
-        "# Synthetic office map made by `ogm-corners demo --size {w}x{h} --seed {}`\n\
-         image: demo-map.pgm\nresolution: 0.05\norigin: [0.0, 0.0, 0.0]\nnegate: 0\n\
-         occupied_thresh: 0.65\nfree_thresh: 0.196\nmode: trinary\n",
-        a.seed
+        "# Synthetic office map made by `ogm-corners demo --size {w}x{h} --seed {}`\n{}",
+        a.seed,
+        ogm_corners::map::map_yaml_text("demo-map.pgm", 0.05, [0.0; 3])
     );
     files::write_atomic(&yaml, |out| out.write_all(yaml_text.as_bytes()))?;
     // Load it back as a user's map would be, so the demo runs the whole path.

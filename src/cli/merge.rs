@@ -56,13 +56,7 @@ pub(super) fn run(a: MergeArgs, budget: &Budget) -> Result<()> {
     super::check_stdout()?;
     let mut inputs = files::Inputs::new();
     for p in [&a.a, &a.b] {
-        let (w, h, image) = OccupancyMap::probe(p)?;
-        budget.check(
-            format_args!("{}: a {w}x{h} map", p.display()),
-            (u64::from(w) * u64::from(h)).saturating_add(prepared_bytes(w, h)),
-        )?;
-        inputs.add(p);
-        inputs.add(&image);
+        super::claim_input(p, budget, &prepared_bytes, &mut inputs)?;
     }
     let (yaml_out, pgm_out) = match &a.output {
         Some(o)
@@ -190,17 +184,10 @@ fn write_yaml(yaml: &Path, pgm: &Path, merged: &OccupancyMap) -> Result<()> {
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_default();
     let text = match merged.georef {
-        Some(g) => format!(
-            "image: {image}\nresolution: {}\norigin: [{}, {}, {}]\nnegate: 0\noccupied_thresh: 0.65\n\
-             free_thresh: 0.196\nmode: trinary\n",
-            g.resolution,
-            g.origin[0],
-            g.origin[1],
-            if g.origin[2].is_finite() { g.origin[2] } else { 0.0 }
-        ),
+        Some(g) => ogm_corners::map::map_yaml_text(&image, g.resolution, g.origin),
         None => format!(
-            "# A had no yaml: resolution 1 and origin 0 are placeholders.\nimage: {image}\nresolution: 1.0\n\
-             origin: [0.0, 0.0, 0.0]\nnegate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.196\nmode: trinary\n"
+            "# A had no yaml: resolution 1 and origin 0 are placeholders.\n{}",
+            ogm_corners::map::map_yaml_text(&image, 1.0, [0.0; 3])
         ),
     };
     files::write_atomic(yaml, |out| out.write_all(text.as_bytes()))

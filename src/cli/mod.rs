@@ -317,15 +317,27 @@ fn map_inputs(
     }
     let mut inputs = ogm_corners::files::Inputs::new();
     for p in &found.maps {
-        let (w, h, image) = ogm_corners::OccupancyMap::probe(p)?;
-        budget.check(
-            format_args!("{}: a {w}x{h} map", p.display()),
-            (u64::from(w) * u64::from(h)).saturating_add(extra(w, h)),
-        )?;
-        inputs.add(p);
-        inputs.add(&image);
+        claim_input(p, budget, extra, &mut inputs)?;
     }
     Ok((found.maps, inputs))
+}
+
+/// Reads map `p` up to its image header, checks the map plus `extra(w, h)` bytes against the budget, and
+/// records it and its image as inputs no output may overwrite.
+fn claim_input(
+    p: &std::path::Path,
+    budget: &Budget,
+    extra: &dyn Fn(u32, u32) -> u64,
+    inputs: &mut ogm_corners::files::Inputs,
+) -> Result<()> {
+    let (w, h, image) = ogm_corners::OccupancyMap::probe(p)?;
+    budget.check(
+        format_args!("{}: a {w}x{h} map", p.display()),
+        (u64::from(w) * u64::from(h)).saturating_add(extra(w, h)),
+    )?;
+    inputs.add(p);
+    inputs.add(&image);
+    Ok(())
 }
 
 /// Parses `WIDTHxHEIGHT`.

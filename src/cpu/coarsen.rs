@@ -11,12 +11,8 @@ use crate::grid::RotatedGrid;
 use crate::map::MapImage;
 use crate::states::{CellState, ClassTable};
 
-/// Value of an occupied coarse cell.
-pub const OCCUPIED: u8 = 0;
-/// Value of a free coarse cell.
-pub const FREE: u8 = 254;
-/// Value of an unknown coarse cell.
-pub const UNKNOWN: u8 = 205;
+/// The coarse cells' values: ROS map_server's.
+pub use crate::states::{FREE, OCCUPIED, UNKNOWN};
 
 /// Largest scale (samples a side of a cell).
 pub const MAX_SCALE: u32 = 16;

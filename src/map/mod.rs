@@ -15,7 +15,7 @@ use crate::memory::Budget;
 
 pub use find::{find_maps, map_name, output_names, FoundMaps};
 use yaml::read_yaml;
-pub use yaml::{is_yaml, yaml_image, MapYaml, MAX_YAML_BYTES, MAX_YAML_NESTING};
+pub use yaml::{is_yaml, map_yaml_text, yaml_image, MapYaml, MAX_YAML_BYTES, MAX_YAML_NESTING};
 
 /// Largest decoded image the loader accepts, in bytes: a 65536 x 65536 8-bit map. Guards against a
 /// header that claims an absurd size, which would otherwise abort the process when allocating.
@@ -157,11 +157,16 @@ impl GeoRef {
     /// World coordinates (metres) of the centre of pixel (x, y), where y counts down from the top row of a
     /// map `height` pixels high. ROS convention: the origin is the pose of the lower-left pixel's corner.
     pub fn pixel_to_world(&self, x: u32, y: u32, height: u32) -> (f64, f64) {
+        self.point_to_world((f64::from(x), f64::from(y)), height)
+    }
+
+    /// [`GeoRef::pixel_to_world`] of a fractional pixel position (pixel centres at integers).
+    pub fn point_to_world(&self, (x, y): (f64, f64), height: u32) -> (f64, f64) {
         let [ox, oy, yaw] = self.origin;
         // Non-finite yaw (seen as `nan` in real yaml files) is treated as 0; the loader warns about it.
         let yaw = if yaw.is_finite() { yaw } else { 0.0 };
-        let mx = (x as f64 + 0.5) * self.resolution;
-        let my = ((height - 1 - y) as f64 + 0.5) * self.resolution;
+        let mx = (x + 0.5) * self.resolution;
+        let my = (f64::from(height) - 1.0 - y + 0.5) * self.resolution;
         let (s, c) = yaw.sin_cos();
         (ox + c * mx - s * my, oy + s * mx + c * my)
     }

@@ -8,6 +8,25 @@ use super::Thresholds;
 use crate::error::{Error, Result};
 use crate::files;
 
+/// The text of a ROS map_server yaml for image file `image` (a name beside the yaml), with the ROS
+/// default thresholds, trinary mode and `resolution` and `origin` (a non-finite yaw written as 0). The
+/// image name is written as a YAML scalar, quoted when it needs to be.
+pub fn map_yaml_text(image: &str, resolution: f64, origin: [f64; 3]) -> String {
+    let image = serde_yaml::to_string(image).unwrap_or_default();
+    let yaw = if origin[2].is_finite() {
+        origin[2]
+    } else {
+        0.0
+    };
+    format!(
+        "image: {}\nresolution: {resolution:?}\norigin: [{:?}, {:?}, {yaw:?}]\nnegate: 0\n\
+         occupied_thresh: 0.65\nfree_thresh: 0.196\nmode: trinary\n",
+        image.trim_end(),
+        origin[0],
+        origin[1]
+    )
+}
+
 /// Deepest nesting of `[` and `{` a map yaml may have (a real one has 1: the origin list). The yaml
 /// parser is quadratic in nesting depth, so deeper files are refused before parsing.
 pub const MAX_YAML_NESTING: usize = 16;

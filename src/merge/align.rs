@@ -108,8 +108,6 @@ pub struct Features {
     pub coarse_ratio: f64,
     /// Share of both maps' wall pixels within 5 px of the other's walls.
     pub matched: f64,
-    /// How many wall pixels of both maps lie within 5 px of the other's walls.
-    pub support: f64,
 }
 
 /// One refined candidate.
@@ -679,27 +677,18 @@ pub fn align_prepared(a: &Prepared, b: &Prepared, options: &MergeOptions) -> Res
         let d = (x.theta_deg - y.theta_deg + 180.0).rem_euclid(360.0) - 180.0;
         (x.tx - y.tx).hypot(x.ty - y.ty) + 10.0 * d.abs()
     };
-    // The best over the best distinct other, by a key.
-    let ratio = |i: usize, key: &dyn Fn(&(f64, Rigid, Features)) -> f64| {
-        let other = refined
-            .iter()
-            .enumerate()
-            .filter(|(j, r)| *j != i && dist(&r.1, &refined[i].1) > DISTINCT_PX)
-            .map(|(_, r)| key(r))
-            .fold(f64::NEG_INFINITY, f64::max);
-        key(&refined[i]) / other.max(1e-9)
-    };
-    // The candidate with the best coarse score; tried: the best full-resolution support when the
-    // coarse level is ambiguous (it accepted 1 wrong pair and 4 negatives of the real set).
-    let chosen = 0;
-    let distinct = ratio(0, &|r| r.0);
-    let (_, best, mut features) = refined[chosen];
-    features.coarse_ratio = distinct;
+    // The best coarse score wins (tried: the best full-resolution wall support when the coarse level is
+    // ambiguous; it accepted 1 wrong pair and 4 negatives of the real set). How far it stands out: over
+    // the best distinct alternative's.
+    let (best_score, best, mut features) = refined[0];
+    let runner = refined[1..]
+        .iter()
+        .filter(|r| dist(&r.1, &best) > DISTINCT_PX)
+        .map(|r| r.0)
+        .fold(f64::NEG_INFINITY, f64::max);
+    features.coarse_ratio = best_score / runner.max(1e-9);
     let score = options.accept.margin(&features);
     let accepted = score >= 0.0 && features.coarse_ratio >= MIN_COARSE_RATIO;
-    let candidates_order: Vec<usize> = std::iter::once(chosen)
-        .chain((0..refined.len()).filter(|&i| i != chosen))
-        .collect();
     let reason = (!accepted).then(|| {
         if score >= 0.0 {
             return format!(
@@ -716,11 +705,11 @@ pub fn align_prepared(a: &Prepared, b: &Prepared, options: &MergeOptions) -> Res
             features.coarse_ratio
         )
     });
-    let candidates = candidates_order
+    let candidates = refined
         .iter()
-        .map(|&i| Candidate {
-            transform: refined[i].1,
-            features: refined[i].2,
+        .map(|&(_, transform, features)| Candidate {
+            transform,
+            features,
         })
         .collect();
     Ok(Alignment {
@@ -842,7 +831,6 @@ fn verify(src: &Prepared, dst: &Prepared, t: &Rigid) -> Features {
         coarse: 0.0,
         coarse_ratio: 0.0,
         matched: (ma + mb) as f64 / inside_total,
-        support: (ma + mb) as f64,
     }
 }
 

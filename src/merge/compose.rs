@@ -7,7 +7,6 @@
 //! origin moved so that every cell of A keeps its world coordinates.
 
 use super::transform::Rigid;
-use crate::cpu::coarsen::{FREE, OCCUPIED, UNKNOWN};
 use crate::error::{Error, Result};
 use crate::map::{GeoRef, MapImage, OccupancyMap, Thresholds};
 use crate::states::{CellState, ClassTable};
@@ -62,15 +61,74 @@ impl Canvas {
     }
 }
 
-/// The state of B's cell under A-frame pixel (x, y), through `inv` (A to B), unknown outside B.
-#[inline]
-fn b_state(b: &MapImage, classes: &ClassTable, inv: &Rigid, x: f64, y: f64) -> CellState {
-    let (bx, by) = inv.apply((x, y));
-    let (bx, by) = (bx.round(), by.round());
-    if bx < 0.0 || by < 0.0 || bx >= f64::from(b.width()) || by >= f64::from(b.height()) {
-        return CellState::Unknown;
+/// Both maps read in A's pixel frame on the merged canvas: A directly, B by nearest neighbour through the
+/// inverse transform; unknown outside either.
+struct Placed<'a> {
+    a: &'a MapImage,
+    b: &'a MapImage,
+    ca: ClassTable,
+    cb: ClassTable,
+    inv: Rigid,
+    canvas: Canvas,
+}
+
+impl<'a> Placed<'a> {
+    /// Fails when the canvas would be larger than [`MAX_CANVAS_FACTOR`] times the two maps (or wider or
+    /// higher than a map can be).
+    fn new(a: &'a OccupancyMap, b: &'a OccupancyMap, t: &Rigid) -> Result<Self> {
+        let (ia, ib) = (&a.image, &b.image);
+        let canvas = Canvas::of(ia.width(), ia.height(), ib.width(), ib.height(), t);
+        let limit = (ia.len() as u64 + ib.len() as u64).saturating_mul(MAX_CANVAS_FACTOR);
+        let px = canvas.width().saturating_mul(canvas.height());
+        if px > limit
+            || canvas.width() > u64::from(u32::MAX)
+            || canvas.height() > u64::from(u32::MAX)
+        {
+            return Err(Error::invalid(format!(
+                "the merged map would be {}x{}: B lands far from A",
+                canvas.width(),
+                canvas.height()
+            )));
+        }
+        Ok(Placed {
+            a: ia,
+            b: ib,
+            ca: ClassTable::new(&a.thresholds),
+            cb: ClassTable::new(&b.thresholds),
+            inv: t.inverse(),
+            canvas,
+        })
     }
-    classes.state(b.get(bx as u32, by as u32))
+
+    /// A's state at A pixel (x, y).
+    #[inline]
+    fn a(&self, x: i64, y: i64) -> CellState {
+        if x >= 0 && y >= 0 && x < i64::from(self.a.width()) && y < i64::from(self.a.height()) {
+            self.ca.state(self.a.get(x as u32, y as u32))
+        } else {
+            CellState::Unknown
+        }
+    }
+
+    /// B's state under A pixel (x, y).
+    #[inline]
+    fn b(&self, x: i64, y: i64) -> CellState {
+        let (bx, by) = self.inv.apply((x as f64, y as f64));
+        let (bx, by) = (bx.round(), by.round());
+        if bx < 0.0
+            || by < 0.0
+            || bx >= f64::from(self.b.width())
+            || by >= f64::from(self.b.height())
+        {
+            return CellState::Unknown;
+        }
+        self.cb.state(self.b.get(bx as u32, by as u32))
+    }
+
+    /// Whether `state` has an occupied cell within 2 px of (x, y).
+    fn occupied_near(&self, x: i64, y: i64, state: impl Fn(i64, i64) -> CellState) -> bool {
+        (-2..=2).any(|dy| (-2..=2).any(|dx| state(x + dx, y + dy) == CellState::Occupied))
+    }
 }
 
 /// The merge cell rule.
@@ -86,44 +144,21 @@ pub fn merge_cell(a: CellState, b: CellState) -> CellState {
 /// The merged map of `a` and `b`, B placed by `t` (B's pixels to A's). Fails when the canvas would be
 /// larger than [`MAX_CANVAS_FACTOR`] times the two maps.
 pub fn compose(a: &OccupancyMap, b: &OccupancyMap, t: &Rigid) -> Result<OccupancyMap> {
-    let (ia, ib) = (&a.image, &b.image);
-    let canvas = Canvas::of(ia.width(), ia.height(), ib.width(), ib.height(), t);
-    let limit = (ia.len() as u64 + ib.len() as u64).saturating_mul(MAX_CANVAS_FACTOR);
-    let px = canvas.width().saturating_mul(canvas.height());
-    if px > limit || canvas.width() > u64::from(u32::MAX) || canvas.height() > u64::from(u32::MAX) {
-        return Err(Error::invalid(format!(
-            "the merged map would be {}x{}: B lands far from A",
-            canvas.width(),
-            canvas.height()
-        )));
-    }
-    let (ca, cb) = (
-        ClassTable::new(&a.thresholds),
-        ClassTable::new(&b.thresholds),
-    );
-    let inv = t.inverse();
+    let placed = Placed::new(a, b, t)?;
+    let canvas = placed.canvas;
     let (w, h) = (canvas.width() as u32, canvas.height() as u32);
-    let mut out = Vec::with_capacity(px as usize);
+    let mut out = Vec::with_capacity(w as usize * h as usize);
     for cy in 0..h {
         let y = i64::from(cy) + canvas.y0;
         for cx in 0..w {
             let x = i64::from(cx) + canvas.x0;
-            let sa = if x >= 0 && y >= 0 && x < i64::from(ia.width()) && y < i64::from(ia.height())
-            {
-                ca.state(ia.get(x as u32, y as u32))
-            } else {
-                CellState::Unknown
-            };
-            let sb = b_state(ib, &cb, &inv, x as f64, y as f64);
-            out.push(match merge_cell(sa, sb) {
-                CellState::Occupied => OCCUPIED,
-                CellState::Free => FREE,
-                CellState::Unknown => UNKNOWN,
-            });
+            out.push(merge_cell(placed.a(x, y), placed.b(x, y)).map_server_value());
         }
     }
     let image = MapImage::new(w, h, out)?;
-    let georef = a.georef.map(|g| grown_georef(&g, ia.height(), &canvas));
+    let georef = a
+        .georef
+        .map(|g| grown_georef(&g, a.image.height(), &canvas));
     Ok(OccupancyMap {
         image,
         thresholds: Thresholds::default(),
@@ -151,19 +186,8 @@ pub const OVERLAY_COLOURS: [(&str, [u8; 3]); 6] = [
 /// The picture of a merge: both maps on the merged canvas in the [`OVERLAY_COLOURS`], so a person sees at
 /// a glance whether walls line up (black), or one map's walls cross the other's free space (magenta).
 pub fn overlay(a: &OccupancyMap, b: &OccupancyMap, t: &Rigid) -> Result<image::RgbImage> {
-    let (ia, ib) = (&a.image, &b.image);
-    let canvas = Canvas::of(ia.width(), ia.height(), ib.width(), ib.height(), t);
-    let limit = (ia.len() as u64 + ib.len() as u64).saturating_mul(MAX_CANVAS_FACTOR);
-    if canvas.width().saturating_mul(canvas.height()) > limit {
-        return Err(Error::invalid(
-            "the overlay would be far larger than both maps",
-        ));
-    }
-    let (ca, cb) = (
-        ClassTable::new(&a.thresholds),
-        ClassTable::new(&b.thresholds),
-    );
-    let inv = t.inverse();
+    let placed = Placed::new(a, b, t)?;
+    let canvas = placed.canvas;
     let c = |i: usize| image::Rgb(OVERLAY_COLOURS[i].1);
     let unknown = image::Rgb([150, 150, 150]);
     Ok(image::RgbImage::from_fn(
@@ -171,34 +195,10 @@ pub fn overlay(a: &OccupancyMap, b: &OccupancyMap, t: &Rigid) -> Result<image::R
         canvas.height() as u32,
         |cx, cy| {
             let (x, y) = (i64::from(cx) + canvas.x0, i64::from(cy) + canvas.y0);
-            let sa = if x >= 0 && y >= 0 && x < i64::from(ia.width()) && y < i64::from(ia.height())
-            {
-                ca.state(ia.get(x as u32, y as u32))
-            } else {
-                CellState::Unknown
-            };
-            let sb = b_state(ib, &cb, &inv, x as f64, y as f64);
+            let (sa, sb) = (placed.a(x, y), placed.b(x, y));
             // Walls within 2 px of the other map's walls agree: maps of one place differ by a pixel or two.
-            let a_near = || {
-                (-2..=2).any(|dy| {
-                    (-2..=2).any(|dx| {
-                        let (xx, yy) = (x + dx, y + dy);
-                        xx >= 0
-                            && yy >= 0
-                            && xx < i64::from(ia.width())
-                            && yy < i64::from(ia.height())
-                            && ca.state(ia.get(xx as u32, yy as u32)) == CellState::Occupied
-                    })
-                })
-            };
-            let b_near = || {
-                (-2..=2).any(|dy| {
-                    (-2..=2).any(|dx| {
-                        b_state(ib, &cb, &inv, (x + dx) as f64, (y + dy) as f64)
-                            == CellState::Occupied
-                    })
-                })
-            };
+            let a_near = || placed.occupied_near(x, y, |x, y| placed.a(x, y));
+            let b_near = || placed.occupied_near(x, y, |x, y| placed.b(x, y));
             use CellState::*;
             match (sa, sb) {
                 (Occupied, _) if b_near() => c(2),
@@ -278,6 +278,7 @@ fn grown_georef(g: &GeoRef, ha: u32, canvas: &Canvas) -> GeoRef {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::states::{FREE, OCCUPIED, UNKNOWN};
 
     #[test]
     fn resampling_to_a_finer_resolution_keeps_the_world_frame() {

@@ -82,8 +82,8 @@ pub struct WorldRigid {
 /// sign; both maps' yaws are taken into account through their pixel-to-world functions.
 pub fn to_world(t: &Rigid, a: &GeoRef, ha: u32, b: &GeoRef, hb: u32) -> WorldRigid {
     // Two points of B: their world positions in B's frame and, through the transform, in A's frame.
-    let world_a = |p: (f64, f64)| pixel_to_world_f(a, p, ha);
-    let world_b = |p: (f64, f64)| pixel_to_world_f(b, p, hb);
+    let world_a = |p: (f64, f64)| a.point_to_world(p, ha);
+    let world_b = |p: (f64, f64)| b.point_to_world(p, hb);
     let (p0, p1) = ((0.0, 0.0), (1000.0, 0.0));
     let (wb0, wb1) = (world_b(p0), world_b(p1));
     let (wa0, wa1) = (world_a(t.apply(p0)), world_a(t.apply(p1)));
@@ -96,16 +96,6 @@ pub fn to_world(t: &Rigid, a: &GeoRef, ha: u32, b: &GeoRef, hb: u32) -> WorldRig
         x: wa0.0 - (c * wb0.0 - s * wb0.1),
         y: wa0.1 - (s * wb0.0 + c * wb0.1),
     }
-}
-
-/// World coordinates of a (fractional) pixel position, as [`GeoRef::pixel_to_world`] for pixel centres.
-pub fn pixel_to_world_f(g: &GeoRef, (x, y): (f64, f64), height: u32) -> (f64, f64) {
-    let [ox, oy, yaw] = g.origin;
-    let yaw = if yaw.is_finite() { yaw } else { 0.0 };
-    let mx = (x + 0.5) * g.resolution;
-    let my = (f64::from(height) - 1.0 - y + 0.5) * g.resolution;
-    let (s, c) = yaw.sin_cos();
-    (ox + c * mx - s * my, oy + s * mx + c * my)
 }
 
 #[cfg(test)]
@@ -159,8 +149,8 @@ mod tests {
         };
         let w = to_world(&t, &a, 400, &b, 300);
         for p in [(10.0, 20.0), (150.0, 80.0)] {
-            let wb = pixel_to_world_f(&b, p, 300);
-            let wa = pixel_to_world_f(&a, t.apply(p), 400);
+            let wb = b.point_to_world(p, 300);
+            let wa = a.point_to_world(t.apply(p), 400);
             let (s, c) = w.yaw.sin_cos();
             let got = (c * wb.0 - s * wb.1 + w.x, s * wb.0 + c * wb.1 + w.y);
             assert!(

@@ -213,7 +213,7 @@ fn score(
     };
     let Some(arms) = arms else {
         return (min_strength == 0).then(|| Candidate {
-            keypoint: candidate(grid, c, k, scale, convex, 0),
+            keypoint: candidate(grid, samples(c), k, scale, convex, 0),
             arms: None,
             centre: c,
         });
@@ -238,7 +238,7 @@ fn score(
         )
     };
     Some(Candidate {
-        keypoint: candidate(grid, at, k, scale, convex, strength),
+        keypoint: candidate(grid, samples(at), k, scale, convex, strength),
         arms: Some(arms),
         centre: c,
     })
@@ -254,6 +254,11 @@ fn suppress_candidates(found: Vec<Candidate>, radius: u32) -> Vec<Candidate> {
         .collect()
 }
 
+/// A sample position as a point of the grid's frame.
+fn samples((p, q): (i32, i32)) -> (f64, f64) {
+    (f64::from(p), f64::from(q))
+}
+
 /// The middle sample of coarse cell (u, v).
 fn centre(u: i32, v: i32, scale: u32) -> (i32, i32) {
     let s = scale as i32;
@@ -261,15 +266,14 @@ fn centre(u: i32, v: i32, scale: u32) -> (i32, i32) {
 }
 
 /// A keypoint at grid position `(p, q)` (samples), rounded to the nearest map pixel inside the map.
-fn candidate<P: Into<Pos>>(
+fn candidate(
     grid: &RotatedGrid,
-    at: P,
+    (p, q): (f64, f64),
     k: Keypoint,
     scale: u32,
     convex: bool,
     strength: u32,
 ) -> Keypoint {
-    let Pos(p, q) = at.into();
     let (x, y) = grid.to_map(p, q);
     let clamp = |v: f64, n: u32| v.round().clamp(0.0, f64::from(n - 1)) as u32;
     Keypoint {
@@ -280,21 +284,6 @@ fn candidate<P: Into<Pos>>(
         score: i64::from(strength),
         scale: scale as u8,
         convex,
-    }
-}
-
-/// A grid position, samples.
-struct Pos(f64, f64);
-
-impl From<(i32, i32)> for Pos {
-    fn from((p, q): (i32, i32)) -> Self {
-        Pos(f64::from(p), f64::from(q))
-    }
-}
-
-impl From<(f64, f64)> for Pos {
-    fn from((p, q): (f64, f64)) -> Self {
-        Pos(p, q)
     }
 }
 
