@@ -6,6 +6,7 @@
 use serde::Serialize;
 
 use crate::baselines::{self, Baseline, BaselineParams, ExactParams};
+use crate::cpu::merge_score::{FixedRigid, ScoreTarget};
 use crate::error::Result;
 use crate::grid::RotatedGrid;
 use crate::map::MapImage;
@@ -164,6 +165,17 @@ pub trait Backend {
             .iter()
             .map(|&s| crate::cpu::coarsen::coarsen(image, classes, grid, s))
             .collect())
+    }
+
+    /// Per transform, the counts of `points` landing on each flag of `target` (inside, near, deep),
+    /// exactly as [`crate::cpu::merge_score::score_transforms`] computes them (the default).
+    fn score_transforms(
+        &mut self,
+        target: &ScoreTarget,
+        points: &[[u32; 2]],
+        transforms: &[FixedRigid],
+    ) -> Result<Vec<[u32; 3]>> {
+        crate::cpu::merge_score::score_transforms(target, points, transforms)
     }
 
     /// Bytes this backend allocates on the host to detect with `options` in a `width` x `height` map,

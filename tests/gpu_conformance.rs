@@ -478,3 +478,133 @@ fn robust_keypoints_match_the_reference() {
         assert_eq!(got, want, "map {i}");
     }
 }
+
+/// Random flags, points (some landing outside) and transforms (any angle; translations inside, far
+/// outside and clamped; the identity) for the scoring kernel.
+fn scoring_case(
+    w: u32,
+    h: u32,
+    seed: u64,
+) -> (
+    ogm_corners::cpu::merge_score::ScoreTarget,
+    Vec<[u32; 2]>,
+    Vec<ogm_corners::cpu::merge_score::FixedRigid>,
+) {
+    use ogm_corners::cpu::merge_score::{FixedRigid, ScoreTarget, MAX_SCORE_SIDE};
+    let mut rng = Rng::new(seed);
+    let flags = (0..w * h).map(|_| rng.range(0, 256) as u8).collect();
+    let target = ScoreTarget::new(w, h, flags).unwrap();
+    let n = rng.range(1, 3000);
+    let mut points: Vec<[u32; 2]> = (0..n)
+        .map(|_| [rng.range(0, w + w / 4 + 2), rng.range(0, h + h / 4 + 2)])
+        .collect();
+    points.extend([
+        [0, 0],
+        [MAX_SCORE_SIDE - 1, MAX_SCORE_SIDE - 1],
+        [w - 1, h - 1],
+    ]);
+    let mut transforms = vec![FixedRigid::new(0.0, 0.0, 0.0)];
+    for k in 0..60 {
+        let deg = f64::from(rng.range(0, 7200)) / 20.0 - 180.0;
+        let span = f64::from(w.max(h)) * 1.5;
+        let shift = |rng: &mut Rng| f64::from(rng.range(0, 10_000)) / 10_000.0 * 2.0 * span - span;
+        let (tx, ty) = match k % 10 {
+            8 => (1e6, -40_000.0),  // far outside, clamped
+            9 => (-33_000.0, 70.5), // outside the largest map
+            _ => (shift(&mut rng), shift(&mut rng)),
+        };
+        transforms.push(FixedRigid::new(deg, tx, ty));
+    }
+    transforms.extend([
+        FixedRigid::new(90.0, f64::from(h), 0.0),
+        FixedRigid::new(-45.0, 0.5, -0.5),
+    ]);
+    (target, points, transforms)
+}
+
+/// The scoring kernel: the GPU's counts equal the CPU twin's on random targets of many sizes, in one band
+/// and in many small bands and point chunks.
+#[test]
+fn transform_scores_match_the_reference() {
+    use ogm_corners::cpu::merge_score::score_transforms;
+    let sizes = [
+        (1, 1),
+        (1, 7),
+        (7, 1),
+        (5, 3),
+        (33, 17),
+        (64, 63),
+        (301, 1),
+        (300, 200),
+    ];
+    for max_tile_bytes in [64 << 20, 700] {
+        let Some(mut gpu) = common::gpu_backend(GpuOptions {
+            max_tile_bytes,
+            ..GpuOptions::default()
+        }) else {
+            return;
+        };
+        for (i, (w, h)) in sizes.into_iter().enumerate() {
+            let (target, points, transforms) = scoring_case(w, h, i as u64);
+            let want = score_transforms(&target, &points, &transforms).unwrap();
+            let got = gpu.score_transforms(&target, &points, &transforms).unwrap();
+            assert_eq!(got, want, "{w}x{h}, tile budget {max_tile_bytes}");
+            assert!(want.iter().any(|c| c[0] > 0), "{w}x{h}: something lands");
+            if max_tile_bytes == 700 && w * h > 700 {
+                assert!(gpu.stats().tiles > 2, "{w}x{h} was not split");
+            }
+        }
+        // Empty inputs and bad input: the same answers as the twin.
+        let (target, points, transforms) = scoring_case(9, 9, 99);
+        assert_eq!(
+            gpu.score_transforms(&target, &[], &transforms).unwrap(),
+            vec![[0; 3]; transforms.len()]
+        );
+        assert!(gpu
+            .score_transforms(&target, &points, &[])
+            .unwrap()
+            .is_empty());
+        let e = gpu
+            .score_transforms(&target, &[[0, 1 << 15]], &transforms)
+            .unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            score_transforms(&target, &[[0, 1 << 15]], &transforms)
+                .unwrap_err()
+                .to_string()
+        );
+    }
+}
+
+/// More transforms than one dispatch's rows of workgroups (65535 on most adapters): the host batches
+/// them.
+#[test]
+fn transform_scores_are_batched_beyond_the_dispatch_limit() {
+    use ogm_corners::cpu::merge_score::{score_transforms, FixedRigid, ScoreTarget};
+    let Some(mut gpu) = common::gpu_backend(GpuOptions::default()) else {
+        return;
+    };
+    let mut rng = Rng::new(5);
+    let target =
+        ScoreTarget::new(16, 16, (0..256).map(|_| rng.range(0, 8) as u8).collect()).unwrap();
+    let points: Vec<[u32; 2]> = (0..40)
+        .map(|_| [rng.range(0, 20), rng.range(0, 20)])
+        .collect();
+    let transforms: Vec<FixedRigid> = (0..70_000)
+        .map(|k| {
+            FixedRigid::new(
+                f64::from(k % 360),
+                f64::from(k % 23) - 8.0,
+                f64::from(k % 19) - 4.0,
+            )
+        })
+        .collect();
+    let want = score_transforms(&target, &points, &transforms).unwrap();
+    let got = gpu.score_transforms(&target, &points, &transforms).unwrap();
+    assert_eq!(got.len(), transforms.len());
+    let first = got.iter().zip(&want).position(|(a, b)| a != b);
+    assert_eq!(first, None, "first difference");
+    if gpu.adapter().max_compute_workgroups_per_dimension < 70_000 {
+        assert!(gpu.stats().tiles >= 2, "{:?}", gpu.stats());
+    }
+}

@@ -52,6 +52,14 @@ fn the_coarsening_kernel_validates_and_its_parameters_match_the_host() {
 }
 
 #[test]
+fn the_scoring_kernel_validates_and_its_parameters_match_the_host() {
+    let m = validate_kernel("merge_score", false);
+    assert_eq!(entries(&m), ["merge_score"]);
+    // src/gpu/merge_score.rs SParams: 8 four-byte fields.
+    assert_eq!(struct_size(&m, "Params"), 32);
+}
+
+#[test]
 fn baseline_kernels_validate_with_both_int64_libraries() {
     for k in [
         "gaussian_blur",
@@ -92,5 +100,5 @@ fn every_kernel_has_a_cpu_twin_of_the_same_name() {
         );
         kernels += 1;
     }
-    assert_eq!(kernels, 8);
+    assert_eq!(kernels, 9);
 }

@@ -6,6 +6,7 @@ pub mod classify;
 pub mod coarsen;
 pub mod gaussian_blur;
 pub mod harris;
+pub mod merge_score;
 pub mod ogm_corners;
 pub mod shi_tomasi;
 pub mod structure_tensor;

@@ -7,6 +7,7 @@
 mod adapter;
 mod baselines;
 mod coarsen;
+mod merge_score;
 mod ogm;
 pub mod tiles;
 
@@ -21,6 +22,7 @@ use wgpu::util::DeviceExt;
 
 use crate::backend::{Backend, DetectOptions, DetectorKind, Keypoint};
 use crate::baselines::{Baseline, ExactParams};
+use crate::cpu::merge_score::{FixedRigid, ScoreTarget};
 use crate::error::{Error, Result};
 use crate::map::MapImage;
 use crate::rules::RuleTable;
@@ -60,6 +62,7 @@ pub fn shader_source(kernel: &str, native_int64: bool) -> Option<String> {
     let body = match kernel {
         "classify" => return Some(include_str!("../../shaders/classify.wgsl").to_string()),
         "coarsen" => return Some(include_str!("../../shaders/coarsen.wgsl").to_string()),
+        "merge_score" => return Some(include_str!("../../shaders/merge_score.wgsl").to_string()),
         "ogm_corners" => return Some(include_str!("../../shaders/ogm_corners.wgsl").to_string()),
         "gaussian_blur" => include_str!("../../shaders/gaussian_blur.wgsl"),
         "structure_tensor" => include_str!("../../shaders/structure_tensor.wgsl"),
@@ -93,7 +96,8 @@ pub struct GpuOptions {
     pub emulate_int64: bool,
     /// Upload budget of one OGM tile, bytes: a large map streams through the GPU in bands of about this
     /// size, the next band uploading while the current one is classified, instead of the whole map
-    /// sitting on the device (and in a host staging copy) at once.
+    /// sitting on the device (and in a host staging copy) at once. It also bounds the coarsening kernel's
+    /// tiles and the scoring kernel's bands of target rows and chunks of points.
     pub max_tile_bytes: u64,
 }
 
@@ -622,6 +626,15 @@ impl Backend for GpuBackend {
         scales: &[u32],
     ) -> Result<Vec<MapImage>> {
         self.coarsen_maps(image, classes, grid, scales)
+    }
+
+    fn score_transforms(
+        &mut self,
+        target: &ScoreTarget,
+        points: &[[u32; 2]],
+        transforms: &[FixedRigid],
+    ) -> Result<Vec<[u32; 3]>> {
+        self.score_transforms_gpu(target, points, transforms)
     }
 
     /// The host side: two tiles' staging and readback (bounded by [`GpuOptions::max_tile_bytes`]), and for
