@@ -608,3 +608,26 @@ fn transform_scores_are_batched_beyond_the_dispatch_limit() {
         assert!(gpu.stats().tiles >= 2, "{:?}", gpu.stats());
     }
 }
+
+/// The merger with its candidates scored on the GPU gives exactly the CPU's alignment.
+#[test]
+fn merging_with_gpu_scoring_equals_the_cpu() {
+    use ogm_corners::merge::align::{align_prepared, align_prepared_with, Prepared};
+    use ogm_corners::merge::synthetic::{synthetic_pair, SyntheticSpec};
+    use ogm_corners::merge::MergeOptions;
+    let Some(mut gpu) = common::gpu_backend(GpuOptions::default()) else {
+        return;
+    };
+    let source = OccupancyMap::from_image(common::cluttered_office(400, 300, 5));
+    for seed in 1..3 {
+        let spec = SyntheticSpec {
+            overlap: 0.6,
+            noise: 0.01,
+        };
+        let p = synthetic_pair(&source, &spec, seed).unwrap();
+        let (a, b) = (Prepared::new(&p.a), Prepared::new(&p.b));
+        let want = align_prepared(&a, &b, &MergeOptions::default()).unwrap();
+        let got = align_prepared_with(&a, &b, &MergeOptions::default(), &mut gpu).unwrap();
+        assert_eq!(got, want, "seed {seed}");
+    }
+}

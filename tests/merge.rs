@@ -77,6 +77,91 @@ fn synthetic_pairs_are_never_merged_wrongly() {
 }
 
 #[test]
+fn synthetic_pairs_cut_from_a_map_have_exact_truth() {
+    use ogm_corners::merge::synthetic::{synthetic_pair, SyntheticSpec};
+    let source = OccupancyMap::from_image(common::cluttered_office(400, 300, 7));
+    for (seed, overlap) in [(1, 0.5), (2, 0.3), (3, 0.8)] {
+        let spec = SyntheticSpec {
+            overlap,
+            noise: 0.0,
+        };
+        let p = synthetic_pair(&source, &spec, seed).unwrap();
+        // Every known pixel of B that lands on a known pixel of A through the truth has A's value there,
+        // and the parts share a band.
+        let (mut same, mut differ) = (0, 0);
+        for y in 0..p.b.image.height() {
+            for x in 0..p.b.image.width() {
+                let v = p.b.image.get(x, y);
+                let (ax, ay) = p.truth.apply((f64::from(x), f64::from(y)));
+                let (ax, ay) = (ax.round(), ay.round());
+                if v == 205
+                    || ax < 0.0
+                    || ay < 0.0
+                    || ax >= f64::from(p.a.image.width())
+                    || ay >= f64::from(p.a.image.height())
+                {
+                    continue;
+                }
+                match p.a.image.get(ax as u32, ay as u32) {
+                    205 => {}
+                    w if w == v => same += 1,
+                    _ => differ += 1,
+                }
+            }
+        }
+        assert_eq!(differ, 0, "seed {seed}");
+        assert!(same > 2000, "seed {seed}: {same} shared pixels");
+        // The truth passes the success test, a small error does not.
+        assert_eq!(p.errors(&p.truth), (0.0, 0.0));
+        let off = Rigid {
+            tx: p.truth.tx + 5.0,
+            ..p.truth
+        };
+        assert!(p.errors(&off).1 > 4.9);
+    }
+    // Speckle: free pixels turned occupied, nothing else changed.
+    let noisy = synthetic_pair(
+        &source,
+        &SyntheticSpec {
+            overlap: 0.5,
+            noise: 0.05,
+        },
+        1,
+    )
+    .unwrap();
+    let clean = synthetic_pair(
+        &source,
+        &SyntheticSpec {
+            overlap: 0.5,
+            noise: 0.0,
+        },
+        1,
+    )
+    .unwrap();
+    let flips = noisy
+        .a
+        .image
+        .pixels()
+        .iter()
+        .zip(clean.a.image.pixels())
+        .filter(|(n, c)| n != c)
+        .inspect(|(n, c)| assert!(**n == 0 && **c == 254))
+        .count();
+    assert!(flips > 100, "{flips}");
+    // A map with (almost) nothing known gives no pair.
+    let blank = OccupancyMap::from_image(MapImage::filled(300, 300, 205).unwrap());
+    assert!(synthetic_pair(
+        &blank,
+        &SyntheticSpec {
+            overlap: 0.5,
+            noise: 0.0
+        },
+        1
+    )
+    .is_none());
+}
+
+#[test]
 fn unrelated_or_empty_maps_are_declined_and_identical_ones_merge_in_place() {
     let a = OccupancyMap::from_image(common::cluttered_office(400, 300, 3));
     let blank = OccupancyMap::from_image(MapImage::filled(200, 200, 254).unwrap());
@@ -233,6 +318,19 @@ fn merge_command_verdicts_exit_codes_and_the_merged_yaml() {
         String::from_utf8_lossy(&o.stderr)
     );
     assert!(!d.path().join("n.pgm").exists());
+    // The scoring on the reference backend gives the same verdict as on the default one.
+    let o = run(&[
+        "a.yaml",
+        "a.yaml",
+        "--format",
+        "json",
+        "--backend",
+        "reference",
+    ]);
+    assert_eq!(o.status.code(), Some(0));
+    let r: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(r["transform"], v["transform"]);
+    assert_eq!(r["features"], v["features"]);
     // Bad input: exit 2, one line.
     for args in [
         vec!["a.yaml", "missing.pgm"],
@@ -246,5 +344,50 @@ fn merge_command_verdicts_exit_codes_and_the_merged_yaml() {
             1,
             "{args:?}"
         );
+    }
+}
+
+#[test]
+fn merge_eval_runs_the_synthetic_suite_on_given_maps() {
+    let d = tempfile::tempdir().unwrap();
+    common::cluttered_office(400, 300, 3)
+        .write_pgm(&d.path().join("office.pgm"))
+        .unwrap();
+    let run = |args: &[&str]| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_ogm-corners"))
+            .arg("merge-eval")
+            .args(args)
+            .current_dir(d.path())
+            .output()
+            .unwrap()
+    };
+    let o = run(&[
+        "--synthetic",
+        "office.pgm",
+        "--per-map",
+        "1",
+        "--format",
+        "json",
+    ]);
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let rows: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let rows = rows.as_array().unwrap();
+    // One pair per overlap, no negatives for given maps (they may show one place twice).
+    assert_eq!(rows.len(), 2);
+    assert_eq!(rows[0]["building"], "synthetic, 50% overlap");
+    assert_eq!(rows[1]["building"], "synthetic, 30% overlap");
+    assert!(rows.iter().all(|r| r["negative"] == false));
+    // Bad arguments: exit 2.
+    for args in [
+        vec!["--synthetic", "office.pgm", "--noise", "2"],
+        vec!["--synthetic", "missing.pgm"],
+        vec![],
+    ] {
+        assert_eq!(run(&args).status.code(), Some(2), "{args:?}");
     }
 }

@@ -9,9 +9,9 @@ use serde::Serialize;
 
 use ogm_corners::files;
 use ogm_corners::memory::Budget;
-use ogm_corners::merge::align::{prepared_bytes, Features};
+use ogm_corners::merge::align::{align_with, prepared_bytes, Features};
 use ogm_corners::merge::transform::{to_world, WorldRigid};
-use ogm_corners::merge::{align, compose, MergeOptions, Rigid};
+use ogm_corners::merge::{compose, MergeOptions, Rigid};
 use ogm_corners::{Error, OccupancyMap, Result};
 
 use super::write_stdout;
@@ -32,6 +32,11 @@ pub(super) struct MergeArgs {
     /// Output format of the verdict.
     #[arg(long, value_enum, default_value = "text")]
     format: super::TextOrJson,
+    /// Where the candidates are scored (the transform-scoring kernel): the same counts, so the same
+    /// verdict, on every backend. The CPU by default: a pair scores a handful of candidates, less work
+    /// than opening a GPU.
+    #[arg(long, value_enum, default_value = "cpu")]
+    backend: super::BackendArg,
 }
 
 /// The JSON verdict.
@@ -94,8 +99,9 @@ pub(super) fn run(a: MergeArgs, budget: &Budget) -> Result<()> {
             map_b = compose::resample(&map_b, ga.resolution)?;
         }
     }
+    let mut backend = super::backend_on(a.backend)?;
     let start = Instant::now();
-    let al = align(&map_a, &map_b, &MergeOptions::default())?;
+    let al = align_with(&map_a, &map_b, &MergeOptions::default(), backend.as_mut())?;
     let seconds = start.elapsed().as_secs_f64();
     let world = match (map_a.georef, map_b.georef) {
         (Some(ga), Some(gb)) => Some(to_world(

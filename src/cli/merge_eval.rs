@@ -1,38 +1,79 @@
-//! `ogm-corners merge-eval`: the merger over a pair set with ground truth (see [`ogm_corners::merge::eval`]).
+//! `ogm-corners merge-eval`: the merger over a pair set with ground truth, or over synthetic pairs cut from
+//! any maps (see [`ogm_corners::merge::eval`]).
 
 use std::path::PathBuf;
 
 use clap::Args;
 
+use ogm_corners::memory::Budget;
 use ogm_corners::merge::eval;
 use ogm_corners::merge::pairs::PairSet;
 use ogm_corners::merge::MergeOptions;
-use ogm_corners::Result;
+use ogm_corners::{Error, OccupancyMap, Result};
 
 use super::write_stdout;
 
 #[derive(Args, Debug)]
 pub(super) struct MergeEvalArgs {
-    /// The pair file (the format of `pairs.json` in the shared merge-pairs data).
-    pairs: PathBuf,
+    /// The pair file (the format of `pairs.json` in the shared merge-pairs data); not with --synthetic.
+    #[arg(required_unless_present = "synthetic", conflicts_with = "synthetic")]
+    pairs: Option<PathBuf>,
     /// Folder of the maps, `NAME.png|pgm|yaml` (default: `maps` beside the pair file).
     #[arg(long)]
     maps: Option<PathBuf>,
+    /// Instead of a pair file: synthetic pairs with exact truth cut from these maps or folders of maps
+    /// (none: the built-in synthetic office generator, seeds 1-8, with negatives: one office's part
+    /// against another's), at 50% and 30% overlap, one part turned by a random angle and shifted.
+    #[arg(long, num_args = 0.., value_name = "MAP|DIR")]
+    synthetic: Option<Vec<PathBuf>>,
+    /// Synthetic pairs per map and overlap.
+    #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u32).range(1..=1000))]
+    per_map: u32,
+    /// Synthetic speckle: the probability that a free pixel turns occupied.
+    #[arg(long, default_value_t = 0.0)]
+    noise: f64,
+    /// Seed of the synthetic cuts.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
     /// Output: a summary table, or every pair's record as JSON.
     #[arg(long, value_enum, default_value = "md")]
     format: super::TextOrJsonMd,
 }
 
-pub(super) fn run(a: MergeEvalArgs) -> Result<()> {
+pub(super) fn run(a: MergeEvalArgs, budget: &Budget) -> Result<()> {
+    if !(0.0..=0.5).contains(&a.noise) {
+        return Err(Error::invalid(format!(
+            "--noise must be a probability in [0, 0.5], got {}",
+            a.noise
+        )));
+    }
     super::check_stdout()?;
-    let set = PairSet::load(&a.pairs)?;
-    let maps = a.maps.clone().unwrap_or_else(|| {
-        a.pairs
-            .parent()
-            .unwrap_or(std::path::Path::new("."))
-            .join("maps")
-    });
-    let (rows, prep_ms) = eval::run(&set, &maps, &MergeOptions::default())?;
+    let (rows, prep_ms) = match (&a.pairs, &a.synthetic) {
+        (Some(pairs), _) => {
+            let set = PairSet::load(pairs)?;
+            let maps = a.maps.clone().unwrap_or_else(|| {
+                pairs
+                    .parent()
+                    .unwrap_or(std::path::Path::new("."))
+                    .join("maps")
+            });
+            eval::run(&set, &maps, &MergeOptions::default())?
+        }
+        (None, sources) => {
+            let given = sources.as_deref().unwrap_or(&[]);
+            let sources = synthetic_sources(given, budget)?;
+            // Negatives only between the generator's offices: given maps may show one place twice.
+            eval::run_synthetic(
+                &sources,
+                &[0.5, 0.3],
+                a.per_map as usize,
+                a.noise,
+                a.seed,
+                given.is_empty(),
+                &MergeOptions::default(),
+            )
+        }
+    };
     write_stdout(|out| match a.format {
         super::TextOrJsonMd::Md => eval::write_summary(out, &rows, prep_ms),
         super::TextOrJsonMd::Json => {
@@ -40,4 +81,28 @@ pub(super) fn run(a: MergeEvalArgs) -> Result<()> {
             writeln!(out)
         }
     })
+}
+
+/// The maps synthetic pairs are cut from: the given ones (checked against the memory budget with the
+/// merger's buffers for both parts), or eight synthetic offices.
+fn synthetic_sources(args: &[PathBuf], budget: &Budget) -> Result<Vec<(String, OccupancyMap)>> {
+    if args.is_empty() {
+        return (1..=8)
+            .map(|seed| {
+                let img = ogm_corners::synth::office_map(1024, 768, seed)?;
+                Ok((format!("office-{seed}"), OccupancyMap::from_image(img)))
+            })
+            .collect();
+    }
+    // Each part's canvas holds at most the map's diagonal squared: twice the map, and the merger's
+    // buffers for both.
+    let extra = |w: u32, h: u32| {
+        ogm_corners::merge::align::prepared_bytes(w, h)
+            .saturating_mul(4)
+            .saturating_add(u64::from(w) * u64::from(h) * 4)
+    };
+    let (maps, _) = super::map_inputs(args, budget, &extra)?;
+    maps.iter()
+        .map(|p| Ok((ogm_corners::map::map_name(p), OccupancyMap::load(p)?)))
+        .collect()
 }

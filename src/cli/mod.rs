@@ -264,12 +264,15 @@ impl DetectOpts {
 
 /// A detector with `options` on the backend the user chose (auto says which on standard error).
 fn detector_on(backend: BackendArg, options: DetectOptions) -> Result<Detector> {
+    Ok(Detector::with_backend(options, backend_on(backend)?))
+}
+
+/// The backend the user chose (auto says which on standard error).
+fn backend_on(backend: BackendArg) -> Result<Box<dyn Backend>> {
     Ok(match backend {
-        BackendArg::Cpu => Detector::new(options),
-        BackendArg::Reference => Detector::with_backend(options, Box::new(CpuBackend)),
-        BackendArg::Gpu => {
-            Detector::with_backend(options, Box::new(GpuBackend::new(GpuOptions::default())?))
-        }
+        BackendArg::Cpu => Box::new(FastCpuBackend),
+        BackendArg::Reference => Box::new(CpuBackend),
+        BackendArg::Gpu => Box::new(GpuBackend::new(GpuOptions::default())?),
         BackendArg::Auto => match GpuBackend::open(true, GpuOptions::default()) {
             Ok(Some(g)) => {
                 ogm_corners::say!(
@@ -277,16 +280,16 @@ fn detector_on(backend: BackendArg, options: DetectOptions) -> Result<Detector> 
                     g.adapter().name,
                     g.adapter().backend
                 );
-                Detector::with_backend(options, Box::new(g))
+                Box::new(g)
             }
             Ok(None) => {
                 ogm_corners::say!("ogm-corners: backend: cpu (no hardware GPU adapter found; --backend gpu accepts software ones)");
-                Detector::new(options)
+                Box::new(FastCpuBackend)
             }
             Err(e @ Error::Input { .. }) => return Err(e),
             Err(e) => {
                 ogm_corners::say!("ogm-corners: backend: cpu (the GPU could not be opened: {e})");
-                Detector::new(options)
+                Box::new(FastCpuBackend)
             }
         },
     })
@@ -365,7 +368,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Eval(a) => eval::run(a, &budget),
         Command::Compare(a) => compare::run(a, &budget),
         Command::Merge(a) => merge::run(a, &budget),
-        Command::MergeEval(a) => merge_eval::run(a),
+        Command::MergeEval(a) => merge_eval::run(a, &budget),
     }
 }
 

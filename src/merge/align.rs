@@ -15,21 +15,19 @@
 //! accepted when a linear rule over three features, fitted on half of the real pairs, clears its
 //! threshold with a margin ([`Acceptance`]).
 
-use std::sync::Arc;
-
 use rustfft::num_complex::Complex32;
-use rustfft::{Fft, FftPlanner};
+use rustfft::FftPlanner;
 use serde::Serialize;
 
+use super::fft::{padded, Fft2};
+pub use super::prepare::{prepared_bytes, Prepared, CELL};
 use super::transform::Rigid;
+use crate::backend::Backend;
+use crate::cpu::merge_score::FixedRigid;
+use crate::cpu::CpuBackend;
 use crate::error::{Error, Result};
 use crate::map::OccupancyMap;
-use crate::states::{CellState, ClassTable};
 
-/// Coarse cell side of the correlation, pixels.
-pub const CELL: usize = 16;
-/// Margin around the known area, pixels.
-const PAD: usize = 8;
 /// Weight of walls on free space in the coarse score.
 const LAMBDA: f32 = 0.25;
 /// Rotation offsets tried around each quarter turn, degrees.
@@ -136,354 +134,6 @@ pub struct Alignment {
     pub candidates: Vec<Candidate>,
 }
 
-/// Bytes [`Prepared`] holds for a `width` x `height` map, and its transforms' buffers (at most): two
-/// distance maps with their nearest pixels, the masks, and the transform's row buffers.
-pub fn prepared_bytes(width: u32, height: u32) -> u64 {
-    (u64::from(width) * u64::from(height)).saturating_mul(40)
-}
-
-/// A map prepared for alignment.
-pub struct Prepared {
-    /// Crop origin in the map, pixels.
-    off: (f64, f64),
-    w: usize,
-    h: usize,
-    known: Vec<bool>,
-    /// Wall pixels, crop coordinates.
-    walls: Vec<(f64, f64)>,
-    /// Distance to the nearest occupied pixel, and that pixel (crop index).
-    dist: Vec<f32>,
-    nearest: Vec<u32>,
-    /// Distance from a free pixel to the nearest pixel that is not free (0 elsewhere).
-    free_depth: Vec<f32>,
-    /// Wall bounding box corners and centroid.
-    reference: [(f64, f64); 5],
-    /// Dominant wall direction, degrees in [0, 90).
-    angle: f64,
-    cw: usize,
-    ch: usize,
-    cwall: Vec<f32>,
-    cwall_dil: Vec<f32>,
-    cfree: Vec<f32>,
-}
-
-impl Prepared {
-    /// Prepares `map` (read with its thresholds).
-    pub fn new(map: &OccupancyMap) -> Prepared {
-        let classes = ClassTable::new(&map.thresholds);
-        let img = &map.image;
-        let (fw, fh) = (img.width() as usize, img.height() as usize);
-        let state = |x: usize, y: usize| classes.state(img.pixels()[y * fw + x]);
-        let (mut x0, mut y0, mut x1, mut y1) = (fw, fh, 0, 0);
-        for y in 0..fh {
-            for x in 0..fw {
-                if state(x, y) != CellState::Unknown {
-                    (x0, y0, x1, y1) = (x0.min(x), y0.min(y), x1.max(x + 1), y1.max(y + 1));
-                }
-            }
-        }
-        if x1 <= x0 {
-            (x0, y0, x1, y1) = (0, 0, fw, fh);
-        }
-        let (x0, y0) = (x0.saturating_sub(PAD), y0.saturating_sub(PAD));
-        let (x1, y1) = ((x1 + PAD).min(fw), (y1 + PAD).min(fh));
-        let (w, h) = (x1 - x0, y1 - y0);
-        let mut occ = vec![false; w * h];
-        let mut free = vec![false; w * h];
-        let mut known = vec![false; w * h];
-        for y in 0..h {
-            for x in 0..w {
-                let s = state(x + x0, y + y0);
-                occ[y * w + x] = s == CellState::Occupied;
-                free[y * w + x] = s == CellState::Free;
-                known[y * w + x] = s != CellState::Unknown;
-            }
-        }
-        let mut walls = Vec::new();
-        for y in 0..h {
-            for x in 0..w {
-                if !occ[y * w + x] {
-                    continue;
-                }
-                let touches_free = (y.saturating_sub(1)..(y + 2).min(h))
-                    .any(|yy| (x.saturating_sub(1)..(x + 2).min(w)).any(|xx| free[yy * w + xx]));
-                if touches_free {
-                    walls.push((x as f64, y as f64));
-                }
-            }
-        }
-        let (dist, nearest) = edt(&occ, w, h);
-        let not_free: Vec<bool> = free.iter().map(|&f| !f).collect();
-        let (free_depth, _) = edt(&not_free, w, h);
-        let reference = reference_points(&walls);
-        let angle = dominant_angle(&walls);
-        let (cw, ch) = (w.div_ceil(CELL), h.div_ceil(CELL));
-        let mut cwall = vec![0f32; cw * ch];
-        let mut all_free = vec![1f32; cw * ch];
-        for cy in 0..ch {
-            for cx in 0..cw {
-                for y in cy * CELL..cy * CELL + CELL {
-                    for x in cx * CELL..cx * CELL + CELL {
-                        let inside = x < w && y < h;
-                        if inside && occ[y * w + x] {
-                            cwall[cy * cw + cx] = 1.0;
-                        }
-                        if !inside || !free[y * w + x] {
-                            all_free[cy * cw + cx] = 0.0;
-                        }
-                    }
-                }
-            }
-        }
-        let cfree = morph(&all_free, cw, ch, false);
-        let cwall_dil = morph(&cwall, cw, ch, true);
-        Prepared {
-            off: (x0 as f64, y0 as f64),
-            w,
-            h,
-            known,
-            walls,
-            dist,
-            nearest,
-            free_depth,
-            reference,
-            angle,
-            cw,
-            ch,
-            cwall,
-            cwall_dil,
-            cfree,
-        }
-    }
-
-    /// Crop index of the pixel nearest to (x, y), if inside the crop.
-    #[inline]
-    fn index(&self, x: f64, y: f64) -> Option<usize> {
-        let (x, y) = (x.round(), y.round());
-        (x >= 0.0 && y >= 0.0 && x < self.w as f64 && y < self.h as f64)
-            .then(|| y as usize * self.w + x as usize)
-    }
-}
-
-/// 3 x 3 dilation (max) or erosion (min) of a coarse mask; outside the mask does not count.
-fn morph(m: &[f32], w: usize, h: usize, dilate: bool) -> Vec<f32> {
-    let mut out = vec![0f32; w * h];
-    for y in 0..h {
-        for x in 0..w {
-            let mut v = m[y * w + x];
-            for yy in y.saturating_sub(1)..(y + 2).min(h) {
-                for xx in x.saturating_sub(1)..(x + 2).min(w) {
-                    v = if dilate {
-                        v.max(m[yy * w + xx])
-                    } else {
-                        v.min(m[yy * w + xx])
-                    };
-                }
-            }
-            out[y * w + x] = v;
-        }
-    }
-    out
-}
-
-fn reference_points(walls: &[(f64, f64)]) -> [(f64, f64); 5] {
-    if walls.is_empty() {
-        return [(0.0, 0.0); 5];
-    }
-    let (mut lo, mut hi, mut sum) = ((f64::MAX, f64::MAX), (f64::MIN, f64::MIN), (0.0, 0.0));
-    for &(x, y) in walls {
-        lo = (lo.0.min(x), lo.1.min(y));
-        hi = (hi.0.max(x), hi.1.max(y));
-        sum = (sum.0 + x, sum.1 + y);
-    }
-    let n = walls.len() as f64;
-    [lo, hi, (lo.0, hi.1), (hi.0, lo.1), (sum.0 / n, sum.1 / n)]
-}
-
-/// Dominant wall direction in [0, 90): the angle maximising the sum of squared 1-px histogram counts of
-/// the wall pixels projected on both axes (1-degree steps, then 0.1 around the best).
-fn dominant_angle(walls: &[(f64, f64)]) -> f64 {
-    if walls.is_empty() {
-        return 0.0;
-    }
-    let score = |deg: f64| {
-        let (s, c) = deg.to_radians().sin_cos();
-        let mut total = 0.0;
-        for axis in 0..2 {
-            let proj = |&(x, y): &(f64, f64)| -> i64 {
-                if axis == 0 {
-                    (x * c + y * s).round() as i64
-                } else {
-                    (-x * s + y * c).round() as i64
-                }
-            };
-            let lo = walls.iter().map(proj).min().unwrap_or(0);
-            let hi = walls.iter().map(proj).max().unwrap_or(0);
-            let mut hist = vec![0u32; (hi - lo + 1) as usize];
-            for p in walls {
-                hist[(proj(p) - lo) as usize] += 1;
-            }
-            total += hist
-                .iter()
-                .map(|&n| f64::from(n) * f64::from(n))
-                .sum::<f64>();
-        }
-        total
-    };
-    let mut best = (-1.0, 0.0);
-    for d in 0..90 {
-        let v = score(f64::from(d));
-        if v > best.0 {
-            best = (v, f64::from(d));
-        }
-    }
-    let a0 = best.1;
-    for k in -10..=10 {
-        let d = a0 + f64::from(k) / 10.0;
-        let v = score(d);
-        if v > best.0 {
-            best = (v, d);
-        }
-    }
-    best.1.rem_euclid(90.0)
-}
-
-/// Exact Euclidean distance transform (Felzenszwalb and Huttenlocher) to the nearest `true` pixel, with
-/// the index of that pixel; `f32::MAX` and `u32::MAX` where there is none.
-fn edt(mask: &[bool], w: usize, h: usize) -> (Vec<f32>, Vec<u32>) {
-    use rayon::prelude::*;
-    const INF: f64 = 1e20;
-    // Columns first (each on its own, every core): squared vertical distance and the row of the nearest
-    // seed, stored column by column.
-    let columns: Vec<(Vec<f64>, Vec<u32>)> = (0..w)
-        .into_par_iter()
-        .map(|x| {
-            let f: Vec<f64> = (0..h)
-                .map(|y| if mask[y * w + x] { 0.0 } else { INF })
-                .collect();
-            let (mut out, mut arg) = (vec![0f64; h], vec![0usize; h]);
-            envelope(&f, &mut out, &mut arg);
-            let rows = (0..h)
-                .map(|y| {
-                    if out[y] < INF / 2.0 {
-                        arg[y] as u32
-                    } else {
-                        u32::MAX
-                    }
-                })
-                .collect();
-            (out, rows)
-        })
-        .collect();
-    let mut dist = vec![f32::MAX; w * h];
-    let mut nearest = vec![u32::MAX; w * h];
-    dist.par_chunks_mut(w.max(1))
-        .zip(nearest.par_chunks_mut(w.max(1)))
-        .enumerate()
-        .for_each(|(y, (drow, nrow))| {
-            let f: Vec<f64> = (0..w).map(|x| columns[x].0[y]).collect();
-            let (mut out, mut arg) = (vec![0f64; w], vec![0usize; w]);
-            envelope(&f, &mut out, &mut arg);
-            for x in 0..w {
-                if out[x] < INF / 2.0 {
-                    let sx = arg[x];
-                    let sy = columns[sx].1[y];
-                    drow[x] = out[x].sqrt() as f32;
-                    nrow[x] = sy * w as u32 + sx as u32;
-                }
-            }
-        });
-    (dist, nearest)
-}
-
-/// The 1-D squared distance transform of `f`: `out[q] = min_p (q - p)^2 + f[p]`, `arg[q]` the minimising p.
-fn envelope(f: &[f64], out: &mut [f64], arg: &mut [usize]) {
-    let n = f.len();
-    if n == 0 {
-        return;
-    }
-    let mut v = vec![0usize; n];
-    let mut z = vec![0f64; n + 1];
-    let mut k = 0usize;
-    z[0] = f64::NEG_INFINITY;
-    z[1] = f64::INFINITY;
-    for q in 1..n {
-        loop {
-            let p = v[k];
-            let s =
-                ((f[q] + (q * q) as f64) - (f[p] + (p * p) as f64)) / (2.0 * (q as f64 - p as f64));
-            if s <= z[k] && k > 0 {
-                k -= 1;
-                continue;
-            }
-            if s <= z[k] {
-                // k == 0: q replaces the first parabola.
-                v[0] = q;
-                z[1] = f64::INFINITY;
-                break;
-            }
-            k += 1;
-            v[k] = q;
-            z[k] = s;
-            z[k + 1] = f64::INFINITY;
-            break;
-        }
-    }
-    let mut k = 0usize;
-    for q in 0..n {
-        while z[k + 1] < q as f64 {
-            k += 1;
-        }
-        let p = v[k];
-        out[q] = (q as f64 - p as f64).powi(2) + f[p];
-        arg[q] = p;
-    }
-}
-
-/// A square 2-D FFT (rows, then columns), forward or inverse.
-struct Fft2 {
-    n: usize,
-    fft: Arc<dyn Fft<f32>>,
-}
-
-impl Fft2 {
-    fn new(planner: &mut FftPlanner<f32>, n: usize, inverse: bool) -> Self {
-        let fft = if inverse {
-            planner.plan_fft_inverse(n)
-        } else {
-            planner.plan_fft_forward(n)
-        };
-        Fft2 { n, fft }
-    }
-
-    fn run(&self, data: &mut [Complex32]) {
-        let n = self.n;
-        self.fft.process(data);
-        transpose(data, n);
-        self.fft.process(data);
-        transpose(data, n);
-    }
-}
-
-fn transpose(d: &mut [Complex32], n: usize) {
-    for i in 0..n {
-        for j in i + 1..n {
-            d.swap(i * n + j, j * n + i);
-        }
-    }
-}
-
-/// A `w` x `h` mask at the top-left of an `n` x `n` complex array.
-fn padded(m: &[f32], w: usize, h: usize, n: usize) -> Vec<Complex32> {
-    let mut out = vec![Complex32::new(0.0, 0.0); n * n];
-    for y in 0..h {
-        for x in 0..w {
-            out[y * n + x].re = m[y * w + x];
-        }
-    }
-    out
-}
-
 /// Rotation matrix entries (cos, sin) of `deg`.
 fn cs(deg: f64) -> (f64, f64) {
     let (s, c) = deg.to_radians().sin_cos();
@@ -499,8 +149,29 @@ pub fn align(a: &OccupancyMap, b: &OccupancyMap, options: &MergeOptions) -> Resu
     align_prepared(&Prepared::new(a), &Prepared::new(b), options)
 }
 
+/// [`align`] with the candidates scored on `backend` ([`align_prepared_with`]).
+pub fn align_with(
+    a: &OccupancyMap,
+    b: &OccupancyMap,
+    options: &MergeOptions,
+    backend: &mut dyn Backend,
+) -> Result<Alignment> {
+    align_prepared_with(&Prepared::new(a), &Prepared::new(b), options, backend)
+}
+
 /// [`align`] on prepared maps (prepare each map once when aligning it with many).
 pub fn align_prepared(a: &Prepared, b: &Prepared, options: &MergeOptions) -> Result<Alignment> {
+    align_prepared_with(a, b, options, &mut CpuBackend)
+}
+
+/// [`align_prepared`] with the dense scoring of the candidates on `backend` (the transform-scoring
+/// kernel, `shaders/merge_score.wgsl`): the same counts, so the same result, on every backend.
+pub fn align_prepared_with(
+    a: &Prepared,
+    b: &Prepared,
+    options: &MergeOptions,
+    backend: &mut dyn Backend,
+) -> Result<Alignment> {
     // In the prototype's terms: src = B (moved), dst = A (reference); transforms map src to dst.
     let (src, dst) = (b, a);
     if src.walls.len() < 20 || dst.walls.len() < 20 {
@@ -656,11 +327,15 @@ pub fn align_prepared(a: &Prepared, b: &Prepared, options: &MergeOptions) -> Res
             break;
         }
     }
-    let refined: Vec<(f64, Rigid, Features)> = picked
+    let icped: Vec<(f64, Rigid)> = picked
         .iter()
-        .map(|&(score, Crop(t))| {
-            let t = icp(src, dst, t);
-            let mut f = verify(src, dst, &t);
+        .map(|&(score, Crop(t))| (score, icp(src, dst, t)))
+        .collect();
+    let verified = verify(src, dst, &icped, backend)?;
+    let refined: Vec<(f64, Rigid, Features)> = icped
+        .iter()
+        .zip(verified)
+        .map(|(&(score, t), mut f)| {
             f.coarse = score;
             // Back to the maps' own pixels: p_dst = R (p_src - off_src) + t + off_dst.
             let (c, s) = cs(t.theta_deg);
@@ -722,7 +397,8 @@ pub fn align_prepared(a: &Prepared, b: &Prepared, options: &MergeOptions) -> Res
     })
 }
 
-fn declined(why: &str) -> Alignment {
+/// A declined alignment with no candidate.
+pub(crate) fn declined(why: &str) -> Alignment {
     Alignment {
         transform: Rigid::IDENTITY,
         features: Features::default(),
@@ -798,70 +474,35 @@ fn icp(src: &Prepared, dst: &Prepared, mut t: Rigid) -> Rigid {
     t
 }
 
-/// The verification features of `t` (src crop to dst crop), both maps' walls mapped into the other.
-fn verify(src: &Prepared, dst: &Prepared, t: &Rigid) -> Features {
-    // (inside, matched, deep in free space) of `from`'s walls mapped by `t` into `to`.
-    let side = |from: &Prepared, to: &Prepared, t: &Rigid| {
-        let (mut inside, mut matched, mut deep) = (0usize, 0usize, 0usize);
-        for &p in &from.walls {
-            let q = t.apply(p);
-            let Some(i) = to.index(q.0, q.1) else {
-                continue;
-            };
-            let d = to.dist[i];
-            if to.known[i] || d <= 5.0 {
-                inside += 1;
+/// The verification features of each candidate (src crop to dst crop): both maps' walls mapped into the
+/// other by the scoring kernel on `backend`, one batch of transforms each way.
+fn verify(
+    src: &Prepared,
+    dst: &Prepared,
+    candidates: &[(f64, Rigid)],
+    backend: &mut dyn Backend,
+) -> Result<Vec<Features>> {
+    let fixed = |t: &Rigid| FixedRigid::new(t.theta_deg, t.tx, t.ty);
+    let forward: Vec<FixedRigid> = candidates.iter().map(|(_, t)| fixed(t)).collect();
+    let backward: Vec<FixedRigid> = candidates
+        .iter()
+        .map(|(_, t)| fixed(&t.inverse()))
+        .collect();
+    let into_dst = backend.score_transforms(&dst.flags, &src.wall_points, &forward)?;
+    let into_src = backend.score_transforms(&src.flags, &dst.wall_points, &backward)?;
+    Ok(into_dst
+        .iter()
+        .zip(&into_src)
+        .map(|(&[ia, ma, da], &[ib, mb, db])| {
+            let inside_total = f64::from((ia + ib).max(1));
+            Features {
+                conflict: f64::from(da + db) / inside_total,
+                inside: (f64::from(ia) / src.walls.len().max(1) as f64)
+                    .min(f64::from(ib) / dst.walls.len().max(1) as f64),
+                coarse: 0.0,
+                coarse_ratio: 0.0,
+                matched: f64::from(ma + mb) / inside_total,
             }
-            if d <= 5.0 {
-                matched += 1;
-            }
-            if to.free_depth[i] > 20.0 {
-                deep += 1;
-            }
-        }
-        (inside, matched, deep)
-    };
-    let (ia, ma, da) = side(src, dst, t);
-    let (ib, mb, db) = side(dst, src, &t.inverse());
-    let inside_total = (ia + ib).max(1) as f64;
-    Features {
-        conflict: (da + db) as f64 / inside_total,
-        inside: (ia as f64 / src.walls.len().max(1) as f64)
-            .min(ib as f64 / dst.walls.len().max(1) as f64),
-        coarse: 0.0,
-        coarse_ratio: 0.0,
-        matched: (ma + mb) as f64 / inside_total,
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn the_distance_transform_is_exact_and_names_the_nearest_pixel() {
-        let (w, h) = (7, 5);
-        let mut m = vec![false; w * h];
-        m[2 * w + 1] = true;
-        m[4 * w + 6] = true;
-        let (d, near) = edt(&m, w, h);
-        for y in 0..h {
-            for x in 0..w {
-                let want = [(1usize, 2usize), (6, 4)]
-                    .iter()
-                    .map(|&(sx, sy)| {
-                        ((x as f64 - sx as f64).powi(2) + (y as f64 - sy as f64).powi(2)).sqrt()
-                    })
-                    .fold(f64::MAX, f64::min);
-                assert!((f64::from(d[y * w + x]) - want).abs() < 1e-5, "({x}, {y})");
-                let j = near[y * w + x] as usize;
-                let got = ((x as f64 - (j % w) as f64).powi(2)
-                    + (y as f64 - (j / w) as f64).powi(2))
-                .sqrt();
-                assert!((got - want).abs() < 1e-5);
-            }
-        }
-        let (d, near) = edt(&[false; 6], 3, 2);
-        assert!(d.iter().all(|&v| v == f32::MAX) && near.iter().all(|&v| v == u32::MAX));
-    }
+        })
+        .collect())
 }

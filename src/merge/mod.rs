@@ -1,15 +1,20 @@
 //! Map merging: the rigid transform between two robots' maps of one place, found with no initial pose,
 //! checked before it is accepted, and the merged map.
 //!
-//! - [`align`]: the transform between two maps, verified.
+//! - [`align`](mod@align): the transform between two maps, verified.
 //! - [`transform`]: pixel and world transforms between two maps' frames.
-//! - [`compose`]: the merged map in A's frame.
+//! - [`compose`](mod@compose): the merged map in A's frame.
 //! - [`pairs`]: pair sets with ground truth and their success test (`merge-eval`).
+//! - [`synthetic`]: pairs with exact truth cut from any map.
 
 pub mod align;
 pub mod compose;
+mod distance;
 pub mod eval;
+mod fft;
 pub mod pairs;
+mod prepare;
+pub mod synthetic;
 pub mod transform;
 
 pub use align::{align, Alignment, MergeOptions};

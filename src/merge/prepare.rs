@@ -1,0 +1,242 @@
+//! A map prepared for alignment, once however many maps it is aligned with: its known area's bounding
+//! box (plus 8 px), wall pixels, dominant wall direction, distance maps, the scoring kernel's flags, and
+//! the coarse masks of the correlation.
+
+use super::distance::edt;
+use crate::cpu::merge_score::{ScoreTarget, FLAG_DEEP, FLAG_INSIDE, FLAG_NEAR};
+use crate::map::OccupancyMap;
+use crate::states::{CellState, ClassTable};
+
+/// Coarse cell side of the correlation, pixels.
+pub const CELL: usize = 16;
+/// Margin around the known area, pixels.
+const PAD: usize = 8;
+
+/// Bytes [`Prepared`] holds for a `width` x `height` map, and its transforms' buffers (at most): two
+/// distance maps with their nearest pixels, the masks, and the transform's row buffers.
+pub fn prepared_bytes(width: u32, height: u32) -> u64 {
+    (u64::from(width) * u64::from(height)).saturating_mul(40)
+}
+
+/// A map prepared for alignment.
+pub struct Prepared {
+    /// Crop origin in the map, pixels.
+    pub(super) off: (f64, f64),
+    pub(super) w: usize,
+    pub(super) h: usize,
+    /// Wall pixels, crop coordinates.
+    pub(super) walls: Vec<(f64, f64)>,
+    /// The same, as the scoring kernel takes them.
+    pub(super) wall_points: Vec<[u32; 2]>,
+    /// What another map's walls landing on each pixel count as (the scoring kernel's target): inside
+    /// (known, or within 5 px of a wall), near a wall (within 5 px), deep in free space (over 20 px).
+    pub(super) flags: ScoreTarget,
+    /// Distance to the nearest occupied pixel, and that pixel (crop index).
+    pub(super) dist: Vec<f32>,
+    pub(super) nearest: Vec<u32>,
+    /// Wall bounding box corners and centroid.
+    pub(super) reference: [(f64, f64); 5],
+    /// Dominant wall direction, degrees in [0, 90).
+    pub(super) angle: f64,
+    pub(super) cw: usize,
+    pub(super) ch: usize,
+    pub(super) cwall: Vec<f32>,
+    pub(super) cwall_dil: Vec<f32>,
+    pub(super) cfree: Vec<f32>,
+}
+
+impl Prepared {
+    /// Prepares `map` (read with its thresholds).
+    pub fn new(map: &OccupancyMap) -> Prepared {
+        let classes = ClassTable::new(&map.thresholds);
+        let img = &map.image;
+        let (fw, fh) = (img.width() as usize, img.height() as usize);
+        let state = |x: usize, y: usize| classes.state(img.pixels()[y * fw + x]);
+        let (mut x0, mut y0, mut x1, mut y1) = (fw, fh, 0, 0);
+        for y in 0..fh {
+            for x in 0..fw {
+                if state(x, y) != CellState::Unknown {
+                    (x0, y0, x1, y1) = (x0.min(x), y0.min(y), x1.max(x + 1), y1.max(y + 1));
+                }
+            }
+        }
+        if x1 <= x0 {
+            (x0, y0, x1, y1) = (0, 0, fw, fh);
+        }
+        let (x0, y0) = (x0.saturating_sub(PAD), y0.saturating_sub(PAD));
+        let (x1, y1) = ((x1 + PAD).min(fw), (y1 + PAD).min(fh));
+        let (w, h) = (x1 - x0, y1 - y0);
+        let mut occ = vec![false; w * h];
+        let mut free = vec![false; w * h];
+        let mut known = vec![false; w * h];
+        for y in 0..h {
+            for x in 0..w {
+                let s = state(x + x0, y + y0);
+                occ[y * w + x] = s == CellState::Occupied;
+                free[y * w + x] = s == CellState::Free;
+                known[y * w + x] = s != CellState::Unknown;
+            }
+        }
+        let mut walls = Vec::new();
+        for y in 0..h {
+            for x in 0..w {
+                if !occ[y * w + x] {
+                    continue;
+                }
+                let touches_free = (y.saturating_sub(1)..(y + 2).min(h))
+                    .any(|yy| (x.saturating_sub(1)..(x + 2).min(w)).any(|xx| free[yy * w + xx]));
+                if touches_free {
+                    walls.push((x as f64, y as f64));
+                }
+            }
+        }
+        let (dist, nearest) = edt(&occ, w, h);
+        let not_free: Vec<bool> = free.iter().map(|&f| !f).collect();
+        let (free_depth, _) = edt(&not_free, w, h);
+        let reference = reference_points(&walls);
+        let angle = dominant_angle(&walls);
+        let wall_points = walls.iter().map(|&(x, y)| [x as u32, y as u32]).collect();
+        let flag_bytes: Vec<u8> = (0..w * h)
+            .map(|i| {
+                let near = dist[i] <= 5.0;
+                u8::from(known[i] || near) * FLAG_INSIDE
+                    + u8::from(near) * FLAG_NEAR
+                    + u8::from(free_depth[i] > 20.0) * FLAG_DEEP
+            })
+            .collect();
+        // The crop is at most MAX_FFT cells a side wherever it is aligned; a larger one is refused there.
+        let flags = ScoreTarget {
+            width: w as u32,
+            height: h as u32,
+            flags: flag_bytes,
+        };
+        let (cw, ch) = (w.div_ceil(CELL), h.div_ceil(CELL));
+        let mut cwall = vec![0f32; cw * ch];
+        let mut all_free = vec![1f32; cw * ch];
+        for cy in 0..ch {
+            for cx in 0..cw {
+                for y in cy * CELL..cy * CELL + CELL {
+                    for x in cx * CELL..cx * CELL + CELL {
+                        let inside = x < w && y < h;
+                        if inside && occ[y * w + x] {
+                            cwall[cy * cw + cx] = 1.0;
+                        }
+                        if !inside || !free[y * w + x] {
+                            all_free[cy * cw + cx] = 0.0;
+                        }
+                    }
+                }
+            }
+        }
+        let cfree = morph(&all_free, cw, ch, false);
+        let cwall_dil = morph(&cwall, cw, ch, true);
+        Prepared {
+            off: (x0 as f64, y0 as f64),
+            w,
+            h,
+            walls,
+            wall_points,
+            flags,
+            dist,
+            nearest,
+            reference,
+            angle,
+            cw,
+            ch,
+            cwall,
+            cwall_dil,
+            cfree,
+        }
+    }
+
+    /// Crop index of the pixel nearest to (x, y), if inside the crop.
+    #[inline]
+    pub(super) fn index(&self, x: f64, y: f64) -> Option<usize> {
+        let (x, y) = (x.round(), y.round());
+        (x >= 0.0 && y >= 0.0 && x < self.w as f64 && y < self.h as f64)
+            .then(|| y as usize * self.w + x as usize)
+    }
+}
+
+/// 3 x 3 dilation (max) or erosion (min) of a coarse mask; outside the mask does not count.
+fn morph(m: &[f32], w: usize, h: usize, dilate: bool) -> Vec<f32> {
+    let mut out = vec![0f32; w * h];
+    for y in 0..h {
+        for x in 0..w {
+            let mut v = m[y * w + x];
+            for yy in y.saturating_sub(1)..(y + 2).min(h) {
+                for xx in x.saturating_sub(1)..(x + 2).min(w) {
+                    v = if dilate {
+                        v.max(m[yy * w + xx])
+                    } else {
+                        v.min(m[yy * w + xx])
+                    };
+                }
+            }
+            out[y * w + x] = v;
+        }
+    }
+    out
+}
+
+fn reference_points(walls: &[(f64, f64)]) -> [(f64, f64); 5] {
+    if walls.is_empty() {
+        return [(0.0, 0.0); 5];
+    }
+    let (mut lo, mut hi, mut sum) = ((f64::MAX, f64::MAX), (f64::MIN, f64::MIN), (0.0, 0.0));
+    for &(x, y) in walls {
+        lo = (lo.0.min(x), lo.1.min(y));
+        hi = (hi.0.max(x), hi.1.max(y));
+        sum = (sum.0 + x, sum.1 + y);
+    }
+    let n = walls.len() as f64;
+    [lo, hi, (lo.0, hi.1), (hi.0, lo.1), (sum.0 / n, sum.1 / n)]
+}
+
+/// Dominant wall direction in [0, 90): the angle maximising the sum of squared 1-px histogram counts of
+/// the wall pixels projected on both axes (1-degree steps, then 0.1 around the best).
+fn dominant_angle(walls: &[(f64, f64)]) -> f64 {
+    if walls.is_empty() {
+        return 0.0;
+    }
+    let score = |deg: f64| {
+        let (s, c) = deg.to_radians().sin_cos();
+        let mut total = 0.0;
+        for axis in 0..2 {
+            let proj = |&(x, y): &(f64, f64)| -> i64 {
+                if axis == 0 {
+                    (x * c + y * s).round() as i64
+                } else {
+                    (-x * s + y * c).round() as i64
+                }
+            };
+            let lo = walls.iter().map(proj).min().unwrap_or(0);
+            let hi = walls.iter().map(proj).max().unwrap_or(0);
+            let mut hist = vec![0u32; (hi - lo + 1) as usize];
+            for p in walls {
+                hist[(proj(p) - lo) as usize] += 1;
+            }
+            total += hist
+                .iter()
+                .map(|&n| f64::from(n) * f64::from(n))
+                .sum::<f64>();
+        }
+        total
+    };
+    let mut best = (-1.0, 0.0);
+    for d in 0..90 {
+        let v = score(f64::from(d));
+        if v > best.0 {
+            best = (v, f64::from(d));
+        }
+    }
+    let a0 = best.1;
+    for k in -10..=10 {
+        let d = a0 + f64::from(k) / 10.0;
+        let v = score(d);
+        if v > best.0 {
+            best = (v, d);
+        }
+    }
+    best.1.rem_euclid(90.0)
+}

@@ -1,0 +1,207 @@
+//! Synthetic pairs with exact truth, made from any map: two overlapping parts of it, one turned by a
+//! random angle and shifted, with optional speckle. `merge-eval --synthetic` runs the merger over them,
+//! and the tests use them as a property test.
+//!
+//! How a pair is cut: a random direction `u`; the known pixels' projections on `u` span `[lo, hi]`; A
+//! keeps the pixels projecting below `lo + w`, B those above `hi - w`, with `w = (hi - lo) / (2 -
+//! overlap)`, so the band both keep is `overlap` of each part's extent along `u`. A is cropped to its
+//! known area; B is turned about its centre by a random angle into a square canvas with a random margin.
+//! Both are written with map_server's values (0 occupied, 254 free, 205 unknown).
+
+use super::transform::Rigid;
+use crate::map::{MapImage, OccupancyMap};
+use crate::states::{CellState, ClassTable, FREE, OCCUPIED, UNKNOWN};
+use crate::synth::Rng;
+
+/// How to cut a pair.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SyntheticSpec {
+    /// Share of each part's extent (along the cut direction) that the other part also holds, in (0, 1).
+    pub overlap: f64,
+    /// Probability that a free pixel of either part turns occupied (sensor speckle).
+    pub noise: f64,
+}
+
+/// A pair cut from one map.
+#[derive(Clone, Debug)]
+pub struct SyntheticPair {
+    /// The reference part.
+    pub a: OccupancyMap,
+    /// The moved part.
+    pub b: OccupancyMap,
+    /// B's pixels to A's, exact.
+    pub truth: Rigid,
+    /// Points of B (its known area's bounding box corners and centre) where an estimate is checked.
+    pub check_points: Vec<(f64, f64)>,
+}
+
+/// Smallest known extent (pixels, along the cut direction) a source must have.
+pub const MIN_EXTENT: f64 = 64.0;
+
+/// Largest canvas side of a part, pixels (B's canvas holds its part's diagonal).
+pub const MAX_PART_SIDE: f64 = 16384.0;
+
+/// A pair cut from `source` with `spec`, deterministic in `seed`; `None` when the map's known area is
+/// too small (under [`MIN_EXTENT`] along the cut) or too large (a part over [`MAX_PART_SIDE`]).
+pub fn synthetic_pair(
+    source: &OccupancyMap,
+    spec: &SyntheticSpec,
+    seed: u64,
+) -> Option<SyntheticPair> {
+    let classes = ClassTable::new(&source.thresholds);
+    let img = &source.image;
+    let (w, h) = (img.width() as usize, img.height() as usize);
+    let state = |x: usize, y: usize| classes.state(img.pixels()[y * w + x]);
+    let mut rng = Rng::new(seed);
+    let unit = |r: &mut Rng| f64::from(r.range(0, 1 << 24)) / f64::from(1u32 << 24);
+    let phi = unit(&mut rng) * std::f64::consts::PI;
+    let (su, cu) = phi.sin_cos();
+    let proj = |x: f64, y: f64| x * cu + y * su;
+    let (mut lo, mut hi) = (f64::MAX, f64::MIN);
+    for y in 0..h {
+        for x in 0..w {
+            if state(x, y) != CellState::Unknown {
+                let p = proj(x as f64, y as f64);
+                (lo, hi) = (lo.min(p), hi.max(p));
+            }
+        }
+    }
+    if hi - lo < MIN_EXTENT {
+        return None;
+    }
+    let overlap = spec.overlap.clamp(0.01, 0.99);
+    let part = (hi - lo) / (2.0 - overlap);
+    let (a_end, b_start) = (lo + part, hi - part);
+    let in_a = |x: usize, y: usize| proj(x as f64, y as f64) < a_end;
+    let in_b = |x: usize, y: usize| proj(x as f64, y as f64) >= b_start;
+    let bbox = |keep: &dyn Fn(usize, usize) -> bool| {
+        let (mut x0, mut y0, mut x1, mut y1) = (w, h, 0, 0);
+        for y in 0..h {
+            for x in 0..w {
+                if keep(x, y) && state(x, y) != CellState::Unknown {
+                    (x0, y0, x1, y1) = (x0.min(x), y0.min(y), x1.max(x + 1), y1.max(y + 1));
+                }
+            }
+        }
+        (x0, y0, x1.max(x0), y1.max(y0))
+    };
+    let value = |s: CellState, r: &mut Rng| match s {
+        CellState::Free if spec.noise > 0.0 && r.chance(spec.noise) => OCCUPIED,
+        CellState::Free => FREE,
+        CellState::Occupied => OCCUPIED,
+        CellState::Unknown => UNKNOWN,
+    };
+    // A: its part, cropped to its known area.
+    let (ax0, ay0, ax1, ay1) = bbox(&in_a);
+    let (aw, ah) = (ax1 - ax0, ay1 - ay0);
+    if aw == 0 || ah == 0 || aw as f64 > MAX_PART_SIDE || ah as f64 > MAX_PART_SIDE {
+        return None;
+    }
+    let mut a_px = vec![UNKNOWN; aw * ah];
+    for y in 0..ah {
+        for x in 0..aw {
+            let (sx, sy) = (x + ax0, y + ay0);
+            if in_a(sx, sy) {
+                a_px[y * aw + x] = value(state(sx, sy), &mut rng);
+            }
+        }
+    }
+    // B: its part turned by theta about its centre into a square canvas.
+    let (bx0, by0, bx1, by1) = bbox(&in_b);
+    let cb = (
+        (bx0 + bx1) as f64 / 2.0 - 0.5,
+        (by0 + by1) as f64 / 2.0 - 0.5,
+    );
+    let diag = ((bx1 - bx0) as f64).hypot((by1 - by0) as f64);
+    let margin = f64::from(rng.range(4, 48));
+    let side = (diag + 2.0 * margin).ceil();
+    if side > MAX_PART_SIDE {
+        return None;
+    }
+    let side = side as usize;
+    let theta = unit(&mut rng) * 360.0;
+    let cq = ((side as f64 - 1.0) / 2.0, (side as f64 - 1.0) / 2.0);
+    // B's pixel q lies at source point R(theta) (q - cq) + cb.
+    let rot = Rigid {
+        theta_deg: theta,
+        tx: 0.0,
+        ty: 0.0,
+    };
+    let r_cq = rot.apply(cq);
+    let to_source = Rigid {
+        theta_deg: theta,
+        tx: cb.0 - r_cq.0,
+        ty: cb.1 - r_cq.1,
+    };
+    let mut b_px = vec![UNKNOWN; side * side];
+    let (mut kx0, mut ky0, mut kx1, mut ky1) = (f64::MAX, f64::MAX, f64::MIN, f64::MIN);
+    for y in 0..side {
+        for x in 0..side {
+            let (sx, sy) = to_source.apply((x as f64, y as f64));
+            let (sx, sy) = (sx.round(), sy.round());
+            if sx < 0.0 || sy < 0.0 || sx >= w as f64 || sy >= h as f64 {
+                continue;
+            }
+            let (sx, sy) = (sx as usize, sy as usize);
+            if in_b(sx, sy) {
+                let s = state(sx, sy);
+                b_px[y * side + x] = value(s, &mut rng);
+                if s != CellState::Unknown {
+                    let (fx, fy) = (x as f64, y as f64);
+                    (kx0, ky0, kx1, ky1) = (kx0.min(fx), ky0.min(fy), kx1.max(fx), ky1.max(fy));
+                }
+            }
+        }
+    }
+    if kx1 < kx0 {
+        return None;
+    }
+    let truth = Rigid {
+        tx: to_source.tx - ax0 as f64,
+        ty: to_source.ty - ay0 as f64,
+        ..to_source
+    }
+    .normalized();
+    let make = |w: usize, h: usize, px: Vec<u8>| {
+        MapImage::new(w as u32, h as u32, px)
+            .ok()
+            .map(OccupancyMap::from_image)
+    };
+    Some(SyntheticPair {
+        a: make(aw, ah, a_px)?,
+        b: make(side, side, b_px)?,
+        truth,
+        check_points: vec![
+            (kx0, ky0),
+            (kx1, ky0),
+            (kx0, ky1),
+            (kx1, ky1),
+            ((kx0 + kx1) / 2.0, (ky0 + ky1) / 2.0),
+        ],
+    })
+}
+
+impl SyntheticPair {
+    /// The estimate's rotation error (degrees) and RMS error over [`SyntheticPair::check_points`]
+    /// (pixels).
+    pub fn errors(&self, estimate: &Rigid) -> (f64, f64) {
+        let d = (estimate.theta_deg - self.truth.theta_deg).rem_euclid(360.0);
+        let sum: f64 = self
+            .check_points
+            .iter()
+            .map(|&p| {
+                let (e, t) = (estimate.apply(p), self.truth.apply(p));
+                (e.0 - t.0).powi(2) + (e.1 - t.1).powi(2)
+            })
+            .sum();
+        (
+            d.min(360.0 - d),
+            (sum / self.check_points.len() as f64).sqrt(),
+        )
+    }
+}
+
+/// Rotation error a synthetic estimate may have to count as accurate, degrees.
+pub const SYNTHETIC_ROT_LIMIT_DEG: f64 = 1.0;
+/// RMS error over the check points a synthetic estimate may have, pixels.
+pub const SYNTHETIC_RMS_LIMIT_PX: f64 = 3.0;
