@@ -391,3 +391,34 @@ fn merge_eval_runs_the_synthetic_suite_on_given_maps() {
         assert_eq!(run(&args).status.code(), Some(2), "{args:?}");
     }
 }
+
+#[test]
+fn half_overlapping_synthetic_offices_are_never_merged_wrongly() {
+    // Before the contradiction veto these were accepted half-turned (README, "Synthetic pairs"); what
+    // holds now is that none is accepted wrongly, and the veto says why.
+    use ogm_corners::merge::synthetic::{synthetic_pair, SyntheticSpec};
+    let mut contradicted = 0;
+    for seed in 1..5 {
+        let office =
+            OccupancyMap::from_image(ogm_corners::synth::office_map(1024, 768, seed).unwrap());
+        let spec = SyntheticSpec {
+            overlap: 0.5,
+            noise: 0.0,
+        };
+        let p = synthetic_pair(&office, &spec, seed).unwrap();
+        let al = align(&p.a, &p.b, &MergeOptions::default()).unwrap();
+        let (rot, rms) = p.errors(&al.transform);
+        assert!(
+            !al.accepted || (rot <= 1.0 && rms <= 3.0),
+            "seed {seed}: accepted {:?}, truth {:?}",
+            al.transform,
+            p.truth
+        );
+        contradicted += usize::from(
+            al.reason
+                .as_deref()
+                .is_some_and(|r| r.starts_with("contradicted")),
+        );
+    }
+    assert!(contradicted >= 1, "{contradicted}");
+}

@@ -288,8 +288,9 @@ pub fn write_summary(out: &mut dyn Write, rows: &[PairRecord], prep_ms: f64) -> 
     writeln!(
         out,
         "\nOperating curve: the acceptance rule's threshold moved by an offset (0 is the default; the \
-         coarse ratio must stay at least {}):\n",
-        super::align::MIN_COARSE_RATIO
+         coarse ratio must stay at least {} and the fine conflict at most {}):\n",
+        super::align::MIN_COARSE_RATIO,
+        super::align::MAX_FINE_CONFLICT
     )?;
     writeln!(
         out,
@@ -315,8 +316,7 @@ pub fn operating_curve(rows: &[PairRecord]) -> Vec<(f64, usize, usize, usize, us
         .iter()
         .map(|&o| {
             let acc = |r: &&PairRecord| {
-                r.alignment.score >= o
-                    && r.alignment.features.coarse_ratio >= super::align::MIN_COARSE_RATIO
+                super::align::accepts(&r.alignment.features, r.alignment.score - o)
             };
             let pos: Vec<&PairRecord> = rows.iter().filter(|r| !r.negative).filter(acc).collect();
             let negatives = rows.iter().filter(|r| r.negative).filter(acc).count();

@@ -31,6 +31,8 @@ pub struct Prepared {
     /// What another map's walls landing on each pixel count as (the scoring kernel's target): inside
     /// (known, or within 5 px of a wall), near a wall (within 5 px), deep in free space (over 20 px).
     pub(super) flags: ScoreTarget,
+    /// The same at a finer tolerance: near within 2 px, deep over 3 px (the contradiction veto).
+    pub(super) flags_fine: ScoreTarget,
     /// Distance to the nearest occupied pixel, and that pixel (crop index).
     pub(super) dist: Vec<f32>,
     pub(super) nearest: Vec<u32>,
@@ -96,19 +98,25 @@ impl Prepared {
         let reference = reference_points(&walls);
         let angle = dominant_angle(&walls);
         let wall_points = walls.iter().map(|&(x, y)| [x as u32, y as u32]).collect();
-        let flag_bytes: Vec<u8> = (0..w * h)
-            .map(|i| {
-                let near = dist[i] <= 5.0;
-                u8::from(known[i] || near) * FLAG_INSIDE
-                    + u8::from(near) * FLAG_NEAR
-                    + u8::from(free_depth[i] > 20.0) * FLAG_DEEP
-            })
-            .collect();
+        let flag_bytes = |near_px: f32, deep_px: f32| -> Vec<u8> {
+            (0..w * h)
+                .map(|i| {
+                    let near = dist[i] <= near_px;
+                    u8::from(known[i] || dist[i] <= 5.0) * FLAG_INSIDE
+                        + u8::from(near) * FLAG_NEAR
+                        + u8::from(free_depth[i] > deep_px) * FLAG_DEEP
+                })
+                .collect()
+        };
         // The crop is at most MAX_FFT cells a side wherever it is aligned; a larger one is refused there.
         let flags = ScoreTarget {
             width: w as u32,
             height: h as u32,
-            flags: flag_bytes,
+            flags: flag_bytes(5.0, 20.0),
+        };
+        let flags_fine = ScoreTarget {
+            flags: flag_bytes(2.0, 3.0),
+            ..flags.clone()
         };
         let (cw, ch) = (w.div_ceil(CELL), h.div_ceil(CELL));
         let mut cwall = vec![0f32; cw * ch];
@@ -137,6 +145,7 @@ impl Prepared {
             walls,
             wall_points,
             flags,
+            flags_fine,
             dist,
             nearest,
             reference,
