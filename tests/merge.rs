@@ -422,3 +422,71 @@ fn half_overlapping_synthetic_offices_are_never_merged_wrongly() {
     }
     assert!(contradicted >= 1, "{contradicted}");
 }
+
+#[test]
+fn corner_hypotheses_align_a_map_with_itself_and_need_prepared_corners() {
+    use ogm_corners::merge::align::{align_prepared, Prepared};
+    use ogm_corners::merge::hypotheses::Hypotheses;
+    use ogm_corners::{Baseline, DetectorKind};
+    let map = OccupancyMap::from_image(common::cluttered_office(400, 300, 3));
+    for d in [
+        DetectorKind::OgmRobust,
+        DetectorKind::Baseline(Baseline::Harris),
+    ] {
+        let p = Prepared::with_corners(&map, d).unwrap();
+        let options = MergeOptions {
+            hypotheses: Hypotheses::Corners(d),
+            ..MergeOptions::default()
+        };
+        let al = align_prepared(&p, &p, &options).unwrap();
+        let t = al.transform;
+        assert!(al.accepted, "{d:?}: {:?}", al.reason);
+        assert!(
+            t.theta_deg.abs() < 0.2 && t.tx.hypot(t.ty) < 1.0,
+            "{d:?}: {t:?}"
+        );
+    }
+    // Corner hypotheses on maps prepared without corners: an error, not a silent dense run.
+    let p = Prepared::new(&map);
+    let options = MergeOptions {
+        hypotheses: Hypotheses::Both(DetectorKind::Ogm),
+        ..MergeOptions::default()
+    };
+    assert!(align_prepared(&p, &p, &options).is_err());
+}
+
+#[test]
+fn merge_eval_ablation_writes_one_row_per_hypothesis_source() {
+    let d = tempfile::tempdir().unwrap();
+    std::fs::create_dir(d.path().join("maps")).unwrap();
+    common::cluttered_office(300, 240, 4)
+        .write_pgm(&d.path().join("maps/o1.pgm"))
+        .unwrap();
+    common::cluttered_office(300, 240, 4)
+        .write_pgm(&d.path().join("maps/o2.pgm"))
+        .unwrap();
+    std::fs::write(
+        d.path().join("pairs.json"),
+        r#"{"pairs": [{"src": "o2", "dst": "o1", "building": "office", "theta_deg": 0, "tx": 0, "ty": 0,
+            "rms_limit_px": 5, "rot_limit_deg": 2, "src_points": [[10, 10], [200, 150]],
+            "dst_points": [[10, 10], [200, 150]]}], "negatives": []}"#,
+    )
+    .unwrap();
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_ogm-corners"))
+        .args(["merge-eval", "pairs.json", "--ablation", "--format", "json"])
+        .current_dir(d.path())
+        .output()
+        .unwrap();
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let rows: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let rows = rows.as_array().unwrap();
+    assert_eq!(rows.len(), 11);
+    assert_eq!(rows[0]["hypotheses"], "dense");
+    assert_eq!(rows[0]["accepted_accurate"], 1);
+    assert!(rows.iter().all(|r| r["pairs"] == 1 && r["wrong"] == 0));
+}

@@ -35,6 +35,10 @@ pub(super) struct MergeEvalArgs {
     /// Seed of the synthetic cuts.
     #[arg(long, default_value_t = 1)]
     seed: u64,
+    /// Instead of one run: the ablation of where hypotheses come from (dense correlation; corners of each
+    /// detector alone; both), one row each (a pair file only; takes a few minutes).
+    #[arg(long, conflicts_with = "synthetic")]
+    ablation: bool,
     /// Output: a summary table, or every pair's record as JSON.
     #[arg(long, value_enum, default_value = "md")]
     format: super::TextOrJsonMd,
@@ -57,6 +61,18 @@ pub(super) fn run(a: MergeEvalArgs, budget: &Budget) -> Result<()> {
                     .unwrap_or(std::path::Path::new("."))
                     .join("maps")
             });
+            if a.ablation {
+                let rows = eval::ablation(&set, &maps, &mut |h| {
+                    ogm_corners::say!("ogm-corners: merge-eval: hypotheses {h}")
+                })?;
+                return write_stdout(|out| match a.format {
+                    super::TextOrJsonMd::Md => eval::write_ablation(out, &rows),
+                    super::TextOrJsonMd::Json => {
+                        serde_json::to_writer_pretty(&mut *out, &rows)?;
+                        writeln!(out)
+                    }
+                });
+            }
             eval::run(&set, &maps, &MergeOptions::default())?
         }
         (None, sources) => {

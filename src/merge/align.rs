@@ -20,6 +20,7 @@ use rustfft::FftPlanner;
 use serde::Serialize;
 
 use super::fft::{padded, Fft2};
+use super::hypotheses::{vote, Hypotheses};
 pub use super::prepare::{prepared_bytes, Prepared, CELL};
 use super::transform::Rigid;
 use crate::backend::Backend;
@@ -65,6 +66,8 @@ const MAX_FFT: usize = 2048;
 pub struct MergeOptions {
     /// The acceptance test.
     pub accept: Acceptance,
+    /// Where the hypotheses come from (the corners are found by [`Prepared::with_corners`]).
+    pub hypotheses: Hypotheses,
 }
 
 /// The acceptance rule: `w_conflict * conflict + w_ratio * ln(coarse ratio) + w_inside * inside >=
@@ -277,6 +280,9 @@ pub fn align_prepared_with(
         })
         .collect();
     let mut coarse: Vec<(f64, Crop)> = Vec::new();
+    // Each rotation's correlation, kept when corner hypotheses are scored on it.
+    let want_corners = options.hypotheses.detector().is_some();
+    let mut maps: Vec<Vec<f32>> = Vec::new();
     // Two real correlations per inverse FFT: the first as the real part, the second as the imaginary.
     for h in (0..thetas.len()).step_by(2) {
         let mut both: Vec<Complex32> = match spectra.get(h + 1) {
@@ -294,7 +300,11 @@ pub fn align_prepared_with(
                 .iter()
                 .map(|v| if which == 0 { v.re } else { v.im })
                 .collect();
-            for _ in 0..PEAKS {
+            if want_corners {
+                maps.push(vals.clone());
+            }
+            let peaks = if options.hypotheses.dense() { PEAKS } else { 0 };
+            for _ in 0..peaks {
                 let (idx, &best) = vals
                     .iter()
                     .enumerate()
@@ -331,6 +341,46 @@ pub fn align_prepared_with(
                 }
             }
         }
+    }
+    if want_corners {
+        if src.corners.is_none() || dst.corners.is_none() {
+            return Err(Error::Internal(
+                "corner hypotheses need maps prepared with their corners".to_string(),
+            ));
+        }
+        let (sk, dk) = (
+            src.corners.as_deref().unwrap_or(&[]),
+            dst.corners.as_deref().unwrap_or(&[]),
+        );
+        for (k, &theta) in thetas.iter().enumerate() {
+            let (c, s) = cs(theta);
+            for t in vote(sk, dk, theta) {
+                // Its coarse score: the correlation at the nearest shift (the inverse of the peak's
+                // translation above).
+                let u = (
+                    (t.tx - half + (c * half - s * half)) / CELL as f64 - cr.0
+                        + (c * ca.0 - s * ca.1),
+                    (t.ty - half + (s * half + c * half)) / CELL as f64 - cr.1
+                        + (s * ca.0 + c * ca.1),
+                );
+                let wrap = |v: f64| {
+                    let v = v.round() as i64;
+                    // The shifts the correlation holds: 0..n-diag, and -diag..0 wrapped to the end.
+                    (-(diag as i64)..(n - diag) as i64)
+                        .contains(&v)
+                        .then(|| v.rem_euclid(n as i64) as usize)
+                };
+                let (Some(sx), Some(sy)) = (wrap(u.0), wrap(u.1)) else {
+                    continue;
+                };
+                coarse.push((f64::from(maps[k][sy * n + sx]), Crop(t)));
+            }
+        }
+    }
+    if coarse.is_empty() {
+        return Ok(declined(
+            "no hypothesis: the maps' corners agree on no placement",
+        ));
     }
     coarse.sort_by(|x, y| y.0.total_cmp(&x.0));
     let mut picked: Vec<(f64, Crop)> = Vec::new();

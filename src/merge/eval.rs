@@ -8,10 +8,13 @@ use std::time::Instant;
 use serde::Serialize;
 
 use super::align::{align_prepared, Alignment, MergeOptions, Prepared};
+use super::hypotheses::Hypotheses;
 use super::pairs::PairSet;
 use super::synthetic::{
     synthetic_pair, SyntheticSpec, SYNTHETIC_RMS_LIMIT_PX, SYNTHETIC_ROT_LIMIT_DEG,
 };
+use crate::backend::DetectorKind;
+use crate::baselines::Baseline;
 use crate::error::Result;
 use crate::map::OccupancyMap;
 
@@ -57,7 +60,11 @@ pub fn run(set: &PairSet, maps: &Path, options: &MergeOptions) -> Result<(Vec<Pa
                 .unwrap_or_else(|| maps.join(format!("{name}.png")));
             let map = OccupancyMap::load(&path)?;
             let t = Instant::now();
-            prepared.insert(name.to_string(), Prepared::new(&map));
+            let p = match options.hypotheses.detector() {
+                Some(d) => Prepared::with_corners(&map, d)?,
+                None => Prepared::new(&map),
+            };
+            prepared.insert(name.to_string(), p);
             prep_ms += t.elapsed().as_secs_f64() * 1e3;
         }
         Ok(())
@@ -208,6 +215,108 @@ pub fn run_synthetic(
         }
     }
     (out, prep_ms / preps.max(1) as f64)
+}
+
+/// The hypothesis sources [`ablation`] compares: dense alone, then corners alone and both, per detector.
+pub fn ablation_modes() -> Vec<Hypotheses> {
+    let detectors = [
+        DetectorKind::Ogm,
+        DetectorKind::OgmRobust,
+        DetectorKind::Baseline(Baseline::Harris),
+        DetectorKind::Baseline(Baseline::ShiTomasi),
+        DetectorKind::Baseline(Baseline::Trajkovic),
+    ];
+    std::iter::once(Hypotheses::Dense)
+        .chain(detectors.iter().map(|&d| Hypotheses::Corners(d)))
+        .chain(detectors.iter().map(|&d| Hypotheses::Both(d)))
+        .collect()
+}
+
+/// One row of [`ablation`].
+#[derive(Clone, Debug, Serialize)]
+pub struct AblationRow {
+    /// The hypothesis source ([`Hypotheses::name`]).
+    pub hypotheses: String,
+    /// Pairs of one place.
+    pub pairs: usize,
+    /// Accepted and accurate.
+    pub accepted_accurate: usize,
+    /// Accurate if all were accepted.
+    pub accurate: usize,
+    /// An accurate transform among the refined candidates.
+    pub found: usize,
+    /// Accepted and not accurate.
+    pub wrong: usize,
+    /// Pairs of different places accepted.
+    pub negatives_accepted: usize,
+    /// Median time of `align` a pair, milliseconds.
+    pub median_ms: f64,
+    /// Mean time to prepare a map (corner detection included), milliseconds.
+    pub prepare_ms: f64,
+}
+
+/// Runs the merger over `set` once per hypothesis source of [`ablation_modes`], the acceptance rule as
+/// calibrated for dense hypotheses; `progress` hears of each source as it starts.
+pub fn ablation(
+    set: &PairSet,
+    maps: &Path,
+    progress: &mut dyn FnMut(&str),
+) -> Result<Vec<AblationRow>> {
+    let mut out = Vec::new();
+    for h in ablation_modes() {
+        progress(&h.name());
+        let options = MergeOptions {
+            hypotheses: h,
+            ..MergeOptions::default()
+        };
+        let (rows, prepare_ms) = run(set, maps, &options)?;
+        let pos: Vec<&PairRecord> = rows.iter().filter(|r| !r.negative).collect();
+        let mut ms: Vec<f64> = pos.iter().map(|r| r.ms).collect();
+        ms.sort_by(f64::total_cmp);
+        out.push(AblationRow {
+            hypotheses: h.name(),
+            pairs: pos.len(),
+            accepted_accurate: pos.iter().filter(|r| r.accepted && r.accurate).count(),
+            accurate: pos.iter().filter(|r| r.accurate).count(),
+            found: pos
+                .iter()
+                .filter(|r| r.accurate_candidates.iter().any(|&a| a))
+                .count(),
+            wrong: pos.iter().filter(|r| r.accepted && !r.accurate).count(),
+            negatives_accepted: rows.iter().filter(|r| r.negative && r.accepted).count(),
+            median_ms: ms.get(ms.len() / 2).copied().unwrap_or(0.0),
+            prepare_ms,
+        });
+    }
+    Ok(out)
+}
+
+/// The ablation as a markdown table.
+pub fn write_ablation(out: &mut dyn Write, rows: &[AblationRow]) -> io::Result<()> {
+    writeln!(
+        out,
+        "| hypotheses | accepted and accurate | accurate if all accepted | accurate among the candidates | wrong accepts | negatives accepted | median ms | prepare ms |"
+    )?;
+    writeln!(out, "|---|---|---|---|---|---|---|---|")?;
+    for r in rows {
+        let pct = |k: usize| 100.0 * k as f64 / r.pairs.max(1) as f64;
+        writeln!(
+            out,
+            "| {} | {} ({:.1}%) | {} ({:.1}%) | {} ({:.1}%) | {} | {} | {:.0} | {:.0} |",
+            r.hypotheses,
+            r.accepted_accurate,
+            pct(r.accepted_accurate),
+            r.accurate,
+            pct(r.accurate),
+            r.found,
+            pct(r.found),
+            r.wrong,
+            r.negatives_accepted,
+            r.median_ms,
+            r.prepare_ms
+        )?;
+    }
+    Ok(())
 }
 
 /// The row of the pairs the acceptance rule was fitted on.

@@ -6,12 +6,14 @@
 //! - [`compose`](mod@compose): the merged map in A's frame.
 //! - [`pairs`]: pair sets with ground truth and their success test (`merge-eval`).
 //! - [`synthetic`]: pairs with exact truth cut from any map.
+//! - [`hypotheses`]: where the aligner's hypotheses come from (dense correlation, corners, both).
 
 pub mod align;
 pub mod compose;
 mod distance;
 pub mod eval;
 mod fft;
+pub mod hypotheses;
 pub mod pairs;
 mod prepare;
 pub mod synthetic;

@@ -40,6 +40,8 @@ pub struct Prepared {
     pub(super) reference: [(f64, f64); 5],
     /// Dominant wall direction, degrees in [0, 90).
     pub(super) angle: f64,
+    /// Corners for corner hypotheses (crop coordinates), when prepared with them.
+    pub(super) corners: Option<Vec<(f64, f64)>>,
     pub(super) cw: usize,
     pub(super) ch: usize,
     pub(super) cwall: Vec<f32>,
@@ -150,12 +152,30 @@ impl Prepared {
             nearest,
             reference,
             angle,
+            corners: None,
             cw,
             ch,
             cwall,
             cwall_dil,
             cfree,
         }
+    }
+
+    /// [`Prepared::new`] with `detector`'s corners for corner hypotheses.
+    pub fn with_corners(
+        map: &OccupancyMap,
+        detector: crate::backend::DetectorKind,
+    ) -> crate::error::Result<Prepared> {
+        let mut p = Prepared::new(map);
+        let (ox, oy) = p.off;
+        p.corners = Some(
+            super::hypotheses::corners(map, detector)?
+                .into_iter()
+                .map(|(x, y)| (x - ox, y - oy))
+                .filter(|&(x, y)| x >= 0.0 && y >= 0.0 && x < p.w as f64 && y < p.h as f64)
+                .collect(),
+        );
+        Ok(p)
     }
 
     /// Crop index of the pixel nearest to (x, y), if inside the crop.
