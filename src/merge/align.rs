@@ -1,19 +1,24 @@
-//! Aligning map B onto map A with no initial pose (the design measured in a prototype on the shared
-//! merge-pairs data, then ported; the README's "Merging maps" gives the figures).
+//! Aligning map B onto map A with no initial pose (designed in a prototype on the shared merge-pairs data,
+//! then extended with the synthetic suite of partial overlaps; the README's "Merging maps" gives the
+//! figures).
 //!
 //! Per map, once ([`Prepared`]): the known area's bounding box (plus 8 px); wall pixels (occupied with a
 //! free 8-neighbour); the dominant wall direction modulo 90 degrees (projection profile of the wall
 //! pixels); exact Euclidean distance maps to the nearest occupied pixel (with that pixel) and into free
-//! space; coarse masks of [`CELL`] px cells: walls (any occupied; also dilated by one cell) and free cells
-//! (all free, eroded by one cell).
+//! space; the scoring kernel's flag bytes; coarse masks at cell sides of [`CELLS`]: walls (a cell with an
+//! occupied pixel that is not speckle; also dilated by one cell) and free cells (mostly free, a cell from
+//! any wall).
 //!
-//! Per pair: 20 rotation hypotheses (the two dominant directions' difference, the four quarter turns,
-//! offsets of -2..2 degrees); for each, B's coarse masks turned into A's orientation and correlated with
-//! A's over every shift by FFT (walls on dilated walls, minus a quarter of walls on free cells either way);
-//! the 3 best peaks of each; the 4 best mutually distinct candidates refined by trimmed ICP of B's wall
-//! pixels onto A's nearest occupied pixels; the one with the best coarse score is the estimate. It is
-//! accepted when a linear rule over three features, fitted on half of the real pairs, clears its
-//! threshold with a margin ([`Acceptance`]).
+//! Per pair: the finest coarse level whose correlation fits [`FINE_FFT`] cells a side; 20 rotation
+//! hypotheses (the two dominant directions' difference, the four quarter turns, offsets of -2..2
+//! degrees); for each, B's coarse masks turned into A's orientation and correlated with A's over every
+//! shift by FFT (walls on dilated walls, minus walls on free cells either way); the 3 best peaks of each
+//! (and corner hypotheses, when asked: [`super::hypotheses`]); the 8 best mutually distinct candidates
+//! refined by trimmed ICP of B's wall pixels onto A's nearest wall pixels and verified by the scoring
+//! kernel; the estimate is the candidate with the best product of its coarse score (relative to the best)
+//! and its drift-tolerant local agreement. It is accepted when a linear rule over three features, fitted
+//! on half of the real pairs, clears its threshold with a margin ([`Acceptance`]), and no floor or veto
+//! says otherwise ([`accepts`]).
 
 use rustfft::num_complex::Complex32;
 use rustfft::FftPlanner;
@@ -21,7 +26,7 @@ use serde::Serialize;
 
 use super::fft::{padded, Fft2};
 use super::hypotheses::{vote, Hypotheses};
-pub use super::prepare::{prepared_bytes, Prepared, CELL};
+pub use super::prepare::{prepared_bytes, Prepared, CELLS};
 use super::transform::Rigid;
 use crate::backend::Backend;
 use crate::cpu::merge_score::FixedRigid;
@@ -30,20 +35,20 @@ use crate::error::{Error, Result};
 use crate::map::OccupancyMap;
 
 /// Weight of walls on free space in the coarse score.
-const LAMBDA: f32 = 0.25;
+const LAMBDA: f32 = 1.0;
 /// Rotation offsets tried around each quarter turn, degrees.
 const OFFSETS: [f64; 5] = [-2.0, -1.0, 0.0, 1.0, 2.0];
 /// Peaks kept per rotation hypothesis.
 const PEAKS: usize = 3;
 /// Candidates refined.
-const REFINED: usize = 4;
+const REFINED: usize = 8;
 /// Two candidates are distinct when they move B's reference points (wall bounding box corners and
 /// centroid) by more than this RMS, pixels.
 const DISTINCT_PX: f64 = 40.0;
 /// Whatever the rule says, an alignment must beat its best distinct alternative's coarse score by this
-/// factor: a symmetric map turned by 180 degrees, or a map of noise, is no merge. (The 194 accepted real
-/// pairs have 1.052 or more.)
-pub const MIN_COARSE_RATIO: f64 = 1.04;
+/// factor: a symmetric map turned by 180 degrees, or a map of noise, is no merge. (The accepted right
+/// real pairs of the calibration half have 1.12 or more.)
+pub const MIN_COARSE_RATIO: f64 = 1.1;
 /// Whatever the rule says, an alignment is contradicted when more than this share of the walls that fall
 /// in the other map lie over 3 px deep in its free space ([`Features::conflict_fine`]). The highest of the
 /// accepted right real pairs of the calibration half is 0.550 (held-out: 0.53); the half-turned offices
@@ -58,8 +63,12 @@ pub fn accepts(features: &Features, rule_value: f64) -> bool {
         && features.conflict_fine <= MAX_FINE_CONFLICT
 }
 
+/// The coarse ratio's cap: no distinct alternative at all counts as this.
+const MAX_RATIO: f64 = 10.0;
 /// Largest coarse correlation side.
 const MAX_FFT: usize = 2048;
+/// The finest coarse level whose correlation side is at most this is used.
+pub const FINE_FFT: usize = 256;
 
 /// How to align.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -72,7 +81,8 @@ pub struct MergeOptions {
 
 /// The acceptance rule: `w_conflict * conflict + w_ratio * ln(coarse ratio) + w_inside * inside >=
 /// threshold` (weights and threshold from a linear discriminant fitted on the calibration half of the real
-/// pairs, the threshold 0.3 standard units above the highest score of a wrong estimate or a negative there).
+/// pairs and every other negative, the threshold 0.3 standard units above the highest score of a wrong
+/// estimate or a negative there).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
 pub struct Acceptance {
     /// Weight of [`Features::conflict`].
@@ -88,10 +98,10 @@ pub struct Acceptance {
 impl Default for Acceptance {
     fn default() -> Self {
         Acceptance {
-            w_conflict: -5.8301,
-            w_ratio: 3.1168,
-            w_inside: 1.2226,
-            threshold: 0.3749,
+            w_conflict: -0.2141,
+            w_ratio: 5.1936,
+            w_inside: 10.266,
+            threshold: 6.2079,
         }
     }
 }
@@ -122,11 +132,18 @@ pub struct Features {
     pub coarse_ratio: f64,
     /// Share of both maps' wall pixels within 5 px of the other's walls.
     pub matched: f64,
-    /// Share of both maps' wall pixels within 2 px of the other's walls.
+    /// Share of both maps' wall pixels landing on an occupied pixel of the other.
     pub matched_fine: f64,
     /// Share of both maps' wall pixels more than 3 px deep inside the other map's free space (the
     /// contradiction veto, [`MAX_FINE_CONFLICT`]).
     pub conflict_fine: f64,
+    /// Drift-tolerant local agreement: in 48 px tiles of the overlap, the share of wall pixels within
+    /// 1.5 px of the other map's walls after the tile's best shift of up to 6 px (both maps into each
+    /// other, weighted by wall pixels). 0 for a candidate whose coarse score could not make it the choice
+    /// (not measured).
+    pub local: f64,
+    /// The coarse score over the smaller map's wall cells (as the FFT scales it).
+    pub coarse_norm: f64,
 }
 
 /// One refined candidate.
@@ -200,8 +217,19 @@ pub fn align_prepared_with(
             "a map has (almost) no walls next to free space: nothing to align",
         ));
     }
-    let diag = ((src.ch as f64).hypot(src.cw as f64)).ceil() as usize + 2;
-    let n = (dst.ch.max(dst.cw) + diag).next_power_of_two();
+    // The finest level whose correlation fits FINE_FFT cells a side (else the coarsest).
+    let sizes = |l: usize| {
+        let (s, d) = (src.levels[l].as_ref()?, dst.levels[l].as_ref()?);
+        let diag = ((s.ch as f64).hypot(s.cw as f64)).ceil() as usize + 2;
+        Some((diag, (d.ch.max(d.cw) + diag).next_power_of_two(), s, d))
+    };
+    let coarsest = CELLS.len() - 1;
+    let (diag, n, sc, dc) = (0..coarsest)
+        .filter_map(sizes)
+        .find(|l| l.1 <= FINE_FFT)
+        .or_else(|| sizes(coarsest))
+        .expect("the coarsest level is always prepared");
+    let cell = sc.cell;
     if n > MAX_FFT {
         return Err(Error::invalid(format!(
             "maps whose explored parts span {}x{} and {}x{} pixels are too large to align (at most {} \
@@ -223,18 +251,18 @@ pub fn align_prepared_with(
         fwd.run(&mut c);
         c
     };
-    let fb_wall_dil = spectrum(&dst.cwall_dil, dst.cw, dst.ch);
-    let fb_free = spectrum(&dst.cfree, dst.cw, dst.ch);
-    let fb_wall = spectrum(&dst.cwall, dst.cw, dst.ch);
+    let fb_wall_dil = spectrum(&dc.cwall_dil, dc.cw, dc.ch);
+    let fb_free = spectrum(&dc.cfree, dc.cw, dc.ch);
+    let fb_wall = spectrum(&dc.cwall, dc.cw, dc.ch);
     let fb1: Vec<Complex32> = fb_wall_dil
         .iter()
         .zip(&fb_free)
         .map(|(w, f)| w - f * LAMBDA)
         .collect();
     let base = dst.angle - src.angle;
-    let ca = ((src.cw as f64 - 1.0) / 2.0, (src.ch as f64 - 1.0) / 2.0);
+    let ca = ((sc.cw as f64 - 1.0) / 2.0, (sc.ch as f64 - 1.0) / 2.0);
     let cr = ((diag as f64 - 1.0) / 2.0, (diag as f64 - 1.0) / 2.0);
-    let half = (CELL as f64 - 1.0) / 2.0;
+    let half = (cell as f64 - 1.0) / 2.0;
     let thetas: Vec<f64> = (0..4)
         .flat_map(|k| {
             OFFSETS
@@ -244,8 +272,9 @@ pub fn align_prepared_with(
         .collect();
     // Each hypothesis's correlation spectrum: src's two real masks go through one complex FFT (walls as
     // the real part, free cells as the imaginary one) and are told apart by symmetry.
+    use rayon::prelude::*;
     let spectra: Vec<Vec<Complex32>> = thetas
-        .iter()
+        .par_iter()
         .map(|&theta| {
             let (c, s) = cs(theta);
             // src's coarse masks turned by theta about their centre into a diag x diag canvas.
@@ -257,9 +286,9 @@ pub fn align_prepared_with(
                         (c * dx + s * dy + ca.0).round(),
                         (-s * dx + c * dy + ca.1).round(),
                     );
-                    if ax >= 0.0 && ay >= 0.0 && (ax as usize) < src.cw && (ay as usize) < src.ch {
-                        let idx = ay as usize * src.cw + ax as usize;
-                        z[j * n + i] = Complex32::new(src.cwall[idx], src.cfree[idx]);
+                    if ax >= 0.0 && ay >= 0.0 && (ax as usize) < sc.cw && (ay as usize) < sc.ch {
+                        let idx = ay as usize * sc.cw + ax as usize;
+                        z[j * n + i] = Complex32::new(sc.cwall[idx], sc.cfree[idx]);
                     }
                 }
             }
@@ -284,16 +313,24 @@ pub fn align_prepared_with(
     let want_corners = options.hypotheses.detector().is_some();
     let mut maps: Vec<Vec<f32>> = Vec::new();
     // Two real correlations per inverse FFT: the first as the real part, the second as the imaginary.
-    for h in (0..thetas.len()).step_by(2) {
-        let mut both: Vec<Complex32> = match spectra.get(h + 1) {
-            Some(second) => spectra[h]
-                .iter()
-                .zip(second)
-                .map(|(a, b)| a + b * Complex32::new(0.0, 1.0))
-                .collect(),
-            None => spectra[h].clone(),
-        };
-        inv.run(&mut both);
+    let firsts: Vec<usize> = (0..thetas.len()).step_by(2).collect();
+    let inverses: Vec<Vec<Complex32>> = firsts
+        .par_iter()
+        .map(|&h| {
+            let mut both: Vec<Complex32> = match spectra.get(h + 1) {
+                Some(second) => spectra[h]
+                    .iter()
+                    .zip(second)
+                    .map(|(a, b)| a + b * Complex32::new(0.0, 1.0))
+                    .collect(),
+                None => spectra[h].clone(),
+            };
+            inv.run(&mut both);
+            both
+        })
+        .collect();
+    drop(spectra);
+    for (&h, both) in firsts.iter().zip(&inverses) {
         for (which, theta) in thetas[h..(h + 2).min(thetas.len())].iter().enumerate() {
             let (c, s) = cs(*theta);
             let mut vals: Vec<f32> = both
@@ -323,8 +360,8 @@ pub fn align_prepared_with(
                     cr.1 - (s * ca.0 + c * ca.1) + signed(sy),
                 );
                 let t = (
-                    CELL as f64 * tc.0 + half - (c * half - s * half),
-                    CELL as f64 * tc.1 + half - (s * half + c * half),
+                    cell as f64 * tc.0 + half - (c * half - s * half),
+                    cell as f64 * tc.1 + half - (s * half + c * half),
                 );
                 coarse.push((
                     f64::from(best),
@@ -358,9 +395,9 @@ pub fn align_prepared_with(
                 // Its coarse score: the correlation at the nearest shift (the inverse of the peak's
                 // translation above).
                 let u = (
-                    (t.tx - half + (c * half - s * half)) / CELL as f64 - cr.0
+                    (t.tx - half + (c * half - s * half)) / cell as f64 - cr.0
                         + (c * ca.0 - s * ca.1),
-                    (t.ty - half + (s * half + c * half)) / CELL as f64 - cr.1
+                    (t.ty - half + (s * half + c * half)) / cell as f64 - cr.1
                         + (s * ca.0 + c * ca.1),
                 );
                 let wrap = |v: f64| {
@@ -395,41 +432,88 @@ pub fn align_prepared_with(
             break;
         }
     }
-    let icped: Vec<(f64, Rigid)> = picked
-        .iter()
-        .map(|&(score, Crop(t))| (score, icp(src, dst, t)))
-        .collect();
+    let icped: Vec<(f64, Rigid)> = {
+        use rayon::prelude::*;
+        picked
+            .par_iter()
+            .map(|&(score, Crop(t))| (score, icp(src, dst, t)))
+            .collect()
+    };
     let verified = verify(src, dst, &icped, backend)?;
+    // The local agreement of each candidate, in coarse order, skipping those that cannot win the choice
+    // below (their coarse share is under the best product so far, and the agreement is at most 1).
+    let top = icped.iter().map(|r| r.0).fold(f64::MIN, f64::max).max(1e-9);
+    let mut locals = vec![0.0; icped.len()];
+    let mut best_key = 0.0;
+    for (i, (score, t)) in icped.iter().enumerate() {
+        if score / top <= best_key {
+            continue;
+        }
+        let ((a, na), (b, nb)) = rayon::join(
+            || local_agreement(src, dst, t),
+            || local_agreement(dst, src, &t.inverse()),
+        );
+        locals[i] = (a * na + b * nb) / (na + nb).max(1.0);
+        best_key = f64::max(best_key, locals[i] * score / top);
+    }
+    let walls_cells = |c: &super::prepare::Coarse| c.cwall.iter().sum::<f32>();
+    let coarse_unit = (n * n) as f64 * f64::from(walls_cells(sc).min(walls_cells(dc)).max(1.0));
+    let to_full = |t: &Rigid| {
+        // Back to the maps' own pixels: p_dst = R (p_src - off_src) + t + off_dst.
+        let (c, s) = cs(t.theta_deg);
+        Rigid {
+            theta_deg: t.theta_deg,
+            tx: t.tx - (c * src.off.0 - s * src.off.1) + dst.off.0,
+            ty: t.ty - (s * src.off.0 + c * src.off.1) + dst.off.1,
+        }
+        .normalized()
+    };
+    let crops: Vec<Rigid> = icped.iter().map(|r| r.1).collect();
     let refined: Vec<(f64, Rigid, Features)> = icped
         .iter()
         .zip(verified)
-        .map(|(&(score, t), mut f)| {
+        .zip(locals)
+        .map(|((&(score, t), mut f), local)| {
             f.coarse = score;
-            // Back to the maps' own pixels: p_dst = R (p_src - off_src) + t + off_dst.
-            let (c, s) = cs(t.theta_deg);
-            let full = Rigid {
-                theta_deg: t.theta_deg,
-                tx: t.tx - (c * src.off.0 - s * src.off.1) + dst.off.0,
-                ty: t.ty - (s * src.off.0 + c * src.off.1) + dst.off.1,
-            }
-            .normalized();
-            (score, full, f)
+            f.local = local;
+            f.coarse_norm = score / coarse_unit;
+            (score, to_full(&t), f)
         })
         .collect();
     let dist = |x: &Rigid, y: &Rigid| {
         let d = (x.theta_deg - y.theta_deg + 180.0).rem_euclid(360.0) - 180.0;
         (x.tx - y.tx).hypot(x.ty - y.ty) + 10.0 * d.abs()
     };
-    // The best coarse score wins (tried: the best full-resolution wall support when the coarse level is
-    // ambiguous; it accepted 1 wrong pair and 4 negatives of the real set). How far it stands out: over
-    // the best distinct alternative's.
+    // The candidate whose coarse score, relative to the best one, times its local agreement is highest
+    // wins: the coarse score alone prefers a wrong placement laying one map fully over the other to a
+    // true, smaller overlap; the local agreement alone, small overlaps of a few matching walls. How far
+    // it stands out: its coarse score over the best distinct alternative's (at most 10).
+    let key = |r: &(f64, Rigid, Features)| r.2.local * r.0 / top;
+    let mut order: Vec<usize> = (0..refined.len()).collect();
+    // Stable: ties keep the coarse order.
+    order.sort_by(|&x, &y| key(&refined[y]).total_cmp(&key(&refined[x])));
+    let mut refined: Vec<(f64, Rigid, Features)> = order.iter().map(|&i| refined[i]).collect();
+    // The chosen one polished to a fraction of a pixel, and verified again.
+    let polished = polish(src, dst, &crops[order[0]], backend)?;
+    let again = verify(src, dst, &[(refined[0].0, polished)], backend)?[0];
+    refined[0].1 = to_full(&polished);
+    refined[0].2 = Features {
+        coarse: refined[0].2.coarse,
+        local: refined[0].2.local,
+        coarse_norm: refined[0].2.coarse_norm,
+        ..again
+    };
     let (best_score, best, mut features) = refined[0];
     let runner = refined[1..]
         .iter()
         .filter(|r| dist(&r.1, &best) > DISTINCT_PX)
         .map(|r| r.0)
         .fold(f64::NEG_INFINITY, f64::max);
-    features.coarse_ratio = best_score / runner.max(1e-9);
+    features.coarse_ratio = if runner > 0.0 {
+        (best_score / runner).min(MAX_RATIO)
+    } else {
+        MAX_RATIO
+    };
     let score = options.accept.margin(&features);
     let accepted = accepts(&features, score);
     let reason = (!accepted).then(|| {
@@ -496,23 +580,88 @@ fn reference_rms(src: &Prepared, x: &Rigid, y: &Rigid) -> f64 {
     (sum / src.reference.len() as f64).sqrt()
 }
 
-/// Trimmed ICP of src's wall pixels onto dst's nearest occupied pixels: 20 iterations, the trimming
+/// `t` (src crop to dst crop) moved by up to half a pixel and turned by up to 0.1 degree about src's
+/// walls' centre to where most wall pixels of each map land on occupied pixels of the other: 75
+/// transforms scored by the kernel at once, the first best one kept (`t` itself first).
+fn polish(src: &Prepared, dst: &Prepared, t: &Rigid, backend: &mut dyn Backend) -> Result<Rigid> {
+    let c = src.reference[4];
+    let mut grid = vec![*t];
+    for d in [-0.1, 0.0, 0.1] {
+        let (cd, sd) = cs(d);
+        // p -> t(R_d (p - c) + c): the same turn about c.
+        let shift = (c.0 - (cd * c.0 - sd * c.1), c.1 - (sd * c.0 + cd * c.1));
+        let (ct, st) = cs(t.theta_deg);
+        let base = Rigid {
+            theta_deg: t.theta_deg + d,
+            tx: t.tx + ct * shift.0 - st * shift.1,
+            ty: t.ty + st * shift.0 + ct * shift.1,
+        };
+        for dy in [-0.5, -0.25, 0.0, 0.25, 0.5] {
+            for dx in [-0.5, -0.25, 0.0, 0.25, 0.5] {
+                if d != 0.0 || dx != 0.0 || dy != 0.0 {
+                    grid.push(Rigid {
+                        tx: base.tx + dx,
+                        ty: base.ty + dy,
+                        ..base
+                    });
+                }
+            }
+        }
+    }
+    let fixed = |t: &Rigid| FixedRigid::new(t.theta_deg, t.tx, t.ty);
+    let forward: Vec<FixedRigid> = grid.iter().map(fixed).collect();
+    let backward: Vec<FixedRigid> = grid.iter().map(|t| fixed(&t.inverse())).collect();
+    let a = backend.score_transforms(&dst.flags_fine, &src.wall_points, &forward)?;
+    let b = backend.score_transforms(&src.flags_fine, &dst.wall_points, &backward)?;
+    let mut best = (0u32, *t);
+    for ((x, y), g) in a.iter().zip(&b).zip(&grid) {
+        let hits = x[1] + y[1];
+        if hits > best.0 {
+            best = (hits, *g);
+        }
+    }
+    Ok(best.1)
+}
+
+/// Trimmed ICP of src's wall pixels onto dst's nearest wall pixels: 20 iterations, the trimming
 /// distance falling from 12 to 4 px, closed-form 2-D rotation and translation each time.
 fn icp(src: &Prepared, dst: &Prepared, mut t: Rigid) -> Rigid {
     const ITERS: usize = 20;
-    let step = if src.walls.len() > 6000 { 2 } else { 1 };
-    for it in 0..ITERS {
+    // At most about 6000 wall pixels: enough for a rigid fit.
+    let step = src.walls.len().div_ceil(6000).max(1);
+    let mut it = 0;
+    while it < ITERS {
         let trim = 12.0 + (4.0 - 12.0) * it as f64 / (ITERS - 1) as f64;
         let (mut pairs_p, mut pairs_q) = (Vec::new(), Vec::new());
         for &p in src.walls.iter().step_by(step) {
             let q = t.apply(p);
-            let Some(i) = dst.index(q.0, q.1) else {
-                continue;
+            // The nearest wall pixel to q itself, not only to q's pixel: in the last iterations, among
+            // the nearest wall pixels of q's pixel and its four neighbours (sub-pixel convergence).
+            let fine = it + 5 >= ITERS;
+            let mut target: Option<(f64, f64)> = None;
+            let mut best = f64::MAX;
+            let probes: &[(f64, f64)] = if fine {
+                &[(0.0, 0.0), (1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0)]
+            } else {
+                &[(0.0, 0.0)]
             };
-            if f64::from(dst.dist[i]) < trim && dst.nearest[i] != u32::MAX {
+            for &(dx, dy) in probes {
+                let Some(i) = dst.index(q.0 + dx, q.1 + dy) else {
+                    continue;
+                };
+                if dst.nearest[i] == u32::MAX {
+                    continue;
+                }
                 let j = dst.nearest[i] as usize;
+                let c = ((j % dst.w) as f64, (j / dst.w) as f64);
+                let d = (c.0 - q.0).hypot(c.1 - q.1);
+                if d < best {
+                    (best, target) = (d, Some(c));
+                }
+            }
+            if let Some(target) = target.filter(|_| best < trim) {
                 pairs_p.push(p);
-                pairs_q.push(((j % dst.w) as f64, (j / dst.w) as f64));
+                pairs_q.push(target);
             }
         }
         if pairs_p.len() < 20 {
@@ -541,9 +690,12 @@ fn icp(src: &Prepared, dst: &Prepared, mut t: Rigid) -> Rigid {
             && (next.tx - t.tx).abs() < 1e-3
             && (next.ty - t.ty).abs() < 1e-3;
         t = next;
-        if done {
-            break;
-        }
+        // Converged: done after the sub-pixel iterations, else on to them.
+        it = match (done, it + 5 >= ITERS) {
+            (true, true) => break,
+            (true, false) => ITERS - 5,
+            _ => it + 1,
+        };
     }
     t
 }
@@ -582,8 +734,60 @@ fn verify(
                     matched: f64::from(ma + mb) / inside_total,
                     matched_fine: f64::from(fa + fb) / inside_total,
                     conflict_fine: f64::from(ga + gb) / inside_total,
+                    local: 0.0,
+                    coarse_norm: 0.0,
                 }
             },
         )
         .collect())
+}
+
+/// The local agreement of `from`'s walls mapped by `t` into `to` ([`Features::local`]) and the wall pixels
+/// it was measured on.
+fn local_agreement(from: &Prepared, to: &Prepared, t: &Rigid) -> (f64, f64) {
+    const TILE: f64 = 48.0;
+    const MIN_POINTS: usize = 24;
+    // At most about 8000 wall pixels a map: enough for every tile's share.
+    let step = from.walls.len().div_ceil(8000).max(1);
+    let mut tiles: std::collections::BTreeMap<(i64, i64), Vec<(f64, f64)>> = Default::default();
+    for &p in from.walls.iter().step_by(step) {
+        let q = t.apply(p);
+        if to.index(q.0, q.1).is_some() {
+            tiles
+                .entry(((q.0 / TILE).floor() as i64, (q.1 / TILE).floor() as i64))
+                .or_default()
+                .push(q);
+        }
+    }
+    let near = |pts: &[(f64, f64)], dx: f64, dy: f64| {
+        pts.iter()
+            .filter(|q| {
+                to.index(q.0 + dx, q.1 + dy)
+                    .is_some_and(|i| to.dist[i] <= 1.5)
+            })
+            .count()
+    };
+    let (mut hit, mut total) = (0usize, 0usize);
+    for pts in tiles.values().filter(|p| p.len() >= MIN_POINTS) {
+        // Shifts of up to 6 px in steps of 2, then the best one's neighbours.
+        let mut best = (0usize, 0.0, 0.0);
+        for dy in (-6..=6).step_by(2) {
+            for dx in (-6..=6).step_by(2) {
+                let c = near(pts, f64::from(dx), f64::from(dy));
+                if c > best.0 {
+                    best = (c, f64::from(dx), f64::from(dy));
+                }
+            }
+        }
+        let (_, bx, by) = best;
+        for dy in -1..=1 {
+            for dx in -1..=1 {
+                let c = near(pts, bx + f64::from(dx), by + f64::from(dy));
+                best.0 = best.0.max(c);
+            }
+        }
+        hit += best.0;
+        total += pts.len();
+    }
+    (hit as f64 / total.max(1) as f64, total as f64)
 }

@@ -28,19 +28,34 @@ pub(super) fn edt(mask: &[bool], w: usize, h: usize) -> (Vec<f32>, Vec<u32>) {
             (out, rows)
         })
         .collect();
+    // The columns' results row by row (in 64 x 64 blocks, so both sides stay in cache), for the rows.
+    let mut g = vec![0f64; w * h];
+    let mut seed_row = vec![0u32; w * h];
+    const B: usize = 64;
+    for x0 in (0..w).step_by(B) {
+        for y0 in (0..h).step_by(B) {
+            for (x, (col, rows)) in columns.iter().enumerate().skip(x0).take(B) {
+                for y in y0..(y0 + B).min(h) {
+                    g[y * w + x] = col[y];
+                    seed_row[y * w + x] = rows[y];
+                }
+            }
+        }
+    }
+    drop(columns);
     let mut dist = vec![f32::MAX; w * h];
     let mut nearest = vec![u32::MAX; w * h];
     dist.par_chunks_mut(w.max(1))
         .zip(nearest.par_chunks_mut(w.max(1)))
         .enumerate()
         .for_each(|(y, (drow, nrow))| {
-            let f: Vec<f64> = (0..w).map(|x| columns[x].0[y]).collect();
+            let f = &g[y * w..(y + 1) * w];
             let (mut out, mut arg) = (vec![0f64; w], vec![0usize; w]);
-            envelope(&f, &mut out, &mut arg);
+            envelope(f, &mut out, &mut arg);
             for x in 0..w {
                 if out[x] < INF / 2.0 {
                     let sx = arg[x];
-                    let sy = columns[sx].1[y];
+                    let sy = seed_row[y * w + sx];
                     drow[x] = out[x].sqrt() as f32;
                     nrow[x] = sy * w as u32 + sx as u32;
                 }

@@ -7,8 +7,9 @@ use crate::cpu::merge_score::{ScoreTarget, FLAG_DEEP, FLAG_INSIDE, FLAG_NEAR};
 use crate::map::OccupancyMap;
 use crate::states::{CellState, ClassTable};
 
-/// Coarse cell side of the correlation, pixels.
-pub const CELL: usize = 16;
+/// Coarse cell sides the correlation may use, pixels: per pair, the finest whose FFT stays small (so a
+/// small map is correlated at 4 px, the 1585 px maps of the real pairs at 16).
+pub const CELLS: [usize; 3] = [4, 8, 16];
 /// Margin around the known area, pixels.
 const PAD: usize = 8;
 
@@ -31,10 +32,12 @@ pub struct Prepared {
     /// What another map's walls landing on each pixel count as (the scoring kernel's target): inside
     /// (known, or within 5 px of a wall), near a wall (within 5 px), deep in free space (over 20 px).
     pub(super) flags: ScoreTarget,
-    /// The same at a finer tolerance: near within 2 px, deep over 3 px (the contradiction veto).
+    /// The same at a finer tolerance: near = on an occupied pixel (the sub-pixel polish), deep over 3 px
+    /// (the contradiction veto).
     pub(super) flags_fine: ScoreTarget,
-    /// Distance to the nearest occupied pixel, and that pixel (crop index).
+    /// Distance to the nearest occupied pixel.
     pub(super) dist: Vec<f32>,
+    /// The nearest wall pixel (crop index; `u32::MAX` without walls), ICP's target.
     pub(super) nearest: Vec<u32>,
     /// Wall bounding box corners and centroid.
     pub(super) reference: [(f64, f64); 5],
@@ -42,11 +45,57 @@ pub struct Prepared {
     pub(super) angle: f64,
     /// Corners for corner hypotheses (crop coordinates), when prepared with them.
     pub(super) corners: Option<Vec<(f64, f64)>>,
+    /// The coarse masks, one level per cell side of [`CELLS`]: the coarsest always, a finer one when
+    /// this map is small enough for it to be chosen.
+    pub(super) levels: Vec<Option<Coarse>>,
+}
+
+/// A map's coarse masks at one cell side.
+pub(super) struct Coarse {
+    /// Cell side, pixels.
+    pub(super) cell: usize,
+    /// Cells across and down.
     pub(super) cw: usize,
     pub(super) ch: usize,
+    /// Cells with a wall pixel that is not speckle.
     pub(super) cwall: Vec<f32>,
+    /// The same dilated by a cell.
     pub(super) cwall_dil: Vec<f32>,
+    /// Cells mostly free and at least a cell from any wall cell.
     pub(super) cfree: Vec<f32>,
+}
+
+impl Coarse {
+    fn new(solid: &[bool], free: &[bool], w: usize, h: usize, cell: usize) -> Coarse {
+        let (cw, ch) = (w.div_ceil(cell), h.div_ceil(cell));
+        let mut cwall = vec![0f32; cw * ch];
+        let mut n_free = vec![0usize; cw * ch];
+        for y in 0..h {
+            for x in 0..w {
+                let c = (y / cell) * cw + x / cell;
+                if solid[y * w + x] {
+                    cwall[c] = 1.0;
+                }
+                n_free[c] += usize::from(free[y * w + x]);
+            }
+        }
+        let cwall_dil = morph(&cwall, cw, ch, true);
+        let cfree = (0..cw * ch)
+            .map(|c| {
+                f32::from(u8::from(
+                    n_free[c] * 2 >= cell * cell && cwall_dil[c] == 0.0,
+                ))
+            })
+            .collect();
+        Coarse {
+            cell,
+            cw,
+            ch,
+            cwall,
+            cwall_dil,
+            cfree,
+        }
+    }
 }
 
 impl Prepared {
@@ -94,16 +143,24 @@ impl Prepared {
                 }
             }
         }
-        let (dist, nearest) = edt(&occ, w, h);
+        let (dist, _) = edt(&occ, w, h);
+        // ICP pulls walls onto the other map's nearest wall pixel (occupied, next to free space): inside a
+        // thick wall every occupied pixel is its own nearest, which would hold an estimate off by a pixel.
+        let mut boundary = vec![false; w * h];
+        for &(x, y) in &walls {
+            boundary[y as usize * w + x as usize] = true;
+        }
+        let (_, nearest) = edt(&boundary, w, h);
         let not_free: Vec<bool> = free.iter().map(|&f| !f).collect();
         let (free_depth, _) = edt(&not_free, w, h);
         let reference = reference_points(&walls);
         let angle = dominant_angle(&walls);
         let wall_points = walls.iter().map(|&(x, y)| [x as u32, y as u32]).collect();
-        let flag_bytes = |near_px: f32, deep_px: f32| -> Vec<u8> {
+        // Near: within `near_px` of an occupied pixel, or (None) on one.
+        let flag_bytes = |near_px: Option<f32>, deep_px: f32| -> Vec<u8> {
             (0..w * h)
                 .map(|i| {
-                    let near = dist[i] <= near_px;
+                    let near = near_px.map_or(occ[i], |d| dist[i] <= d);
                     u8::from(known[i] || dist[i] <= 5.0) * FLAG_INSIDE
                         + u8::from(near) * FLAG_NEAR
                         + u8::from(free_depth[i] > deep_px) * FLAG_DEEP
@@ -114,32 +171,33 @@ impl Prepared {
         let flags = ScoreTarget {
             width: w as u32,
             height: h as u32,
-            flags: flag_bytes(5.0, 20.0),
+            flags: flag_bytes(Some(5.0), 20.0),
         };
         let flags_fine = ScoreTarget {
-            flags: flag_bytes(2.0, 3.0),
+            flags: flag_bytes(None, 3.0),
             ..flags.clone()
         };
-        let (cw, ch) = (w.div_ceil(CELL), h.div_ceil(CELL));
-        let mut cwall = vec![0f32; cw * ch];
-        let mut all_free = vec![1f32; cw * ch];
-        for cy in 0..ch {
-            for cx in 0..cw {
-                for y in cy * CELL..cy * CELL + CELL {
-                    for x in cx * CELL..cx * CELL + CELL {
-                        let inside = x < w && y < h;
-                        if inside && occ[y * w + x] {
-                            cwall[cy * cw + cx] = 1.0;
-                        }
-                        if !inside || !free[y * w + x] {
-                            all_free[cy * cw + cx] = 0.0;
-                        }
-                    }
-                }
+        // The coarse walls leave out speckle: an occupied pixel with no occupied 8-neighbour.
+        let mut solid = vec![false; w * h];
+        for y in 0..h {
+            let rows = y.saturating_sub(1)..(y + 2).min(h);
+            for x in (0..w).filter(|&x| occ[y * w + x]) {
+                let cols = x.saturating_sub(1)..(x + 2).min(w);
+                solid[y * w + x] = rows.clone().any(|yy| {
+                    cols.clone()
+                        .any(|xx| (xx, yy) != (x, y) && occ[yy * w + xx])
+                });
             }
         }
-        let cfree = morph(&all_free, cw, ch, false);
-        let cwall_dil = morph(&cwall, cw, ch, true);
+        let levels = CELLS
+            .iter()
+            .enumerate()
+            .map(|(i, &c)| {
+                // A level is chosen only when this map spans at most FINE_FFT of its cells.
+                let usable = w.max(h).div_ceil(c) <= super::align::FINE_FFT;
+                (usable || i == CELLS.len() - 1).then(|| Coarse::new(&solid, &free, w, h, c))
+            })
+            .collect();
         Prepared {
             off: (x0 as f64, y0 as f64),
             w,
@@ -153,11 +211,7 @@ impl Prepared {
             reference,
             angle,
             corners: None,
-            cw,
-            ch,
-            cwall,
-            cwall_dil,
-            cfree,
+            levels,
         }
     }
 
