@@ -519,3 +519,33 @@ fn accepted_synthetic_pairs_are_recovered_within_a_pixel_and_half_a_degree() {
     eprintln!("synthetic offices: {accepted} of 16 merged");
     assert!(accepted >= 1);
 }
+
+#[test]
+fn a_map_that_looks_the_same_turned_is_declined_as_ambiguous() {
+    // A plan made point-symmetric: its right half is its left half turned by 180 degrees. Merged with
+    // itself, the identity and the half turn fit equally well: no merge.
+    let half = common::cluttered_office(200, 240, 6);
+    let (w, h) = (400u32, 240u32);
+    let px: Vec<u8> = (0..h)
+        .flat_map(|y| (0..w).map(move |x| (x, y)))
+        .map(|(x, y)| {
+            if x < 200 {
+                half.get(x, y)
+            } else {
+                half.get(399 - x, h - 1 - y)
+            }
+        })
+        .collect();
+    let map = OccupancyMap::from_image(MapImage::new(w, h, px).unwrap());
+    let al = align(&map, &map, &MergeOptions::default()).unwrap();
+    assert!(!al.accepted, "{:?}", al.transform);
+    let why = al.reason.unwrap();
+    assert!(why.starts_with("ambiguous"), "{why}");
+    // Its self-match is over the limit; a plan that is not symmetric stays well under it.
+    use ogm_corners::merge::align::{self_symmetry, Prepared, MAX_SELF_SYMMETRY};
+    let s = self_symmetry(&Prepared::new(&map)).unwrap();
+    assert!(s > MAX_SELF_SYMMETRY, "{s}");
+    let plain = OccupancyMap::from_image(common::cluttered_office(400, 240, 6));
+    let s = self_symmetry(&Prepared::new(&plain)).unwrap();
+    assert!(s < MAX_SELF_SYMMETRY, "{s}");
+}

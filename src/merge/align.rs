@@ -54,13 +54,21 @@ pub const MIN_COARSE_RATIO: f64 = 1.1;
 /// accepted right real pairs of the calibration half is 0.550 (held-out: 0.53); the half-turned offices
 /// of the synthetic suite have 0.6-0.7.
 pub const MAX_FINE_CONFLICT: f64 = 0.55;
+/// Whatever the rule says, a merge is ambiguous when either map matches itself under another transform
+/// this well ([`self_symmetry`]): the real maps have 0.49 at most, the symmetric arenas of the synthetic
+/// suite 0.57-0.79.
+pub const MAX_SELF_SYMMETRY: f64 = 0.55;
 
-/// Whether an alignment with these features and rule value is accepted: the rule, the ratio floor and the
-/// contradiction veto.
+/// The rule value from which the self-symmetry is measured: the operating curve's lowest offset.
+const SYMMETRY_FROM: f64 = -1.0;
+
+/// Whether an alignment with these features and rule value is accepted: the rule, the ratio floor, the
+/// contradiction veto and the self-symmetry test.
 pub fn accepts(features: &Features, rule_value: f64) -> bool {
     rule_value >= 0.0
         && features.coarse_ratio >= MIN_COARSE_RATIO
         && features.conflict_fine <= MAX_FINE_CONFLICT
+        && features.self_match <= MAX_SELF_SYMMETRY
 }
 
 /// The coarse ratio's cap: no distinct alternative at all counts as this.
@@ -71,12 +79,24 @@ const MAX_FFT: usize = 2048;
 pub const FINE_FFT: usize = 256;
 
 /// How to align.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct MergeOptions {
     /// The acceptance test.
     pub accept: Acceptance,
     /// Where the hypotheses come from (the corners are found by [`Prepared::with_corners`]).
     pub hypotheses: Hypotheses,
+    /// Decline a merge of a map that matches itself turned or shifted ([`self_symmetry`]).
+    pub check_symmetry: bool,
+}
+
+impl Default for MergeOptions {
+    fn default() -> Self {
+        MergeOptions {
+            accept: Acceptance::default(),
+            hypotheses: Hypotheses::default(),
+            check_symmetry: true,
+        }
+    }
 }
 
 /// The acceptance rule: `w_conflict * conflict + w_ratio * ln(coarse ratio) + w_inside * inside >=
@@ -144,6 +164,9 @@ pub struct Features {
     pub local: f64,
     /// The coarse score over the smaller map's wall cells (as the FFT scales it).
     pub coarse_norm: f64,
+    /// The larger of the two maps' [`self_symmetry`], measured for the chosen candidate when the rule
+    /// value is at least -1 (0 otherwise).
+    pub self_match: f64,
 }
 
 /// One refined candidate.
@@ -515,8 +538,20 @@ pub fn align_prepared_with(
         MAX_RATIO
     };
     let score = options.accept.margin(&features);
+    // Only for what could be merged (down to the operating curve's lowest offset): each map's
+    // self-match costs an alignment (cached in the map).
+    if options.check_symmetry && score >= SYMMETRY_FROM && accepts(&features, score) {
+        features.self_match = self_symmetry(a)?.max(self_symmetry(b)?);
+    }
     let accepted = accepts(&features, score);
     let reason = (!accepted).then(|| {
+        if score >= 0.0 && features.self_match > MAX_SELF_SYMMETRY {
+            let s = features.self_match;
+            return format!(
+                "ambiguous: a map matches itself turned or shifted (self-match {s:.2} over \
+                 {MAX_SELF_SYMMETRY}), so it could be merged more than one way"
+            );
+        }
         if score >= 0.0 && features.conflict_fine > MAX_FINE_CONFLICT {
             return format!(
                 "contradicted: {:.0}% of the walls that fall in the other map lie inside its free space",
@@ -736,6 +771,7 @@ fn verify(
                     conflict_fine: f64::from(ga + gb) / inside_total,
                     local: 0.0,
                     coarse_norm: 0.0,
+                    self_match: 0.0,
                 }
             },
         )
@@ -790,4 +826,39 @@ fn local_agreement(from: &Prepared, to: &Prepared, t: &Rigid) -> (f64, f64) {
         total += pts.len();
     }
     (hit as f64 / total.max(1) as f64, total as f64)
+}
+
+/// How well `p` matches itself under its best transform other than the identity: its local agreement
+/// times the share of the map's wall pixels it was measured on. A map that looks the same turned or
+/// shifted (a symmetric arena) can be merged either way; [`MAX_SELF_SYMMETRY`] declines it.
+pub fn self_symmetry(p: &Prepared) -> Result<f64> {
+    if let Some(&v) = p.symmetry.get() {
+        return Ok(v);
+    }
+    let options = MergeOptions {
+        check_symmetry: false,
+        ..MergeOptions::default()
+    };
+    let al = align_prepared(p, p, &options)?;
+    let mut best: f64 = 0.0;
+    for c in &al.candidates {
+        let t = c.transform;
+        let d = (t.theta_deg + 180.0).rem_euclid(360.0) - 180.0;
+        if t.tx.hypot(t.ty) + 10.0 * d.abs() <= DISTINCT_PX {
+            continue;
+        }
+        // To crop coordinates: the inverse of the conversion to the map's pixels.
+        let (co, si) = cs(t.theta_deg);
+        let crop = Rigid {
+            theta_deg: t.theta_deg,
+            tx: t.tx + (co * p.off.0 - si * p.off.1) - p.off.0,
+            ty: t.ty + (si * p.off.0 + co * p.off.1) - p.off.1,
+        };
+        let (share, n) = local_agreement(p, p, &crop);
+        let step = p.walls.len().div_ceil(8000).max(1) as f64;
+        let coverage = (n * step / p.walls.len().max(1) as f64).min(1.0);
+        best = best.max(share * coverage);
+    }
+    let _ = p.symmetry.set(best);
+    Ok(best)
 }

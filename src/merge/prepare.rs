@@ -45,6 +45,8 @@ pub struct Prepared {
     pub(super) angle: f64,
     /// Corners for corner hypotheses (crop coordinates), when prepared with them.
     pub(super) corners: Option<Vec<(f64, f64)>>,
+    /// Its self-symmetry, once measured ([`super::align::self_symmetry`]).
+    pub(super) symmetry: std::sync::OnceLock<f64>,
     /// The coarse masks, one level per cell side of [`CELLS`]: the coarsest always, a finer one when
     /// this map is small enough for it to be chosen.
     pub(super) levels: Vec<Option<Coarse>>,
@@ -211,6 +213,7 @@ impl Prepared {
             reference,
             angle,
             corners: None,
+            symmetry: std::sync::OnceLock::new(),
             levels,
         }
     }
