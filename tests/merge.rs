@@ -382,6 +382,41 @@ fn merge_eval_runs_the_synthetic_suite_on_given_maps() {
     assert_eq!(rows[0]["building"], "synthetic, 50% overlap");
     assert_eq!(rows[1]["building"], "synthetic, 30% overlap");
     assert!(rows.iter().all(|r| r["negative"] == false));
+    // Saved pairs come back as a pair file with the same truths.
+    let o = run(&[
+        "--synthetic",
+        "office.pgm",
+        "--per-map",
+        "1",
+        "--save-pairs",
+        "saved",
+    ]);
+    assert_eq!(o.status.code(), Some(0));
+    let set = PairSet::load(&d.path().join("saved/pairs.json")).unwrap();
+    assert_eq!(set.pairs.len(), 2);
+    assert!(set.pairs.iter().all(|p| p.accurate(&p.truth())));
+    let o = run(&["saved/pairs.json", "--maps", "saved", "--format", "json"]);
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let again: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    for (x, y) in again.as_array().unwrap().iter().zip(rows) {
+        assert_eq!(x["accepted"], y["accepted"]);
+    }
+    // It never writes over a map it reads (office's first pair would be saved/a_office-50-0.pgm).
+    let o = run(&[
+        "--synthetic",
+        "office.pgm",
+        "saved/a_office-50-0.pgm",
+        "--per-map",
+        "1",
+        "--save-pairs",
+        "saved",
+    ]);
+    assert_eq!(o.status.code(), Some(2));
     // Bad arguments: exit 2.
     for args in [
         vec!["--synthetic", "office.pgm", "--noise", "2"],

@@ -35,6 +35,10 @@ pub(super) struct MergeEvalArgs {
     /// Seed of the synthetic cuts.
     #[arg(long, default_value_t = 1)]
     seed: u64,
+    /// Also write every synthetic pair into DIR (`a_<map>-<overlap>-<k>.pgm` and `b_...`) with a
+    /// `pairs.json` of their truths: `merge-eval DIR/pairs.json` runs them again, `merge` takes any of them.
+    #[arg(long, value_name = "DIR", requires = "synthetic")]
+    save_pairs: Option<PathBuf>,
     /// Instead of one run: the ablation of where hypotheses come from (dense correlation; corners of each
     /// detector alone; both), one row each (a pair file only; takes a few minutes).
     #[arg(long, conflicts_with = "synthetic")]
@@ -77,17 +81,37 @@ pub(super) fn run(a: MergeEvalArgs, budget: &Budget) -> Result<()> {
         }
         (None, sources) => {
             let given = sources.as_deref().unwrap_or(&[]);
-            let sources = synthetic_sources(given, budget)?;
+            let (sources, mut inputs) = synthetic_sources(given, budget)?;
+            let overlaps = vec![0.5, 0.3];
+            if let Some(dir) = &a.save_pairs {
+                std::fs::create_dir_all(dir)
+                    .map_err(|e| Error::input(dir, format!("cannot create the folder: {e}")))?;
+                // Every file it may write, checked against the inputs before the first pair.
+                inputs.claim_output(&dir.join("pairs.json"), "--save-pairs")?;
+                for (name, _) in &sources {
+                    for o in &overlaps {
+                        for k in 0..a.per_map {
+                            let stem = eval::saved_stem(&format!("{name}/{:.0}/{k}", 100.0 * o));
+                            for side in ["a", "b"] {
+                                inputs.claim_output(
+                                    &dir.join(format!("{side}_{stem}.pgm")),
+                                    "--save-pairs",
+                                )?;
+                            }
+                        }
+                    }
+                }
+            }
             // Negatives only between the generator's offices: given maps may show one place twice.
-            eval::run_synthetic(
-                &sources,
-                &[0.5, 0.3],
-                a.per_map as usize,
-                a.noise,
-                a.seed,
-                given.is_empty(),
-                &MergeOptions::default(),
-            )
+            let run = eval::SyntheticRun {
+                overlaps,
+                per_map: a.per_map as usize,
+                noise: a.noise,
+                seed: a.seed,
+                negatives: given.is_empty(),
+                save: a.save_pairs.clone(),
+            };
+            eval::run_synthetic(&sources, &run, &MergeOptions::default())?
         }
     };
     write_stdout(|out| match a.format {
@@ -101,14 +125,18 @@ pub(super) fn run(a: MergeEvalArgs, budget: &Budget) -> Result<()> {
 
 /// The maps synthetic pairs are cut from: the given ones (checked against the memory budget with the
 /// merger's buffers for both parts), or eight synthetic offices.
-fn synthetic_sources(args: &[PathBuf], budget: &Budget) -> Result<Vec<(String, OccupancyMap)>> {
+fn synthetic_sources(
+    args: &[PathBuf],
+    budget: &Budget,
+) -> Result<(Vec<(String, OccupancyMap)>, ogm_corners::files::Inputs)> {
     if args.is_empty() {
-        return (1..=8)
+        let maps = (1..=8)
             .map(|seed| {
                 let img = ogm_corners::synth::office_map(1024, 768, seed)?;
                 Ok((format!("office-{seed}"), OccupancyMap::from_image(img)))
             })
-            .collect();
+            .collect::<Result<_>>()?;
+        return Ok((maps, ogm_corners::files::Inputs::new()));
     }
     // Each part's canvas holds at most the map's diagonal squared: twice the map, and the merger's
     // buffers for both.
@@ -117,8 +145,10 @@ fn synthetic_sources(args: &[PathBuf], budget: &Budget) -> Result<Vec<(String, O
             .saturating_mul(4)
             .saturating_add(u64::from(w) * u64::from(h) * 4)
     };
-    let (maps, _) = super::map_inputs(args, budget, &extra)?;
-    maps.iter()
+    let (maps, inputs) = super::map_inputs(args, budget, &extra)?;
+    let maps = maps
+        .iter()
         .map(|p| Ok((ogm_corners::map::map_name(p), OccupancyMap::load(p)?)))
-        .collect()
+        .collect::<Result<_>>()?;
+    Ok((maps, inputs))
 }

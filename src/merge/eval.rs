@@ -118,19 +118,25 @@ pub fn run(set: &PairSet, maps: &Path, options: &MergeOptions) -> Result<(Vec<Pa
     Ok((out, prep_ms / n))
 }
 
-/// Runs the merger on synthetic pairs cut from each of `sources` ([`synthetic_pair`]): `per_map` pairs per
-/// map and overlap, named `<map>/<overlap>/<k>` (grouped by overlap; k's parity splits the halves), and,
-/// with `negatives` (only for sources known to be different places), per overlap one negative per map: A
-/// cut from it, B from the next map.
+/// Runs the merger on synthetic pairs cut from each of `sources` ([`synthetic_pair`]) as `run` says:
+/// `per_map` pairs per map and overlap, named `<map>/<overlap>/<k>` (grouped by overlap; k's parity splits
+/// the halves), and, with `negatives`, per overlap one negative per map: A cut from it, B from the next
+/// map.
 pub fn run_synthetic(
     sources: &[(String, OccupancyMap)],
-    overlaps: &[f64],
-    per_map: usize,
-    noise: f64,
-    seed: u64,
-    negatives: bool,
+    run: &SyntheticRun,
     options: &MergeOptions,
-) -> (Vec<PairRecord>, f64) {
+) -> Result<(Vec<PairRecord>, f64)> {
+    let SyntheticRun {
+        overlaps,
+        per_map,
+        noise,
+        seed,
+        negatives,
+        save,
+    } = run;
+    let (per_map, noise, seed, negatives) = (*per_map, *noise, *seed, *negatives);
+    let mut saved: Vec<serde_json::Value> = Vec::new();
     let mut out = Vec::new();
     let (mut prep_ms, mut preps) = (0.0, 0usize);
     let mut prepare = |m: &OccupancyMap| {
@@ -140,7 +146,7 @@ pub fn run_synthetic(
         preps += 1;
         p
     };
-    for &overlap in overlaps {
+    for &overlap in overlaps.iter() {
         let spec = SyntheticSpec { overlap, noise };
         let group = format!("synthetic, {:.0}% overlap", 100.0 * overlap);
         let mut cuts = Vec::new();
@@ -160,6 +166,31 @@ pub fn run_synthetic(
                 let ms = t.elapsed().as_secs_f64() * 1e3;
                 let (rot, rms) = pair.errors(&alignment.transform);
                 let label = format!("{name}/{:.0}/{k}", 100.0 * overlap);
+                if let Some(dir) = save {
+                    let stem = saved_stem(&label);
+                    pair.a.image.write_pgm(&dir.join(format!("a_{stem}.pgm")))?;
+                    pair.b.image.write_pgm(&dir.join(format!("b_{stem}.pgm")))?;
+                    let to_a: Vec<[f64; 2]> = pair
+                        .check_points
+                        .iter()
+                        .map(|&p| {
+                            let q = pair.truth.apply(p);
+                            [q.0, q.1]
+                        })
+                        .collect();
+                    saved.push(serde_json::json!({
+                        "src": format!("b_{stem}"),
+                        "dst": format!("a_{stem}"),
+                        "building": group,
+                        "theta_deg": pair.truth.theta_deg,
+                        "tx": pair.truth.tx,
+                        "ty": pair.truth.ty,
+                        "rms_limit_px": SYNTHETIC_RMS_LIMIT_PX,
+                        "rot_limit_deg": SYNTHETIC_ROT_LIMIT_DEG,
+                        "src_points": pair.check_points.iter().map(|p| [p.0, p.1]).collect::<Vec<_>>(),
+                        "dst_points": to_a,
+                    }));
+                }
                 let accurate_candidates = alignment
                     .candidates
                     .iter()
@@ -214,7 +245,49 @@ pub fn run_synthetic(
             }
         }
     }
-    (out, prep_ms / preps.max(1) as f64)
+    if let Some(dir) = save {
+        let text =
+            serde_json::to_string_pretty(&serde_json::json!({ "pairs": saved, "negatives": [] }))
+                .map_err(|e| crate::error::Error::Internal(e.to_string()))?;
+        crate::files::write_atomic(&dir.join("pairs.json"), |w| {
+            w.write_all(text.as_bytes())?;
+            writeln!(w)
+        })?;
+    }
+    Ok((out, prep_ms / preps.max(1) as f64))
+}
+
+/// How [`run_synthetic`] cuts and runs its pairs.
+#[derive(Clone, Debug)]
+pub struct SyntheticRun {
+    /// The overlaps, each a share in (0, 1).
+    pub overlaps: Vec<f64>,
+    /// Pairs per map and overlap.
+    pub per_map: usize,
+    /// Speckle probability.
+    pub noise: f64,
+    /// Seed of the cuts.
+    pub seed: u64,
+    /// One negative per map and overlap (only for sources known to be different places).
+    pub negatives: bool,
+    /// Write every pair there (`a_<stem>.pgm`, `b_<stem>.pgm`) with a `pairs.json` of their truths, which
+    /// `merge-eval DIR/pairs.json` reads back.
+    pub save: Option<std::path::PathBuf>,
+}
+
+/// The file stem a saved synthetic pair's maps get: its label with anything but letters, digits, `-`,
+/// `_` and `.` turned into `-`.
+pub fn saved_stem(label: &str) -> String {
+    label
+        .chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || "-_.".contains(c) {
+                c
+            } else {
+                '-'
+            }
+        })
+        .collect()
 }
 
 /// The hypothesis sources [`ablation`] compares: dense alone, then corners alone and both, per detector.
