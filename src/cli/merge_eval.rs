@@ -91,7 +91,8 @@ pub(super) fn run(a: MergeEvalArgs, budget: &Budget) -> Result<()> {
                 for (name, _) in &sources {
                     for o in &overlaps {
                         for k in 0..a.per_map {
-                            let stem = eval::saved_stem(&format!("{name}/{:.0}/{k}", 100.0 * o));
+                            let stem =
+                                eval::saved_stem(&eval::synthetic_label(name, *o, k as usize));
                             for side in ["a", "b"] {
                                 inputs.claim_output(
                                     &dir.join(format!("{side}_{stem}.pgm")),

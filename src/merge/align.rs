@@ -29,7 +29,7 @@ use super::hypotheses::{vote, Hypotheses};
 pub use super::prepare::{prepared_bytes, Prepared, CELLS};
 use super::transform::Rigid;
 use crate::backend::Backend;
-use crate::cpu::merge_score::FixedRigid;
+use crate::cpu::merge_score::{FixedRigid, ScoreTarget};
 use crate::cpu::CpuBackend;
 use crate::error::{Error, Result};
 use crate::map::OccupancyMap;
@@ -462,7 +462,8 @@ pub fn align_prepared_with(
             .map(|&(score, Crop(t))| (score, icp(src, dst, t)))
             .collect()
     };
-    let verified = verify(src, dst, &icped, backend)?;
+    let crops: Vec<Rigid> = icped.iter().map(|r| r.1).collect();
+    let verified = verify(src, dst, &crops, backend)?;
     // The local agreement of each candidate, in coarse order, skipping those that cannot win the choice
     // below (their coarse share is under the best product so far, and the agreement is at most 1).
     let top = icped.iter().map(|r| r.0).fold(f64::MIN, f64::max).max(1e-9);
@@ -472,7 +473,7 @@ pub fn align_prepared_with(
         if score / top <= best_key {
             continue;
         }
-        let ((a, na), (b, nb)) = rayon::join(
+        let ((a, na, _), (b, nb, _)) = rayon::join(
             || local_agreement(src, dst, t),
             || local_agreement(dst, src, &t.inverse()),
         );
@@ -481,17 +482,7 @@ pub fn align_prepared_with(
     }
     let walls_cells = |c: &super::prepare::Coarse| c.cwall.iter().sum::<f32>();
     let coarse_unit = (n * n) as f64 * f64::from(walls_cells(sc).min(walls_cells(dc)).max(1.0));
-    let to_full = |t: &Rigid| {
-        // Back to the maps' own pixels: p_dst = R (p_src - off_src) + t + off_dst.
-        let (c, s) = cs(t.theta_deg);
-        Rigid {
-            theta_deg: t.theta_deg,
-            tx: t.tx - (c * src.off.0 - s * src.off.1) + dst.off.0,
-            ty: t.ty - (s * src.off.0 + c * src.off.1) + dst.off.1,
-        }
-        .normalized()
-    };
-    let crops: Vec<Rigid> = icped.iter().map(|r| r.1).collect();
+    let to_full = |t: &Rigid| crop_to_map(src, dst, t);
     let refined: Vec<(f64, Rigid, Features)> = icped
         .iter()
         .zip(verified)
@@ -503,10 +494,6 @@ pub fn align_prepared_with(
             (score, to_full(&t), f)
         })
         .collect();
-    let dist = |x: &Rigid, y: &Rigid| {
-        let d = (x.theta_deg - y.theta_deg + 180.0).rem_euclid(360.0) - 180.0;
-        (x.tx - y.tx).hypot(x.ty - y.ty) + 10.0 * d.abs()
-    };
     // The candidate whose coarse score, relative to the best one, times its local agreement is highest
     // wins: the coarse score alone prefers a wrong placement laying one map fully over the other to a
     // true, smaller overlap; the local agreement alone, small overlaps of a few matching walls. How far
@@ -518,7 +505,7 @@ pub fn align_prepared_with(
     let mut refined: Vec<(f64, Rigid, Features)> = order.iter().map(|&i| refined[i]).collect();
     // The chosen one polished to a fraction of a pixel, and verified again.
     let polished = polish(src, dst, &crops[order[0]], backend)?;
-    let again = verify(src, dst, &[(refined[0].0, polished)], backend)?[0];
+    let again = verify(src, dst, &[polished], backend)?[0];
     refined[0].1 = to_full(&polished);
     refined[0].2 = Features {
         coarse: refined[0].2.coarse,
@@ -529,7 +516,7 @@ pub fn align_prepared_with(
     let (best_score, best, mut features) = refined[0];
     let runner = refined[1..]
         .iter()
-        .filter(|r| dist(&r.1, &best) > DISTINCT_PX)
+        .filter(|r| transform_distance(&r.1, &best) > DISTINCT_PX)
         .map(|r| r.0)
         .fold(f64::NEG_INFINITY, f64::max);
     features.coarse_ratio = if runner > 0.0 {
@@ -541,7 +528,7 @@ pub fn align_prepared_with(
     // Only for what could be merged (down to the operating curve's lowest offset): each map's
     // self-match costs an alignment (cached in the map).
     if options.check_symmetry && score >= SYMMETRY_FROM && accepts(&features, score) {
-        features.self_match = self_symmetry(a)?.max(self_symmetry(b)?);
+        features.self_match = self_symmetry_with(a, backend)?.max(self_symmetry_with(b, backend)?);
     }
     let accepted = accepts(&features, score);
     let reason = (!accepted).then(|| {
@@ -643,11 +630,7 @@ fn polish(src: &Prepared, dst: &Prepared, t: &Rigid, backend: &mut dyn Backend) 
             }
         }
     }
-    let fixed = |t: &Rigid| FixedRigid::new(t.theta_deg, t.tx, t.ty);
-    let forward: Vec<FixedRigid> = grid.iter().map(fixed).collect();
-    let backward: Vec<FixedRigid> = grid.iter().map(|t| fixed(&t.inverse())).collect();
-    let a = backend.score_transforms(&dst.flags_fine, &src.wall_points, &forward)?;
-    let b = backend.score_transforms(&src.flags_fine, &dst.wall_points, &backward)?;
+    let (a, b) = score_both(src, dst, &grid, true, backend)?;
     let mut best = (0u32, *t);
     for ((x, y), g) in a.iter().zip(&b).zip(&grid) {
         let hits = x[1] + y[1];
@@ -668,18 +651,17 @@ fn icp(src: &Prepared, dst: &Prepared, mut t: Rigid) -> Rigid {
     while it < ITERS {
         let trim = 12.0 + (4.0 - 12.0) * it as f64 / (ITERS - 1) as f64;
         let (mut pairs_p, mut pairs_q) = (Vec::new(), Vec::new());
+        // The nearest wall pixel to q itself, not only to q's pixel: in the last iterations, among the
+        // nearest wall pixels of q's pixel and its four neighbours (sub-pixel convergence).
+        let probes: &[(f64, f64)] = if it + 5 >= ITERS {
+            &[(0.0, 0.0), (1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0)]
+        } else {
+            &[(0.0, 0.0)]
+        };
         for &p in src.walls.iter().step_by(step) {
             let q = t.apply(p);
-            // The nearest wall pixel to q itself, not only to q's pixel: in the last iterations, among
-            // the nearest wall pixels of q's pixel and its four neighbours (sub-pixel convergence).
-            let fine = it + 5 >= ITERS;
             let mut target: Option<(f64, f64)> = None;
             let mut best = f64::MAX;
-            let probes: &[(f64, f64)] = if fine {
-                &[(0.0, 0.0), (1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0)]
-            } else {
-                &[(0.0, 0.0)]
-            };
             for &(dx, dy) in probes {
                 let Some(i) = dst.index(q.0 + dx, q.1 + dy) else {
                     continue;
@@ -740,19 +722,11 @@ fn icp(src: &Prepared, dst: &Prepared, mut t: Rigid) -> Rigid {
 fn verify(
     src: &Prepared,
     dst: &Prepared,
-    candidates: &[(f64, Rigid)],
+    candidates: &[Rigid],
     backend: &mut dyn Backend,
 ) -> Result<Vec<Features>> {
-    let fixed = |t: &Rigid| FixedRigid::new(t.theta_deg, t.tx, t.ty);
-    let forward: Vec<FixedRigid> = candidates.iter().map(|(_, t)| fixed(t)).collect();
-    let backward: Vec<FixedRigid> = candidates
-        .iter()
-        .map(|(_, t)| fixed(&t.inverse()))
-        .collect();
-    let into_dst = backend.score_transforms(&dst.flags, &src.wall_points, &forward)?;
-    let into_src = backend.score_transforms(&src.flags, &dst.wall_points, &backward)?;
-    let fine_dst = backend.score_transforms(&dst.flags_fine, &src.wall_points, &forward)?;
-    let fine_src = backend.score_transforms(&src.flags_fine, &dst.wall_points, &backward)?;
+    let (into_dst, into_src) = score_both(src, dst, candidates, false, backend)?;
+    let (fine_dst, fine_src) = score_both(src, dst, candidates, true, backend)?;
     Ok(into_dst
         .iter()
         .zip(&into_src)
@@ -764,23 +738,76 @@ fn verify(
                     conflict: f64::from(da + db) / inside_total,
                     inside: (f64::from(ia) / src.walls.len().max(1) as f64)
                         .min(f64::from(ib) / dst.walls.len().max(1) as f64),
-                    coarse: 0.0,
-                    coarse_ratio: 0.0,
                     matched: f64::from(ma + mb) / inside_total,
                     matched_fine: f64::from(fa + fb) / inside_total,
                     conflict_fine: f64::from(ga + gb) / inside_total,
-                    local: 0.0,
-                    coarse_norm: 0.0,
-                    self_match: 0.0,
+                    // The rest is the choice's, filled in by the caller.
+                    ..Features::default()
                 }
             },
         )
         .collect())
 }
 
-/// The local agreement of `from`'s walls mapped by `t` into `to` ([`Features::local`]) and the wall pixels
-/// it was measured on.
-fn local_agreement(from: &Prepared, to: &Prepared, t: &Rigid) -> (f64, f64) {
+/// The scoring kernel's counts for one transform: inside, near, deep.
+type Counts = [u32; 3];
+
+/// Per transform (src crop to dst crop), the scoring kernel's counts of src's walls mapped into dst and of
+/// dst's walls mapped back by the inverse, against the verification flags or (`fine`) the finer ones.
+fn score_both(
+    src: &Prepared,
+    dst: &Prepared,
+    transforms: &[Rigid],
+    fine: bool,
+    backend: &mut dyn Backend,
+) -> Result<(Vec<Counts>, Vec<Counts>)> {
+    let fixed = |t: &Rigid| FixedRigid::new(t.theta_deg, t.tx, t.ty);
+    let forward: Vec<FixedRigid> = transforms.iter().map(fixed).collect();
+    let backward: Vec<FixedRigid> = transforms.iter().map(|t| fixed(&t.inverse())).collect();
+    fn flags(p: &Prepared, fine: bool) -> &ScoreTarget {
+        if fine {
+            &p.flags_fine
+        } else {
+            &p.flags
+        }
+    }
+    Ok((
+        backend.score_transforms(flags(dst, fine), &src.wall_points, &forward)?,
+        backend.score_transforms(flags(src, fine), &dst.wall_points, &backward)?,
+    ))
+}
+
+/// How far apart two transforms are: their translations' distance plus 10 px a degree of turn.
+fn transform_distance(x: &Rigid, y: &Rigid) -> f64 {
+    let d = (x.theta_deg - y.theta_deg + 180.0).rem_euclid(360.0) - 180.0;
+    (x.tx - y.tx).hypot(x.ty - y.ty) + 10.0 * d.abs()
+}
+
+/// A transform between the crops of src and dst as one between the maps' own pixels:
+/// p_dst = R (p_src - off_src) + t + off_dst.
+fn crop_to_map(src: &Prepared, dst: &Prepared, t: &Rigid) -> Rigid {
+    let (c, s) = cs(t.theta_deg);
+    Rigid {
+        theta_deg: t.theta_deg,
+        tx: t.tx - (c * src.off.0 - s * src.off.1) + dst.off.0,
+        ty: t.ty - (s * src.off.0 + c * src.off.1) + dst.off.1,
+    }
+    .normalized()
+}
+
+/// The inverse of [`crop_to_map`]: a transform between the maps' pixels as one between their crops.
+fn map_to_crop(src: &Prepared, dst: &Prepared, t: &Rigid) -> Rigid {
+    let (c, s) = cs(t.theta_deg);
+    Rigid {
+        theta_deg: t.theta_deg,
+        tx: t.tx + (c * src.off.0 - s * src.off.1) - dst.off.0,
+        ty: t.ty + (s * src.off.0 + c * src.off.1) - dst.off.1,
+    }
+}
+
+/// The local agreement of `from`'s walls mapped by `t` into `to` ([`Features::local`]), the wall pixels
+/// it was measured on (of those sampled), and their share of all of `from`'s wall pixels (at most 1).
+fn local_agreement(from: &Prepared, to: &Prepared, t: &Rigid) -> (f64, f64, f64) {
     const TILE: f64 = 48.0;
     const MIN_POINTS: usize = 24;
     // At most about 8000 wall pixels a map: enough for every tile's share.
@@ -825,13 +852,19 @@ fn local_agreement(from: &Prepared, to: &Prepared, t: &Rigid) -> (f64, f64) {
         hit += best.0;
         total += pts.len();
     }
-    (hit as f64 / total.max(1) as f64, total as f64)
+    let coverage = (total as f64 * step as f64 / from.walls.len().max(1) as f64).min(1.0);
+    (hit as f64 / total.max(1) as f64, total as f64, coverage)
 }
 
 /// How well `p` matches itself under its best transform other than the identity: its local agreement
 /// times the share of the map's wall pixels it was measured on. A map that looks the same turned or
 /// shifted (a symmetric arena) can be merged either way; [`MAX_SELF_SYMMETRY`] declines it.
 pub fn self_symmetry(p: &Prepared) -> Result<f64> {
+    self_symmetry_with(p, &mut CpuBackend)
+}
+
+/// [`self_symmetry`] with the self-alignment's scoring on `backend` (the same counts on every backend).
+fn self_symmetry_with(p: &Prepared, backend: &mut dyn Backend) -> Result<f64> {
     if let Some(&v) = p.symmetry.get() {
         return Ok(v);
     }
@@ -839,24 +872,13 @@ pub fn self_symmetry(p: &Prepared) -> Result<f64> {
         check_symmetry: false,
         ..MergeOptions::default()
     };
-    let al = align_prepared(p, p, &options)?;
+    let al = align_prepared_with(p, p, &options, backend)?;
     let mut best: f64 = 0.0;
     for c in &al.candidates {
-        let t = c.transform;
-        let d = (t.theta_deg + 180.0).rem_euclid(360.0) - 180.0;
-        if t.tx.hypot(t.ty) + 10.0 * d.abs() <= DISTINCT_PX {
+        if transform_distance(&c.transform, &Rigid::IDENTITY) <= DISTINCT_PX {
             continue;
         }
-        // To crop coordinates: the inverse of the conversion to the map's pixels.
-        let (co, si) = cs(t.theta_deg);
-        let crop = Rigid {
-            theta_deg: t.theta_deg,
-            tx: t.tx + (co * p.off.0 - si * p.off.1) - p.off.0,
-            ty: t.ty + (si * p.off.0 + co * p.off.1) - p.off.1,
-        };
-        let (share, n) = local_agreement(p, p, &crop);
-        let step = p.walls.len().div_ceil(8000).max(1) as f64;
-        let coverage = (n * step / p.walls.len().max(1) as f64).min(1.0);
+        let (share, _, coverage) = local_agreement(p, p, &map_to_crop(p, p, &c.transform));
         best = best.max(share * coverage);
     }
     let _ = p.symmetry.set(best);

@@ -9,10 +9,8 @@ use serde::Serialize;
 
 use super::align::{align_prepared, Alignment, MergeOptions, Prepared};
 use super::hypotheses::Hypotheses;
-use super::pairs::PairSet;
-use super::synthetic::{
-    synthetic_pair, SyntheticSpec, SYNTHETIC_RMS_LIMIT_PX, SYNTHETIC_ROT_LIMIT_DEG,
-};
+use super::pairs::{PairSet, TruePair};
+use super::synthetic::{synthetic_pair, SyntheticSpec};
 use crate::backend::DetectorKind;
 use crate::baselines::Baseline;
 use crate::error::Result;
@@ -136,7 +134,7 @@ pub fn run_synthetic(
         save,
     } = run;
     let (per_map, noise, seed, negatives) = (*per_map, *noise, *seed, *negatives);
-    let mut saved: Vec<serde_json::Value> = Vec::new();
+    let mut saved: Vec<TruePair> = Vec::new();
     let mut out = Vec::new();
     let (mut prep_ms, mut preps) = (0.0, 0usize);
     let mut prepare = |m: &OccupancyMap| {
@@ -164,40 +162,23 @@ pub fn run_synthetic(
                 let alignment = align_prepared(&pa, &pb, options)
                     .unwrap_or_else(|e| super::align::declined(&format!("refused: {e}")));
                 let ms = t.elapsed().as_secs_f64() * 1e3;
-                let (rot, rms) = pair.errors(&alignment.transform);
-                let label = format!("{name}/{:.0}/{k}", 100.0 * overlap);
+                let label = synthetic_label(name, overlap, k);
+                let stem = saved_stem(&label);
+                // The truth as a pair file holds it, named as saved maps are.
+                let truth = pair.true_pair(&format!("b_{stem}"), &format!("a_{stem}"), &group);
+                let (rot, rms) = truth.errors(&alignment.transform);
                 if let Some(dir) = save {
-                    let stem = saved_stem(&label);
-                    pair.a.image.write_pgm(&dir.join(format!("a_{stem}.pgm")))?;
-                    pair.b.image.write_pgm(&dir.join(format!("b_{stem}.pgm")))?;
-                    let to_a: Vec<[f64; 2]> = pair
-                        .check_points
-                        .iter()
-                        .map(|&p| {
-                            let q = pair.truth.apply(p);
-                            [q.0, q.1]
-                        })
-                        .collect();
-                    saved.push(serde_json::json!({
-                        "src": format!("b_{stem}"),
-                        "dst": format!("a_{stem}"),
-                        "building": group,
-                        "theta_deg": pair.truth.theta_deg,
-                        "tx": pair.truth.tx,
-                        "ty": pair.truth.ty,
-                        "rms_limit_px": SYNTHETIC_RMS_LIMIT_PX,
-                        "rot_limit_deg": SYNTHETIC_ROT_LIMIT_DEG,
-                        "src_points": pair.check_points.iter().map(|p| [p.0, p.1]).collect::<Vec<_>>(),
-                        "dst_points": to_a,
-                    }));
+                    pair.a
+                        .image
+                        .write_pgm(&dir.join(format!("{}.pgm", truth.dst)))?;
+                    pair.b
+                        .image
+                        .write_pgm(&dir.join(format!("{}.pgm", truth.src)))?;
                 }
                 let accurate_candidates = alignment
                     .candidates
                     .iter()
-                    .map(|c| {
-                        let (r, e) = pair.errors(&c.transform);
-                        r <= SYNTHETIC_ROT_LIMIT_DEG && e <= SYNTHETIC_RMS_LIMIT_PX
-                    })
+                    .map(|c| truth.accurate(&c.transform))
                     .collect();
                 out.push(PairRecord {
                     src: label.clone(),
@@ -205,13 +186,16 @@ pub fn run_synthetic(
                     building: group.clone(),
                     negative: false,
                     accepted: alignment.accepted,
-                    accurate: rot <= SYNTHETIC_ROT_LIMIT_DEG && rms <= SYNTHETIC_RMS_LIMIT_PX,
+                    accurate: truth.accurate(&alignment.transform),
                     rot_err_deg: rot,
                     rms_px: rms,
                     alignment,
                     ms,
                     accurate_candidates,
                 });
+                if save.is_some() {
+                    saved.push(truth);
+                }
                 if k == 0 {
                     cuts.push((name.clone(), pair));
                 }
@@ -246,9 +230,9 @@ pub fn run_synthetic(
         }
     }
     if let Some(dir) = save {
-        let text =
-            serde_json::to_string_pretty(&serde_json::json!({ "pairs": saved, "negatives": [] }))
-                .map_err(|e| crate::error::Error::Internal(e.to_string()))?;
+        let set = serde_json::json!({ "pairs": saved, "negatives": [] });
+        let text = serde_json::to_string_pretty(&set)
+            .map_err(|e| crate::error::Error::Internal(e.to_string()))?;
         crate::files::write_atomic(&dir.join("pairs.json"), |w| {
             w.write_all(text.as_bytes())?;
             writeln!(w)
@@ -273,6 +257,11 @@ pub struct SyntheticRun {
     /// Write every pair there (`a_<stem>.pgm`, `b_<stem>.pgm`) with a `pairs.json` of their truths, which
     /// `merge-eval DIR/pairs.json` reads back.
     pub save: Option<std::path::PathBuf>,
+}
+
+/// A synthetic pair's name: `<map>/<overlap percent>/<k>`.
+pub fn synthetic_label(map: &str, overlap: f64, k: usize) -> String {
+    format!("{map}/{:.0}/{k}", 100.0 * overlap)
 }
 
 /// The file stem a saved synthetic pair's maps get: its label with anything but letters, digits, `-`,

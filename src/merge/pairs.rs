@@ -7,7 +7,7 @@
 
 use std::path::Path;
 
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 
 use super::transform::Rigid;
 use crate::error::{Error, Result};
@@ -16,7 +16,7 @@ use crate::error::{Error, Result};
 pub const MAX_PAIRS_BYTES: u64 = 64 << 20;
 
 /// A pair of maps of one place with the true transform.
-#[derive(Clone, Debug, Deserialize)]
+#[derive(Clone, Debug, Deserialize, Serialize)]
 pub struct TruePair {
     /// The map moved (B).
     pub src: String,

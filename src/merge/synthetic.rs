@@ -8,6 +8,7 @@
 //! known area; B is turned about its centre by a random angle into a square canvas with a random margin.
 //! Both are written with map_server's values (0 occupied, 254 free, 205 unknown).
 
+use super::pairs::TruePair;
 use super::transform::Rigid;
 use crate::map::{MapImage, OccupancyMap};
 use crate::states::{CellState, ClassTable, FREE, OCCUPIED, UNKNOWN};
@@ -182,22 +183,39 @@ pub fn synthetic_pair(
 }
 
 impl SyntheticPair {
+    /// The pair as a pair set's entry: its truth, the success test's limits ([`SYNTHETIC_ROT_LIMIT_DEG`],
+    /// [`SYNTHETIC_RMS_LIMIT_PX`]) and the check points in B with where the truth puts them in A.
+    pub fn true_pair(&self, src: &str, dst: &str, building: &str) -> TruePair {
+        TruePair {
+            src: src.to_string(),
+            dst: dst.to_string(),
+            building: building.to_string(),
+            theta_deg: self.truth.theta_deg,
+            tx: self.truth.tx,
+            ty: self.truth.ty,
+            rms_limit_px: SYNTHETIC_RMS_LIMIT_PX,
+            rot_limit_deg: SYNTHETIC_ROT_LIMIT_DEG,
+            src_points: self.check_points.iter().map(|p| [p.0, p.1]).collect(),
+            dst_points: self
+                .check_points
+                .iter()
+                .map(|&p| {
+                    let q = self.truth.apply(p);
+                    [q.0, q.1]
+                })
+                .collect(),
+        }
+    }
+
     /// The estimate's rotation error (degrees) and RMS error over [`SyntheticPair::check_points`]
-    /// (pixels).
+    /// (pixels), as [`TruePair::errors`] measures them.
     pub fn errors(&self, estimate: &Rigid) -> (f64, f64) {
-        let d = (estimate.theta_deg - self.truth.theta_deg).rem_euclid(360.0);
-        let sum: f64 = self
-            .check_points
-            .iter()
-            .map(|&p| {
-                let (e, t) = (estimate.apply(p), self.truth.apply(p));
-                (e.0 - t.0).powi(2) + (e.1 - t.1).powi(2)
-            })
-            .sum();
-        (
-            d.min(360.0 - d),
-            (sum / self.check_points.len() as f64).sqrt(),
-        )
+        self.true_pair("", "", "").errors(estimate)
+    }
+
+    /// Whether the estimate passes the success test.
+    pub fn accurate(&self, estimate: &Rigid) -> bool {
+        self.true_pair("", "", "").accurate(estimate)
     }
 }
 
