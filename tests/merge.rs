@@ -428,11 +428,11 @@ fn merge_eval_runs_the_synthetic_suite_on_given_maps() {
 }
 
 #[test]
-fn half_overlapping_synthetic_offices_are_never_merged_wrongly() {
-    // Before the contradiction veto these were accepted half-turned (README, "Synthetic pairs"); what
-    // holds now is that none is accepted wrongly, and the veto or the rule says why.
+fn half_overlapping_synthetic_offices_are_merged_and_never_wrongly() {
+    // The first designs accepted these half-turned, then declined them (README, "Synthetic pairs"); the
+    // strict screening and the free-space features merge them: whatever is accepted is right, and most are.
     use ogm_corners::merge::synthetic::{synthetic_pair, SyntheticSpec};
-    let mut contradicted = 0;
+    let mut merged = 0;
     for seed in 1..5 {
         let office =
             OccupancyMap::from_image(ogm_corners::synth::office_map(1024, 768, seed).unwrap());
@@ -449,9 +449,9 @@ fn half_overlapping_synthetic_offices_are_never_merged_wrongly() {
             al.transform,
             p.truth
         );
-        contradicted += usize::from(al.reason.is_some());
+        merged += usize::from(al.accepted);
     }
-    assert!(contradicted >= 1, "{contradicted}");
+    assert!(merged >= 3, "{merged} of 4 merged");
 }
 
 #[test]
@@ -526,7 +526,7 @@ fn merge_eval_ablation_writes_one_row_per_hypothesis_source() {
 fn accepted_synthetic_pairs_are_recovered_within_a_pixel_and_half_a_degree() {
     // The property the merger promises on pairs with exact truth: random cuts, turns and shifts of the
     // project's own maps, at 50% and 30% overlap; whatever it accepts is within 1 px RMS (over B's
-    // known-area corners and centre) and 0.5 degrees. (How many it accepts is a figure in the README.)
+    // known-area corners and centre) and 0.5 degrees.
     use ogm_corners::merge::synthetic::{synthetic_pair, SyntheticSpec};
     let mut accepted = 0;
     for seed in 1..9 {
@@ -551,8 +551,8 @@ fn accepted_synthetic_pairs_are_recovered_within_a_pixel_and_half_a_degree() {
             }
         }
     }
-    eprintln!("synthetic offices: {accepted} of 16 merged");
-    assert!(accepted >= 1);
+    // 15 of the 16 when written; far fewer would mean the aligner or its rule regressed.
+    assert!(accepted >= 12, "synthetic offices: {accepted} of 16 merged");
 }
 
 #[test]

@@ -5,79 +5,49 @@
 //! Per map, once ([`Prepared`]): the known area's bounding box (plus 8 px); wall pixels (occupied with a
 //! free 8-neighbour); the dominant wall direction modulo 90 degrees (projection profile of the wall
 //! pixels); exact Euclidean distance maps to the nearest occupied pixel (with that pixel) and into free
-//! space; the scoring kernel's flag bytes; coarse masks at cell sides of [`CELLS`]: walls (a cell with an
-//! occupied pixel that is not speckle; also dilated by one cell) and free cells (mostly free, a cell from
-//! any wall).
+//! space; the scoring kernel's flag bytes and point samples; coarse masks at cell sides of [`CELLS`].
 //!
-//! Per pair: the finest coarse level whose correlation fits [`FINE_FFT`] cells a side; 20 rotation
-//! hypotheses (the two dominant directions' difference, the four quarter turns, offsets of -2..2
-//! degrees); for each, B's coarse masks turned into A's orientation and correlated with A's over every
-//! shift by FFT (walls on dilated walls, minus walls on free cells either way); the 3 best peaks of each
-//! (and corner hypotheses, when asked: [`super::hypotheses`]); the 8 best mutually distinct candidates
-//! refined by trimmed ICP of B's wall pixels onto A's nearest wall pixels and verified by the scoring
-//! kernel; the estimate is the candidate with the best product of its coarse score (relative to the best)
-//! and its drift-tolerant local agreement. It is accepted when a linear rule over three features, fitted
-//! on half of the real pairs, clears its threshold with a margin ([`Acceptance`]), and no floor or veto
-//! says otherwise ([`accepts`]).
+//! Per pair: the coarse hypotheses (`coarse.rs`: 20 rotations, FFT correlation over every shift, 32 peaks
+//! each, and corner votes when asked: [`super::hypotheses`]); every hypothesis screened on the full maps
+//! by the scoring kernel, tolerantly and strictly; the 8 best distinct ones of the tolerant screening
+//! and 4 more of the strict one refined by trimmed ICP of B's wall pixels onto A's nearest wall pixels
+//! and verified by the kernel (walls, fine walls, free space); the estimate is the candidate with the
+//! best product of its coarse score (relative to the best), drift-tolerant local agreement and
+//! consistency ([`Features::choice`]), polished by hill-climbing on the kernel's fine counts. It is
+//! accepted when a linear rule over four features, fitted on half of the real pairs, clears its
+//! threshold with a margin ([`Acceptance`]), and no veto says otherwise ([`accepts`]).
 
-use rustfft::num_complex::Complex32;
-use rustfft::FftPlanner;
 use serde::Serialize;
 
-use super::fft::{padded, Fft2};
-use super::hypotheses::{vote, Hypotheses};
+pub use super::accept::{
+    accepts, contradiction, Acceptance, Features, MAX_CONTRADICTION, MAX_FINE_CONFLICT,
+    MAX_SELF_SYMMETRY,
+};
+pub use super::coarse::FINE_FFT;
+use super::coarse::{coarse_hypotheses, cs, screen, CoarseSet, Crop};
+use super::hypotheses::Hypotheses;
 pub use super::prepare::{prepared_bytes, Prepared, CELLS};
+use super::score::{score_both, Probe};
 use super::transform::Rigid;
 use crate::backend::Backend;
-use crate::cpu::merge_score::{FixedRigid, ScoreTarget};
 use crate::cpu::CpuBackend;
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::map::OccupancyMap;
 
-/// Weight of walls on free space in the coarse score.
-const LAMBDA: f32 = 1.0;
-/// Rotation offsets tried around each quarter turn, degrees.
-const OFFSETS: [f64; 5] = [-2.0, -1.0, 0.0, 1.0, 2.0];
-/// Peaks kept per rotation hypothesis.
-const PEAKS: usize = 3;
-/// Candidates refined.
+/// The rule value from which the self-symmetry is measured: the operating curve's lowest offset.
+const SYMMETRY_FROM: f64 = -8.0;
+
+/// The polish's step scales (1: a quarter pixel and 0.1 degree) and rounds at each, at most.
+const POLISH_SCALES: [f64; 3] = [4.0, 2.0, 1.0];
+const POLISH_ROUNDS: usize = 4;
+/// Candidates refined: the best distinct ones of the tolerant screening, then more of the strict one.
 const REFINED: usize = 8;
+const STRICT: usize = 4;
 /// Two candidates are distinct when they move B's reference points (wall bounding box corners and
 /// centroid) by more than this RMS, pixels.
 const DISTINCT_PX: f64 = 40.0;
-/// Whatever the rule says, an alignment must beat its best distinct alternative's coarse score by this
-/// factor: a symmetric map turned by 180 degrees, or a map of noise, is no merge. (The accepted right
-/// real pairs of the calibration half have 1.12 or more.)
-pub const MIN_COARSE_RATIO: f64 = 1.1;
-/// Whatever the rule says, an alignment is contradicted when more than this share of the walls that fall
-/// in the other map lie over 3 px deep in its free space ([`Features::conflict_fine`]). The highest of the
-/// accepted right real pairs of the calibration half is 0.550 (held-out: 0.53); the half-turned offices
-/// of the synthetic suite have 0.6-0.7.
-pub const MAX_FINE_CONFLICT: f64 = 0.55;
-/// Whatever the rule says, a merge is ambiguous when either map matches itself under another transform
-/// this well ([`self_symmetry`]): the real maps have 0.49 at most, the symmetric arenas of the synthetic
-/// suite 0.57-0.79.
-pub const MAX_SELF_SYMMETRY: f64 = 0.55;
-
-/// The rule value from which the self-symmetry is measured: the operating curve's lowest offset.
-const SYMMETRY_FROM: f64 = -1.0;
-
-/// Whether an alignment with these features and rule value is accepted: the rule, the ratio floor, the
-/// contradiction veto and the self-symmetry test.
-pub fn accepts(features: &Features, rule_value: f64) -> bool {
-    rule_value >= 0.0
-        && features.coarse_ratio >= MIN_COARSE_RATIO
-        && features.conflict_fine <= MAX_FINE_CONFLICT
-        && features.self_match <= MAX_SELF_SYMMETRY
-}
-
 /// The coarse ratio's cap: no distinct alternative at all counts as this.
 const MAX_RATIO: f64 = 10.0;
-/// Largest coarse correlation side.
-const MAX_FFT: usize = 2048;
-/// The finest coarse level whose correlation side is at most this is used.
-pub const FINE_FFT: usize = 256;
-
 /// How to align.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct MergeOptions {
@@ -97,76 +67,6 @@ impl Default for MergeOptions {
             check_symmetry: true,
         }
     }
-}
-
-/// The acceptance rule: `w_conflict * conflict + w_ratio * ln(coarse ratio) + w_inside * inside >=
-/// threshold` (weights and threshold from a linear discriminant fitted on the calibration half of the real
-/// pairs and every other negative, the threshold 0.3 standard units above the highest score of a wrong
-/// estimate or a negative there).
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
-pub struct Acceptance {
-    /// Weight of [`Features::conflict`].
-    pub w_conflict: f64,
-    /// Weight of the log of [`Features::coarse_ratio`].
-    pub w_ratio: f64,
-    /// Weight of [`Features::inside`].
-    pub w_inside: f64,
-    /// The threshold.
-    pub threshold: f64,
-}
-
-impl Default for Acceptance {
-    fn default() -> Self {
-        Acceptance {
-            w_conflict: -0.2141,
-            w_ratio: 5.1936,
-            w_inside: 10.266,
-            threshold: 6.2079,
-        }
-    }
-}
-
-impl Acceptance {
-    /// The rule's value minus its threshold (accept when >= 0).
-    pub fn margin(&self, f: &Features) -> f64 {
-        self.w_conflict * f.conflict
-            + self.w_ratio * f.coarse_ratio.max(1e-3).ln()
-            + self.w_inside * f.inside
-            - self.threshold
-    }
-}
-
-/// What the verification measures for a candidate transform.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
-pub struct Features {
-    /// Share of both maps' wall pixels (each mapped into the other) that lie more than 20 px deep inside
-    /// the other map's free space.
-    pub conflict: f64,
-    /// The smaller of the two maps' shares of wall pixels that land in the other's known area (or within
-    /// 5 px of its walls).
-    pub inside: f64,
-    /// The coarse correlation score of this candidate.
-    pub coarse: f64,
-    /// How far it stands out: its coarse score over the best distinct runner-up's (refined transforms
-    /// differing by more than 40 px, counting 10 px a degree; large when there is none).
-    pub coarse_ratio: f64,
-    /// Share of both maps' wall pixels within 5 px of the other's walls.
-    pub matched: f64,
-    /// Share of both maps' wall pixels landing on an occupied pixel of the other.
-    pub matched_fine: f64,
-    /// Share of both maps' wall pixels more than 3 px deep inside the other map's free space (the
-    /// contradiction veto, [`MAX_FINE_CONFLICT`]).
-    pub conflict_fine: f64,
-    /// Drift-tolerant local agreement: in 48 px tiles of the overlap, the share of wall pixels within
-    /// 1.5 px of the other map's walls after the tile's best shift of up to 6 px (both maps into each
-    /// other, weighted by wall pixels). 0 for a candidate whose coarse score could not make it the choice
-    /// (not measured).
-    pub local: f64,
-    /// The coarse score over the smaller map's wall cells (as the FFT scales it).
-    pub coarse_norm: f64,
-    /// The larger of the two maps' [`self_symmetry`], measured for the chosen candidate when the rule
-    /// value is at least -1 (0 otherwise).
-    pub self_match: f64,
 }
 
 /// One refined candidate.
@@ -194,16 +94,6 @@ pub struct Alignment {
     /// Every refined candidate, the chosen one first.
     pub candidates: Vec<Candidate>,
 }
-
-/// Rotation matrix entries (cos, sin) of `deg`.
-fn cs(deg: f64) -> (f64, f64) {
-    let (s, c) = deg.to_radians().sin_cos();
-    (c, s)
-}
-
-/// A rigid transform in crop coordinates, as (theta, tx, ty).
-#[derive(Clone, Copy, Debug)]
-struct Crop(Rigid);
 
 /// Aligns B onto A: the best transform from B's pixels to A's, verified.
 pub fn align(a: &OccupancyMap, b: &OccupancyMap, options: &MergeOptions) -> Result<Alignment> {
@@ -240,219 +130,33 @@ pub fn align_prepared_with(
             "a map has (almost) no walls next to free space: nothing to align",
         ));
     }
-    // The finest level whose correlation fits FINE_FFT cells a side (else the coarsest).
-    let sizes = |l: usize| {
-        let (s, d) = (src.levels[l].as_ref()?, dst.levels[l].as_ref()?);
-        let diag = ((s.ch as f64).hypot(s.cw as f64)).ceil() as usize + 2;
-        Some((diag, (d.ch.max(d.cw) + diag).next_power_of_two(), s, d))
-    };
-    let coarsest = CELLS.len() - 1;
-    let (diag, n, sc, dc) = (0..coarsest)
-        .filter_map(sizes)
-        .find(|l| l.1 <= FINE_FFT)
-        .or_else(|| sizes(coarsest))
-        .expect("the coarsest level is always prepared");
-    let cell = sc.cell;
-    if n > MAX_FFT {
-        return Err(Error::invalid(format!(
-            "maps whose explored parts span {}x{} and {}x{} pixels are too large to align (at most {} \
-             coarse cells across both)",
-            src.w,
-            src.h,
-            dst.w,
-            dst.h,
-            MAX_FFT
-        )));
-    }
-    let mut planner = FftPlanner::new();
-    let (fwd, inv) = (
-        Fft2::new(&mut planner, n, false),
-        Fft2::new(&mut planner, n, true),
-    );
-    let spectrum = |m: &[f32], w, h| {
-        let mut c = padded(m, w, h, n);
-        fwd.run(&mut c);
-        c
-    };
-    let fb_wall_dil = spectrum(&dc.cwall_dil, dc.cw, dc.ch);
-    let fb_free = spectrum(&dc.cfree, dc.cw, dc.ch);
-    let fb_wall = spectrum(&dc.cwall, dc.cw, dc.ch);
-    let fb1: Vec<Complex32> = fb_wall_dil
-        .iter()
-        .zip(&fb_free)
-        .map(|(w, f)| w - f * LAMBDA)
-        .collect();
-    let base = dst.angle - src.angle;
-    let ca = ((sc.cw as f64 - 1.0) / 2.0, (sc.ch as f64 - 1.0) / 2.0);
-    let cr = ((diag as f64 - 1.0) / 2.0, (diag as f64 - 1.0) / 2.0);
-    let half = (cell as f64 - 1.0) / 2.0;
-    let thetas: Vec<f64> = (0..4)
-        .flat_map(|k| {
-            OFFSETS
-                .iter()
-                .map(move |off| base + 90.0 * f64::from(k) + off)
-        })
-        .collect();
-    // Each hypothesis's correlation spectrum: src's two real masks go through one complex FFT (walls as
-    // the real part, free cells as the imaginary one) and are told apart by symmetry.
-    use rayon::prelude::*;
-    let spectra: Vec<Vec<Complex32>> = thetas
-        .par_iter()
-        .map(|&theta| {
-            let (c, s) = cs(theta);
-            // src's coarse masks turned by theta about their centre into a diag x diag canvas.
-            let mut z = vec![Complex32::new(0.0, 0.0); n * n];
-            for j in 0..diag {
-                for i in 0..diag {
-                    let (dx, dy) = (i as f64 - cr.0, j as f64 - cr.1);
-                    let (ax, ay) = (
-                        (c * dx + s * dy + ca.0).round(),
-                        (-s * dx + c * dy + ca.1).round(),
-                    );
-                    if ax >= 0.0 && ay >= 0.0 && (ax as usize) < sc.cw && (ay as usize) < sc.ch {
-                        let idx = ay as usize * sc.cw + ax as usize;
-                        z[j * n + i] = Complex32::new(sc.cwall[idx], sc.cfree[idx]);
-                    }
-                }
-            }
-            fwd.run(&mut z);
-            let half_c = Complex32::new(0.5, 0.0);
-            let minus_half_i = Complex32::new(0.0, -0.5);
-            (0..n * n)
-                .map(|idx| {
-                    let (ky, kx) = (idx / n, idx % n);
-                    let mirror = ((n - ky) % n) * n + (n - kx) % n;
-                    let (zk, zm) = (z[idx], z[mirror].conj());
-                    let fa1 = (zk + zm) * half_c; // walls
-                    let fa2 = (zk - zm) * minus_half_i; // free cells
-                                                        // corr(s) = sum_q src(q) dst(q + s) = IFFT(conj(FA) FB).
-                    fa1.conj() * fb1[idx] - fa2.conj() * fb_wall[idx] * LAMBDA
-                })
-                .collect()
-        })
-        .collect();
-    let mut coarse: Vec<(f64, Crop)> = Vec::new();
-    // Each rotation's correlation, kept when corner hypotheses are scored on it.
-    let want_corners = options.hypotheses.detector().is_some();
-    let mut maps: Vec<Vec<f32>> = Vec::new();
-    // Two real correlations per inverse FFT: the first as the real part, the second as the imaginary.
-    let firsts: Vec<usize> = (0..thetas.len()).step_by(2).collect();
-    let inverses: Vec<Vec<Complex32>> = firsts
-        .par_iter()
-        .map(|&h| {
-            let mut both: Vec<Complex32> = match spectra.get(h + 1) {
-                Some(second) => spectra[h]
-                    .iter()
-                    .zip(second)
-                    .map(|(a, b)| a + b * Complex32::new(0.0, 1.0))
-                    .collect(),
-                None => spectra[h].clone(),
-            };
-            inv.run(&mut both);
-            both
-        })
-        .collect();
-    drop(spectra);
-    for (&h, both) in firsts.iter().zip(&inverses) {
-        for (which, theta) in thetas[h..(h + 2).min(thetas.len())].iter().enumerate() {
-            let (c, s) = cs(*theta);
-            let mut vals: Vec<f32> = both
-                .iter()
-                .map(|v| if which == 0 { v.re } else { v.im })
-                .collect();
-            if want_corners {
-                maps.push(vals.clone());
-            }
-            let peaks = if options.hypotheses.dense() { PEAKS } else { 0 };
-            for _ in 0..peaks {
-                let (idx, &best) = vals
-                    .iter()
-                    .enumerate()
-                    .max_by(|x, y| x.1.total_cmp(y.1).then(y.0.cmp(&x.0)))
-                    .expect("non-empty correlation");
-                let (sx, sy) = (idx % n, idx / n);
-                let signed = |v: usize| {
-                    if v < n - diag {
-                        v as f64
-                    } else {
-                        v as f64 - n as f64
-                    }
-                };
-                let tc = (
-                    cr.0 - (c * ca.0 - s * ca.1) + signed(sx),
-                    cr.1 - (s * ca.0 + c * ca.1) + signed(sy),
-                );
-                let t = (
-                    cell as f64 * tc.0 + half - (c * half - s * half),
-                    cell as f64 * tc.1 + half - (s * half + c * half),
-                );
-                coarse.push((
-                    f64::from(best),
-                    Crop(Rigid {
-                        theta_deg: *theta,
-                        tx: t.0,
-                        ty: t.1,
-                    }),
-                ));
-                for yy in sy.saturating_sub(6)..(sy + 7).min(n) {
-                    for xx in sx.saturating_sub(6)..(sx + 7).min(n) {
-                        vals[yy * n + xx] = f32::MIN;
-                    }
-                }
-            }
-        }
-    }
-    if want_corners {
-        if src.corners.is_none() || dst.corners.is_none() {
-            return Err(Error::Internal(
-                "corner hypotheses need maps prepared with their corners".to_string(),
-            ));
-        }
-        let (sk, dk) = (
-            src.corners.as_deref().unwrap_or(&[]),
-            dst.corners.as_deref().unwrap_or(&[]),
-        );
-        for (k, &theta) in thetas.iter().enumerate() {
-            let (c, s) = cs(theta);
-            for t in vote(sk, dk, theta) {
-                // Its coarse score: the correlation at the nearest shift (the inverse of the peak's
-                // translation above).
-                let u = (
-                    (t.tx - half + (c * half - s * half)) / cell as f64 - cr.0
-                        + (c * ca.0 - s * ca.1),
-                    (t.ty - half + (s * half + c * half)) / cell as f64 - cr.1
-                        + (s * ca.0 + c * ca.1),
-                );
-                let wrap = |v: f64| {
-                    let v = v.round() as i64;
-                    // The shifts the correlation holds: 0..n-diag, and -diag..0 wrapped to the end.
-                    (-(diag as i64)..(n - diag) as i64)
-                        .contains(&v)
-                        .then(|| v.rem_euclid(n as i64) as usize)
-                };
-                let (Some(sx), Some(sy)) = (wrap(u.0), wrap(u.1)) else {
-                    continue;
-                };
-                coarse.push((f64::from(maps[k][sy * n + sx]), Crop(t)));
-            }
-        }
-    }
+    let CoarseSet {
+        cell,
+        list: coarse,
+        unit: coarse_unit,
+    } = coarse_hypotheses(src, dst, &options.hypotheses)?;
     if coarse.is_empty() {
         return Ok(declined(
             "no hypothesis: the maps' corners agree on no placement",
         ));
     }
-    coarse.sort_by(|x, y| y.0.total_cmp(&x.0));
+    // Every coarse hypothesis screened on the full maps (an even sample of their walls), each at four
+    // shifts around it: a coarse peak is off by up to half a cell, and the walls of a
+    // building of many like rooms correlate almost as well with a wrong placement at the coarse level.
+    let [tolerant, strict] = screen(src, dst, &coarse, cell as f64, backend)?;
     let mut picked: Vec<(f64, Crop)> = Vec::new();
-    for c in coarse {
-        if picked
-            .iter()
-            .all(|p| reference_rms(src, &p.1 .0, &c.1 .0) > DISTINCT_PX)
-        {
-            picked.push(c);
-        }
-        if picked.len() >= REFINED {
-            break;
+    for (order, most) in [(&tolerant, REFINED), (&strict, REFINED + STRICT)] {
+        for &(i, t) in order {
+            if picked.len() >= most {
+                break;
+            }
+            let c = (coarse[i].0, Crop(t));
+            if picked
+                .iter()
+                .all(|p| reference_rms(src, &p.1 .0, &c.1 .0) > DISTINCT_PX)
+            {
+                picked.push(c);
+            }
         }
     }
     let icped: Vec<(f64, Rigid)> = {
@@ -464,24 +168,19 @@ pub fn align_prepared_with(
     };
     let crops: Vec<Rigid> = icped.iter().map(|r| r.1).collect();
     let verified = verify(src, dst, &crops, backend)?;
-    // The local agreement of each candidate, in coarse order, skipping those that cannot win the choice
-    // below (their coarse share is under the best product so far, and the agreement is at most 1).
+    // Every candidate's local agreement: the choice below and its margin over the runner-up need them all.
     let top = icped.iter().map(|r| r.0).fold(f64::MIN, f64::max).max(1e-9);
-    let mut locals = vec![0.0; icped.len()];
-    let mut best_key = 0.0;
-    for (i, (score, t)) in icped.iter().enumerate() {
-        if score / top <= best_key {
-            continue;
-        }
-        let ((a, na, _), (b, nb, _)) = rayon::join(
-            || local_agreement(src, dst, t),
-            || local_agreement(dst, src, &t.inverse()),
-        );
-        locals[i] = (a * na + b * nb) / (na + nb).max(1.0);
-        best_key = f64::max(best_key, locals[i] * score / top);
-    }
-    let walls_cells = |c: &super::prepare::Coarse| c.cwall.iter().sum::<f32>();
-    let coarse_unit = (n * n) as f64 * f64::from(walls_cells(sc).min(walls_cells(dc)).max(1.0));
+    let locals: Vec<f64> = {
+        use rayon::prelude::*;
+        icped
+            .par_iter()
+            .map(|(_, t)| {
+                let (a, na, _) = local_agreement(src, dst, t);
+                let (b, nb, _) = local_agreement(dst, src, &t.inverse());
+                (a * na + b * nb) / (na + nb).max(1.0)
+            })
+            .collect()
+    };
     let to_full = |t: &Rigid| crop_to_map(src, dst, t);
     let refined: Vec<(f64, Rigid, Features)> = icped
         .iter()
@@ -494,17 +193,34 @@ pub fn align_prepared_with(
             (score, to_full(&t), f)
         })
         .collect();
-    // The candidate whose coarse score, relative to the best one, times its local agreement is highest
-    // wins: the coarse score alone prefers a wrong placement laying one map fully over the other to a
-    // true, smaller overlap; the local agreement alone, small overlaps of a few matching walls. How far
-    // it stands out: its coarse score over the best distinct alternative's (at most 10).
-    let key = |r: &(f64, Rigid, Features)| r.2.local * r.0 / top;
+    // The choice: the best product of the coarse score (relative to the best one), the local agreement,
+    // the square root of the share of walls not deep in the other map's free space and the fourth power
+    // of the share of free space on the other's free space. The coarse score
+    // alone prefers a wrong placement laying one map fully over the other to a true, smaller overlap;
+    // the local agreement alone, small overlaps of a few matching walls; in a building of many like
+    // rooms, a wrong placement matches walls locally but puts others in the other map's rooms.
+    let key = |r: &(f64, Rigid, Features)| {
+        r.2.local * (1.0 - r.2.conflict_fine).max(0.0).sqrt() * r.2.free_agree.powi(4) * r.0 / top
+    };
     let mut order: Vec<usize> = (0..refined.len()).collect();
     // Stable: ties keep the coarse order.
     order.sort_by(|&x, &y| key(&refined[y]).total_cmp(&key(&refined[x])));
     let mut refined: Vec<(f64, Rigid, Features)> = order.iter().map(|&i| refined[i]).collect();
+    let keys: Vec<f64> = refined.iter().map(key).collect();
     // The chosen one polished to a fraction of a pixel, and verified again.
-    let polished = polish(src, dst, &crops[order[0]], backend)?;
+    let mut polished = crops[order[0]];
+    // Hill-climbing from 2 px and 0.4 degree steps down to the finest: ICP stops short of the best fit
+    // of a small overlap's few walls, by up to a degree.
+    for scale in POLISH_SCALES {
+        for _ in 0..POLISH_ROUNDS {
+            let next = polish(src, dst, &polished, scale, backend)?;
+            let stayed = next == polished;
+            polished = next;
+            if stayed {
+                break;
+            }
+        }
+    }
     let again = verify(src, dst, &[polished], backend)?[0];
     refined[0].1 = to_full(&polished);
     refined[0].2 = Features {
@@ -514,16 +230,25 @@ pub fn align_prepared_with(
         ..again
     };
     let (best_score, best, mut features) = refined[0];
-    let runner = refined[1..]
-        .iter()
-        .filter(|r| transform_distance(&r.1, &best) > DISTINCT_PX)
-        .map(|r| r.0)
-        .fold(f64::NEG_INFINITY, f64::max);
-    features.coarse_ratio = if runner > 0.0 {
-        (best_score / runner).min(MAX_RATIO)
-    } else {
-        MAX_RATIO
+    // How far it stands out, by the choice's key and by the coarse score: over the best distinct
+    // alternative's (both before the polish, as the alternatives are).
+    let distinct: Vec<usize> = (1..refined.len())
+        .filter(|&i| transform_distance(&refined[i].1, &best) > DISTINCT_PX)
+        .collect();
+    let ratio = |mine: f64, of: &dyn Fn(usize) -> f64| {
+        let other = distinct
+            .iter()
+            .map(|&i| of(i))
+            .fold(f64::NEG_INFINITY, f64::max);
+        if other > 0.0 {
+            (mine / other).min(MAX_RATIO)
+        } else {
+            MAX_RATIO
+        }
     };
+    features.coarse_ratio = ratio(best_score, &|i| refined[i].0);
+    features.choice = keys[0];
+    features.choice_ratio = ratio(keys[0], &|i| keys[i]);
     let score = options.accept.margin(&features);
     // Only for what could be merged (down to the operating curve's lowest offset): each map's
     // self-match costs an alignment (cached in the map).
@@ -539,24 +264,27 @@ pub fn align_prepared_with(
                  {MAX_SELF_SYMMETRY}), so it could be merged more than one way"
             );
         }
+        if score >= 0.0 && contradiction(&features) > MAX_CONTRADICTION {
+            return format!(
+                "contradicted: {:.0}% of the walls that fall in the other map lie inside its free space, \
+                 and {:.1}% of the free space that falls in it on its walls or unknown",
+                100.0 * features.conflict_fine,
+                100.0 * (1.0 - features.free_agree)
+            );
+        }
         if score >= 0.0 && features.conflict_fine > MAX_FINE_CONFLICT {
             return format!(
                 "contradicted: {:.0}% of the walls that fall in the other map lie inside its free space",
                 100.0 * features.conflict_fine
             );
         }
-        if score >= 0.0 {
-            return format!(
-                "ambiguous: the best distinct alternative scores {:.0}% of the best (a map that looks the \
-                 same turned or shifted)",
-                100.0 / features.coarse_ratio
-            );
-        }
         format!(
-            "not confident: {:.0}% of the walls cross free space, {:.0}% of the smaller map's walls fall in \
-             the other, coarse score {:.2}x the best distinct alternative (rule value {score:.2} below 0)",
-            100.0 * features.conflict,
-            100.0 * features.inside,
+            "not confident: {:.0}% of the smaller map's free space falls in the other ({:.1}% of it on \
+             occupied or unknown pixels), the choice scores {:.2}x and the coarse score {:.2}x the best \
+             distinct alternative (rule value {score:.2} below 0)",
+            100.0 * features.free_inside,
+            100.0 * (1.0 - features.free_agree),
+            features.choice_ratio,
             features.coarse_ratio
         )
     });
@@ -602,13 +330,19 @@ fn reference_rms(src: &Prepared, x: &Rigid, y: &Rigid) -> f64 {
     (sum / src.reference.len() as f64).sqrt()
 }
 
-/// `t` (src crop to dst crop) moved by up to half a pixel and turned by up to 0.1 degree about src's
-/// walls' centre to where most wall pixels of each map land on occupied pixels of the other: 75
-/// transforms scored by the kernel at once, the first best one kept (`t` itself first).
-fn polish(src: &Prepared, dst: &Prepared, t: &Rigid, backend: &mut dyn Backend) -> Result<Rigid> {
+/// `t` (src crop to dst crop) moved by up to `scale` half pixels and turned by up to `scale` tenths of
+/// a degree about src's walls' centre to where most wall pixels of each map land on occupied pixels of
+/// the other: 75 transforms scored by the kernel at once, the first best one kept (`t` itself first).
+fn polish(
+    src: &Prepared,
+    dst: &Prepared,
+    t: &Rigid,
+    scale: f64,
+    backend: &mut dyn Backend,
+) -> Result<Rigid> {
     let c = src.reference[4];
     let mut grid = vec![*t];
-    for d in [-0.1, 0.0, 0.1] {
+    for d in [-0.1 * scale, 0.0, 0.1 * scale] {
         let (cd, sd) = cs(d);
         // p -> t(R_d (p - c) + c): the same turn about c.
         let shift = (c.0 - (cd * c.0 - sd * c.1), c.1 - (sd * c.0 + cd * c.1));
@@ -622,15 +356,21 @@ fn polish(src: &Prepared, dst: &Prepared, t: &Rigid, backend: &mut dyn Backend) 
             for dx in [-0.5, -0.25, 0.0, 0.25, 0.5] {
                 if d != 0.0 || dx != 0.0 || dy != 0.0 {
                     grid.push(Rigid {
-                        tx: base.tx + dx,
-                        ty: base.ty + dy,
+                        tx: base.tx + dx * scale,
+                        ty: base.ty + dy * scale,
                         ..base
                     });
                 }
             }
         }
     }
-    let (a, b) = score_both(src, dst, &grid, true, backend)?;
+    // The coarser steps on a sample of the walls; the finest on all of them.
+    let probe = if scale > 1.0 {
+        Probe::FineSample
+    } else {
+        Probe::Fine
+    };
+    let (a, b) = score_both(src, dst, &grid, probe, backend)?;
     let mut best = (0u32, *t);
     for ((x, y), g) in a.iter().zip(&b).zip(&grid) {
         let hits = x[1] + y[1];
@@ -658,9 +398,11 @@ fn icp(src: &Prepared, dst: &Prepared, mut t: Rigid) -> Rigid {
         } else {
             &[(0.0, 0.0)]
         };
+        let apply = t.applier();
         for &p in src.walls.iter().step_by(step) {
-            let q = t.apply(p);
+            let q = apply(p);
             let mut target: Option<(f64, f64)> = None;
+            // Squared distances: no square root per probe.
             let mut best = f64::MAX;
             for &(dx, dy) in probes {
                 let Some(i) = dst.index(q.0 + dx, q.1 + dy) else {
@@ -671,12 +413,12 @@ fn icp(src: &Prepared, dst: &Prepared, mut t: Rigid) -> Rigid {
                 }
                 let j = dst.nearest[i] as usize;
                 let c = ((j % dst.w) as f64, (j / dst.w) as f64);
-                let d = (c.0 - q.0).hypot(c.1 - q.1);
+                let d = (c.0 - q.0).powi(2) + (c.1 - q.1).powi(2);
                 if d < best {
                     (best, target) = (d, Some(c));
                 }
             }
-            if let Some(target) = target.filter(|_| best < trim) {
+            if let Some(target) = target.filter(|_| best < trim * trim) {
                 pairs_p.push(p);
                 pairs_q.push(target);
             }
@@ -725,16 +467,25 @@ fn verify(
     candidates: &[Rigid],
     backend: &mut dyn Backend,
 ) -> Result<Vec<Features>> {
-    let (into_dst, into_src) = score_both(src, dst, candidates, false, backend)?;
-    let (fine_dst, fine_src) = score_both(src, dst, candidates, true, backend)?;
+    let (into_dst, into_src) = score_both(src, dst, candidates, Probe::Walls, backend)?;
+    let (fine_dst, fine_src) = score_both(src, dst, candidates, Probe::Fine, backend)?;
+    let (free_dst, free_src) = score_both(src, dst, candidates, Probe::Free, backend)?;
+    let share = |n: u32, of: usize| f64::from(n) / of.max(1) as f64;
     Ok(into_dst
         .iter()
         .zip(&into_src)
         .zip(fine_dst.iter().zip(&fine_src))
+        .zip(free_dst.iter().zip(&free_src))
         .map(
-            |((&[ia, ma, da], &[ib, mb, db]), (&[_, fa, ga], &[_, fb, gb]))| {
+            |(
+                ((&[ia, ma, da], &[ib, mb, db]), (&[_, fa, ga], &[_, fb, gb])),
+                (&[ka, oa, _], &[kb, ob, _]),
+            )| {
                 let inside_total = f64::from((ia + ib).max(1));
                 Features {
+                    free_inside: share(ka, src.free_points.len())
+                        .min(share(kb, dst.free_points.len())),
+                    free_agree: f64::from(oa + ob) / f64::from((ka + kb).max(1)),
                     conflict: f64::from(da + db) / inside_total,
                     inside: (f64::from(ia) / src.walls.len().max(1) as f64)
                         .min(f64::from(ib) / dst.walls.len().max(1) as f64),
@@ -747,34 +498,6 @@ fn verify(
             },
         )
         .collect())
-}
-
-/// The scoring kernel's counts for one transform: inside, near, deep.
-type Counts = [u32; 3];
-
-/// Per transform (src crop to dst crop), the scoring kernel's counts of src's walls mapped into dst and of
-/// dst's walls mapped back by the inverse, against the verification flags or (`fine`) the finer ones.
-fn score_both(
-    src: &Prepared,
-    dst: &Prepared,
-    transforms: &[Rigid],
-    fine: bool,
-    backend: &mut dyn Backend,
-) -> Result<(Vec<Counts>, Vec<Counts>)> {
-    let fixed = |t: &Rigid| FixedRigid::new(t.theta_deg, t.tx, t.ty);
-    let forward: Vec<FixedRigid> = transforms.iter().map(fixed).collect();
-    let backward: Vec<FixedRigid> = transforms.iter().map(|t| fixed(&t.inverse())).collect();
-    fn flags(p: &Prepared, fine: bool) -> &ScoreTarget {
-        if fine {
-            &p.flags_fine
-        } else {
-            &p.flags
-        }
-    }
-    Ok((
-        backend.score_transforms(flags(dst, fine), &src.wall_points, &forward)?,
-        backend.score_transforms(flags(src, fine), &dst.wall_points, &backward)?,
-    ))
 }
 
 /// How far apart two transforms are: their translations' distance plus 10 px a degree of turn.
@@ -813,8 +536,9 @@ fn local_agreement(from: &Prepared, to: &Prepared, t: &Rigid) -> (f64, f64, f64)
     // At most about 8000 wall pixels a map: enough for every tile's share.
     let step = from.walls.len().div_ceil(8000).max(1);
     let mut tiles: std::collections::BTreeMap<(i64, i64), Vec<(f64, f64)>> = Default::default();
+    let apply = t.applier();
     for &p in from.walls.iter().step_by(step) {
-        let q = t.apply(p);
+        let q = apply(p);
         if to.index(q.0, q.1).is_some() {
             tiles
                 .entry(((q.0 / TILE).floor() as i64, (q.1 / TILE).floor() as i64))

@@ -68,7 +68,8 @@ struct Placed<'a> {
     b: &'a MapImage,
     ca: ClassTable,
     cb: ClassTable,
-    inv: Rigid,
+    /// The inverse transform's rotation (cos, sin) and translation, computed once for every pixel.
+    inv: [f64; 4],
     canvas: Canvas,
 }
 
@@ -95,7 +96,11 @@ impl<'a> Placed<'a> {
             b: ib,
             ca: ClassTable::new(&a.thresholds),
             cb: ClassTable::new(&b.thresholds),
-            inv: t.inverse(),
+            inv: {
+                let inv = t.inverse();
+                let (s, c) = inv.theta_deg.to_radians().sin_cos();
+                [c, s, inv.tx, inv.ty]
+            },
             canvas,
         })
     }
@@ -113,7 +118,10 @@ impl<'a> Placed<'a> {
     /// B's state under A pixel (x, y).
     #[inline]
     fn b(&self, x: i64, y: i64) -> CellState {
-        let (bx, by) = self.inv.apply((x as f64, y as f64));
+        // Rigid::apply's arithmetic, with the sine and cosine computed once.
+        let [c, s, tx, ty] = self.inv;
+        let (x, y) = (x as f64, y as f64);
+        let (bx, by) = (c * x - s * y + tx, s * x + c * y + ty);
         let (bx, by) = (bx.round(), by.round());
         if bx < 0.0
             || by < 0.0

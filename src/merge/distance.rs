@@ -6,43 +6,37 @@
 pub(super) fn edt(mask: &[bool], w: usize, h: usize) -> (Vec<f32>, Vec<u32>) {
     use rayon::prelude::*;
     const INF: f64 = 1e20;
-    // Columns first (each on its own, every core): squared vertical distance and the row of the nearest
-    // seed, stored column by column.
-    let columns: Vec<(Vec<f64>, Vec<u32>)> = (0..w)
-        .into_par_iter()
-        .map(|x| {
-            let f: Vec<f64> = (0..h)
-                .map(|y| if mask[y * w + x] { 0.0 } else { INF })
-                .collect();
-            let (mut out, mut arg) = (vec![0f64; h], vec![0usize; h]);
-            envelope(&f, &mut out, &mut arg);
-            let rows = (0..h)
-                .map(|y| {
-                    if out[y] < INF / 2.0 {
-                        arg[y] as u32
-                    } else {
-                        u32::MAX
+    // Columns first: the nearest seed above and below each pixel in its column, by one sweep down and
+    // one up over whole rows (the squared vertical distance is that distance squared: no parabolas
+    // needed in 1-D with 0/INF input, and rows stay contiguous in memory).
+    let mut g = vec![INF; w * h];
+    let mut seed_row = vec![u32::MAX; w * h];
+    let mut last = vec![u32::MAX; w];
+    let down: Vec<usize> = (0..h).collect();
+    let up: Vec<usize> = (0..h).rev().collect();
+    for ys in [down, up] {
+        last.fill(u32::MAX);
+        for y in ys {
+            let row = y * w..(y + 1) * w;
+            for (x, (l, (gv, sr))) in last
+                .iter_mut()
+                .zip(g[row.clone()].iter_mut().zip(&mut seed_row[row.clone()]))
+                .enumerate()
+            {
+                if mask[y * w + x] {
+                    *l = y as u32;
+                }
+                if *l != u32::MAX {
+                    // Strictly nearer: on the way up, ties keep the seed above.
+                    let d = (y.abs_diff(*l as usize) as f64).powi(2);
+                    if d < *gv {
+                        *gv = d;
+                        *sr = *l;
                     }
-                })
-                .collect();
-            (out, rows)
-        })
-        .collect();
-    // The columns' results row by row (in 64 x 64 blocks, so both sides stay in cache), for the rows.
-    let mut g = vec![0f64; w * h];
-    let mut seed_row = vec![0u32; w * h];
-    const B: usize = 64;
-    for x0 in (0..w).step_by(B) {
-        for y0 in (0..h).step_by(B) {
-            for (x, (col, rows)) in columns.iter().enumerate().skip(x0).take(B) {
-                for y in y0..(y0 + B).min(h) {
-                    g[y * w + x] = col[y];
-                    seed_row[y * w + x] = rows[y];
                 }
             }
         }
     }
-    drop(columns);
     let mut dist = vec![f32::MAX; w * h];
     let mut nearest = vec![u32::MAX; w * h];
     dist.par_chunks_mut(w.max(1))
@@ -137,5 +131,44 @@ mod tests {
         }
         let (d, near) = edt(&[false; 6], 3, 2);
         assert!(d.iter().all(|&v| v == f32::MAX) && near.iter().all(|&v| v == u32::MAX));
+    }
+
+    #[test]
+    fn random_masks_match_brute_force() {
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        let mut next = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state
+        };
+        for case in 0..40 {
+            let (w, h) = (1 + (next() % 23) as usize, 1 + (next() % 19) as usize);
+            // Sparse to dense seeds, and some masks with none.
+            let density = next() % 100;
+            let m: Vec<bool> = (0..w * h)
+                .map(|_| case % 10 != 0 && next() % 100 < density)
+                .collect();
+            let (d, near) = edt(&m, w, h);
+            for i in 0..w * h {
+                let (x, y) = ((i % w) as f64, (i / w) as f64);
+                let want = (0..w * h)
+                    .filter(|&j| m[j])
+                    .map(|j| ((x - (j % w) as f64).powi(2) + (y - (j / w) as f64).powi(2)).sqrt())
+                    .fold(f64::MAX, f64::min);
+                if want == f64::MAX {
+                    assert!(d[i] == f32::MAX && near[i] == u32::MAX, "case {case}");
+                    continue;
+                }
+                assert!(
+                    (f64::from(d[i]) - want).abs() < 1e-4,
+                    "case {case}, pixel {i}"
+                );
+                let j = near[i] as usize;
+                assert!(m[j], "case {case}: pixel {i} names a non-seed");
+                let got = ((x - (j % w) as f64).powi(2) + (y - (j / w) as f64).powi(2)).sqrt();
+                assert!((got - want).abs() < 1e-4, "case {case}, pixel {i}");
+            }
+        }
     }
 }

@@ -459,9 +459,11 @@ pub fn write_summary(out: &mut dyn Write, rows: &[PairRecord], prep_ms: f64) -> 
     writeln!(
         out,
         "\nOperating curve: the acceptance rule's threshold moved by an offset (0 is the default; the \
-         coarse ratio must stay at least {} and the fine conflict at most {}):\n",
-        super::align::MIN_COARSE_RATIO,
-        super::align::MAX_FINE_CONFLICT
+         vetoes hold throughout: fine conflict at most {}, contradiction at most {}, self-match at most \
+         {}):\n",
+        super::align::MAX_FINE_CONFLICT,
+        super::align::MAX_CONTRADICTION,
+        super::align::MAX_SELF_SYMMETRY
     )?;
     writeln!(
         out,
@@ -478,7 +480,7 @@ pub fn write_summary(out: &mut dyn Write, rows: &[PairRecord], prep_ms: f64) -> 
 }
 
 /// Offsets of the operating curve.
-pub const CURVE_OFFSETS: [f64; 11] = [-1.0, -0.5, -0.3, -0.2, -0.1, 0.0, 0.1, 0.2, 0.3, 0.5, 1.0];
+pub const CURVE_OFFSETS: [f64; 11] = [-8.0, -4.0, -2.0, -1.0, -0.5, 0.0, 0.5, 1.0, 2.0, 4.0, 8.0];
 
 /// For each offset of [`CURVE_OFFSETS`] added to the rule's threshold: accepted pairs of one place,
 /// accepted and accurate ones, wrong accepts among them, and accepted negatives.

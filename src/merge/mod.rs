@@ -8,7 +8,9 @@
 //! - [`synthetic`]: pairs with exact truth cut from any map.
 //! - [`hypotheses`]: where the aligner's hypotheses come from (dense correlation, corners, both).
 
+mod accept;
 pub mod align;
+mod coarse;
 pub mod compose;
 mod distance;
 pub mod eval;
@@ -16,6 +18,7 @@ mod fft;
 pub mod hypotheses;
 pub mod pairs;
 mod prepare;
+mod score;
 pub mod synthetic;
 pub mod transform;
 

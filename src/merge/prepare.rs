@@ -10,13 +10,17 @@ use crate::states::{CellState, ClassTable};
 /// Coarse cell sides the correlation may use, pixels: per pair, the finest whose FFT stays small (so a
 /// small map is correlated at 4 px, the 1585 px maps of the real pairs at 16).
 pub const CELLS: [usize; 3] = [4, 8, 16];
+/// Wall pixels a map screens the coarse hypotheses with (at most about).
+pub const SCREEN_POINTS: usize = 1500;
+/// Free pixels a map's free-space agreement is measured with (at most about).
+pub const FREE_POINTS: usize = 4000;
 /// Margin around the known area, pixels.
 const PAD: usize = 8;
 
 /// Bytes [`Prepared`] holds for a `width` x `height` map, and its transforms' buffers (at most): two
 /// distance maps with their nearest pixels, the masks, and the transform's row buffers.
 pub fn prepared_bytes(width: u32, height: u32) -> u64 {
-    (u64::from(width) * u64::from(height)).saturating_mul(40)
+    (u64::from(width) * u64::from(height)).saturating_mul(42)
 }
 
 /// A map prepared for alignment.
@@ -29,12 +33,22 @@ pub struct Prepared {
     pub(super) walls: Vec<(f64, f64)>,
     /// The same, as the scoring kernel takes them.
     pub(super) wall_points: Vec<[u32; 2]>,
+    /// An even sample of them (at most [`SCREEN_POINTS`]), for screening many coarse hypotheses.
+    pub(super) screen_points: Vec<[u32; 2]>,
     /// What another map's walls landing on each pixel count as (the scoring kernel's target): inside
     /// (known, or within 5 px of a wall), near a wall (within 5 px), deep in free space (over 20 px).
     pub(super) flags: ScoreTarget,
     /// The same at a finer tolerance: near = on an occupied pixel (the sub-pixel polish), deep over 3 px
     /// (the contradiction veto).
     pub(super) flags_fine: ScoreTarget,
+    /// The screening's target: near within 5 px, deep over 20 px, and (the inside bit) over 8 px deep (a
+    /// wall landing in a room's free space away from its walls: what tells a wrong placement in a building
+    /// of many like rooms).
+    pub(super) flags_screen: ScoreTarget,
+    /// An even sample of the free pixels (at most [`FREE_POINTS`]).
+    pub(super) free_points: Vec<[u32; 2]>,
+    /// What another map's free pixels landing on each pixel count as: known, free, occupied.
+    pub(super) flags_free: ScoreTarget,
     /// Distance to the nearest occupied pixel.
     pub(super) dist: Vec<f32>,
     /// The nearest wall pixel (crop index; `u32::MAX` without walls), ICP's target.
@@ -145,19 +159,26 @@ impl Prepared {
                 }
             }
         }
-        let (dist, _) = edt(&occ, w, h);
         // ICP pulls walls onto the other map's nearest wall pixel (occupied, next to free space): inside a
         // thick wall every occupied pixel is its own nearest, which would hold an estimate off by a pixel.
         let mut boundary = vec![false; w * h];
         for &(x, y) in &walls {
             boundary[y as usize * w + x as usize] = true;
         }
-        let (_, nearest) = edt(&boundary, w, h);
         let not_free: Vec<bool> = free.iter().map(|&f| !f).collect();
-        let (free_depth, _) = edt(&not_free, w, h);
-        let reference = reference_points(&walls);
+        // The three distance maps at once (on every core).
+        let ((dist, _), ((_, nearest), (free_depth, _))) = rayon::join(
+            || edt(&occ, w, h),
+            || rayon::join(|| edt(&boundary, w, h), || edt(&not_free, w, h)),
+        );
         let angle = dominant_angle(&walls);
-        let wall_points = walls.iter().map(|&(x, y)| [x as u32, y as u32]).collect();
+        let reference = reference_points(&walls);
+        let wall_points: Vec<[u32; 2]> = walls.iter().map(|&(x, y)| [x as u32, y as u32]).collect();
+        let screen_points = wall_points
+            .iter()
+            .step_by(wall_points.len().div_ceil(SCREEN_POINTS).max(1))
+            .copied()
+            .collect();
         // Near: within `near_px` of an occupied pixel, or (None) on one.
         let flag_bytes = |near_px: Option<f32>, deep_px: f32| -> Vec<u8> {
             (0..w * h)
@@ -177,6 +198,34 @@ impl Prepared {
         };
         let flags_fine = ScoreTarget {
             flags: flag_bytes(None, 3.0),
+            ..flags.clone()
+        };
+        // The screening's own bits: near (within 5 px), deep (over 20 px), and in the place of inside,
+        // over 8 px deep.
+        let flags_screen = ScoreTarget {
+            flags: (0..w * h)
+                .map(|i| {
+                    u8::from(free_depth[i] > 8.0) * FLAG_INSIDE
+                        + u8::from(dist[i] <= 5.0) * FLAG_NEAR
+                        + u8::from(free_depth[i] > 20.0) * FLAG_DEEP
+                })
+                .collect(),
+            ..flags.clone()
+        };
+        let n_free = free.iter().filter(|&&f| f).count();
+        let free_points = (0..w * h)
+            .filter(|&i| free[i])
+            .step_by(n_free.div_ceil(FREE_POINTS).max(1))
+            .map(|i| [(i % w) as u32, (i / w) as u32])
+            .collect();
+        let flags_free = ScoreTarget {
+            flags: (0..w * h)
+                .map(|i| {
+                    u8::from(known[i]) * FLAG_INSIDE
+                        + u8::from(free[i]) * FLAG_NEAR
+                        + u8::from(occ[i]) * FLAG_DEEP
+                })
+                .collect(),
             ..flags.clone()
         };
         // The coarse walls leave out speckle: an occupied pixel with no occupied 8-neighbour.
@@ -206,8 +255,12 @@ impl Prepared {
             h,
             walls,
             wall_points,
+            screen_points,
             flags,
             flags_fine,
+            flags_screen,
+            free_points,
+            flags_free,
             dist,
             nearest,
             reference,
@@ -238,7 +291,9 @@ impl Prepared {
     /// Crop index of the pixel nearest to (x, y), if inside the crop.
     #[inline]
     pub(super) fn index(&self, x: f64, y: f64) -> Option<usize> {
-        let (x, y) = (x.round(), y.round());
+        // Rounding half up by truncation, which is floor for the non-negative values kept (`f64::round`
+        // is a libm call, and this runs millions of times a pair).
+        let (x, y) = (x + 0.5, y + 0.5);
         (x >= 0.0 && y >= 0.0 && x < self.w as f64 && y < self.h as f64)
             .then(|| y as usize * self.w + x as usize)
     }

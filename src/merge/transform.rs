@@ -26,9 +26,16 @@ impl Rigid {
     };
 
     /// Where point `p` of B lands in A.
-    pub fn apply(&self, (x, y): (f64, f64)) -> (f64, f64) {
+    pub fn apply(&self, p: (f64, f64)) -> (f64, f64) {
+        self.applier()(p)
+    }
+
+    /// [`Rigid::apply`] with the rotation's sine and cosine computed once, for many points (the same
+    /// results).
+    pub fn applier(&self) -> impl Fn((f64, f64)) -> (f64, f64) + Copy {
         let (s, c) = self.theta_deg.to_radians().sin_cos();
-        (c * x - s * y + self.tx, s * x + c * y + self.ty)
+        let (tx, ty) = (self.tx, self.ty);
+        move |(x, y)| (c * x - s * y + tx, s * x + c * y + ty)
     }
 
     /// The transform from A to B.

@@ -1,0 +1,194 @@
+//! Whether an alignment is right: the features its verification measures and the acceptance test over
+//! them (a rule fitted on the calibration half of the real pairs, and vetoes).
+
+use serde::Serialize;
+
+/// Whatever the rule says, an alignment is contradicted when more than this share of the walls that fall
+/// in the other map lie over 3 px deep in its free space ([`Features::conflict_fine`]). The highest of the
+/// accepted right real pairs of the calibration half is 0.50 (held-out: 0.54); the half-turned offices
+/// of the synthetic suite have 0.6-0.7.
+pub const MAX_FINE_CONFLICT: f64 = 0.55;
+/// Whatever the rule says, a merge is ambiguous when either map matches itself under another transform
+/// this well ([`super::align::self_symmetry`]): the real maps have 0.49 at most, parts of the symmetric
+/// arenas of the synthetic suite 0.43-0.79 (those under the limit are the suite's wrong accepts).
+pub const MAX_SELF_SYMMETRY: f64 = 0.55;
+
+/// Whatever the rule says, an alignment is contradicted when its walls on free space and its free space
+/// on walls or unknown together exceed this ([`contradiction`]). The accepted right real pairs of the
+/// calibration half have 0.020 at most (held-out: 0.023), the right synthetic ones 0.000; wrong placements
+/// of the synthetic offices 0.034 and more.
+pub const MAX_CONTRADICTION: f64 = 0.03;
+
+/// How much an alignment contradicts itself: the share of the walls falling in the other map that lie over
+/// 3 px deep in its free space, times the share of the free pixels falling in its known area that are not
+/// on its free pixels. Either alone is high for some right real pairs (drifted walls; free space seen
+/// through a door one map has closed), both together only for wrong ones.
+pub fn contradiction(features: &Features) -> f64 {
+    features.conflict_fine * (1.0 - features.free_agree)
+}
+
+/// Whether an alignment with these features and rule value is accepted: the rule, the two contradiction
+/// vetoes and the self-symmetry test.
+pub fn accepts(features: &Features, rule_value: f64) -> bool {
+    rule_value >= 0.0
+        && features.conflict_fine <= MAX_FINE_CONFLICT
+        && contradiction(features) <= MAX_CONTRADICTION
+        && features.self_match <= MAX_SELF_SYMMETRY
+}
+
+/// The acceptance rule: `w_choice * ln(choice ratio) + w_coarse * ln(coarse ratio) + w_free_inside *
+/// free inside + w_free_disagree * ln(1.01 - free agree) >= threshold`: weights from a logistic
+/// regression on the calibration half of the real pairs (src map number even, every other negative),
+/// the threshold 0.3 standard deviations of the rule's values above the highest value of a wrong
+/// estimate or a negative there (vetoed ones aside).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct Acceptance {
+    /// Weight of the log of [`Features::choice_ratio`].
+    pub w_choice: f64,
+    /// Weight of the log of [`Features::coarse_ratio`].
+    pub w_coarse: f64,
+    /// Weight of [`Features::free_inside`].
+    pub w_free_inside: f64,
+    /// Weight of the log of 1.01 less [`Features::free_agree`].
+    pub w_free_disagree: f64,
+    /// The threshold.
+    pub threshold: f64,
+}
+
+impl Default for Acceptance {
+    fn default() -> Self {
+        Acceptance {
+            w_choice: 0.4079,
+            w_coarse: 6.0869,
+            w_free_inside: 12.8675,
+            w_free_disagree: -8.6699,
+            threshold: 33.0702,
+        }
+    }
+}
+
+impl Acceptance {
+    /// The rule's value minus its threshold (accept when >= 0).
+    pub fn margin(&self, f: &Features) -> f64 {
+        self.w_choice * f.choice_ratio.max(1e-3).ln()
+            + self.w_coarse * f.coarse_ratio.max(1e-3).ln()
+            + self.w_free_inside * f.free_inside
+            + self.w_free_disagree * (1.01 - f.free_agree).max(1e-3).ln()
+            - self.threshold
+    }
+}
+
+/// What the verification measures for a candidate transform.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct Features {
+    /// Share of both maps' wall pixels (each mapped into the other) that lie more than 20 px deep inside
+    /// the other map's free space.
+    pub conflict: f64,
+    /// The smaller of the two maps' shares of wall pixels that land in the other's known area (or within
+    /// 5 px of its walls).
+    pub inside: f64,
+    /// The coarse correlation score of this candidate.
+    pub coarse: f64,
+    /// How far it stands out: its coarse score over the best distinct runner-up's (refined transforms
+    /// differing by more than 40 px, counting 10 px a degree; large when there is none).
+    pub coarse_ratio: f64,
+    /// Share of both maps' wall pixels within 5 px of the other's walls.
+    pub matched: f64,
+    /// Share of both maps' wall pixels landing on an occupied pixel of the other.
+    pub matched_fine: f64,
+    /// Share of both maps' wall pixels more than 3 px deep inside the other map's free space (the
+    /// contradiction veto, [`MAX_FINE_CONFLICT`]).
+    pub conflict_fine: f64,
+    /// Drift-tolerant local agreement: in 48 px tiles of the overlap, the share of wall pixels within
+    /// 1.5 px of the other map's walls after the tile's best shift of up to 6 px (both maps into each
+    /// other, weighted by wall pixels). 0 for a candidate whose coarse score could not make it the choice
+    /// (not measured).
+    pub local: f64,
+    /// The coarse score over the smaller map's wall cells (as the FFT scales it).
+    pub coarse_norm: f64,
+    /// The choice's key: the local agreement times the square root of one less the fine conflict times
+    /// the fourth power of the free agreement times the coarse score relative to the best candidate's
+    /// (before the polish).
+    pub choice: f64,
+    /// How far the choice stands out: its key over the best distinct alternative's (at most 10).
+    pub choice_ratio: f64,
+    /// The smaller of the two maps' shares of (sampled) free pixels that land in the other's known area:
+    /// two maps laid side by side along a wall share walls but no free space.
+    pub free_inside: f64,
+    /// Of the free pixels landing in the other's known area, the share on its free pixels.
+    pub free_agree: f64,
+    /// The larger of the two maps' [`self_symmetry`], measured for the chosen candidate when the rule
+    /// value is at least -1 (0 otherwise).
+    pub self_match: f64,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn right() -> Features {
+        Features {
+            choice_ratio: 3.0,
+            coarse_ratio: 2.0,
+            free_inside: 0.6,
+            free_agree: 0.97,
+            conflict_fine: 0.3,
+            ..Features::default()
+        }
+    }
+
+    #[test]
+    fn a_typical_right_real_pair_passes_and_each_veto_declines_it() {
+        let f = right();
+        let margin = Acceptance::default().margin(&f);
+        assert!(margin > 0.0 && accepts(&f, margin), "{margin}");
+        // Walls on free space and free space on walls together: contradicted, whatever the rule says.
+        let both = Features {
+            conflict_fine: 0.5,
+            free_agree: 0.92,
+            ..f
+        };
+        assert!(contradiction(&both) > MAX_CONTRADICTION);
+        assert!(!accepts(&both, 10.0));
+        let deep = Features {
+            conflict_fine: 0.6,
+            free_agree: 0.99,
+            ..f
+        };
+        assert!(!accepts(&deep, 10.0));
+        let symmetric = Features {
+            self_match: 0.6,
+            ..f
+        };
+        assert!(!accepts(&symmetric, 10.0));
+    }
+
+    #[test]
+    fn the_rule_grows_with_the_shared_free_space_and_the_margins() {
+        let rule = Acceptance::default();
+        let f = right();
+        let less = |g: Features| rule.margin(&g) < rule.margin(&f);
+        assert!(less(Features {
+            free_inside: 0.3,
+            ..f
+        }));
+        assert!(less(Features {
+            free_agree: 0.9,
+            ..f
+        }));
+        assert!(less(Features {
+            choice_ratio: 1.5,
+            ..f
+        }));
+        assert!(less(Features {
+            coarse_ratio: 1.0,
+            ..f
+        }));
+        // Two maps side by side along a wall share walls but hardly any free space: declined.
+        let touching = Features {
+            free_inside: 0.02,
+            ..f
+        };
+        assert!(rule.margin(&touching) < 0.0);
+    }
+}

@@ -1,0 +1,353 @@
+//! The aligner's hypotheses: coarse correlation of the two maps' wall and free-space masks over 20
+//! rotations and every shift (FFT), each rotation's best peaks (and corner votes, when asked), then every
+//! hypothesis screened on the full maps by the scoring kernel.
+
+use rustfft::num_complex::Complex32;
+use rustfft::FftPlanner;
+
+use super::fft::{padded, Fft2};
+use super::hypotheses::{vote, Hypotheses};
+use super::prepare::{Prepared, CELLS};
+use super::score::{score_both, Counts, Probe};
+use super::transform::Rigid;
+use crate::backend::Backend;
+use crate::error::{Error, Result};
+
+/// Weight of walls on free space in the coarse score.
+const LAMBDA: f32 = 1.0;
+/// Rotation offsets tried around each quarter turn, degrees.
+const OFFSETS: [f64; 5] = [-2.0, -1.0, 0.0, 1.0, 2.0];
+/// Peaks kept per rotation hypothesis.
+const PEAKS: usize = 32;
+/// Largest coarse correlation side.
+const MAX_FFT: usize = 2048;
+/// The finest coarse level whose correlation side is at most this is used.
+pub const FINE_FFT: usize = 256;
+
+/// Rotation matrix entries (cos, sin) of `deg`.
+pub(super) fn cs(deg: f64) -> (f64, f64) {
+    let (s, c) = deg.to_radians().sin_cos();
+    (c, s)
+}
+
+/// A rigid transform in crop coordinates, as (theta, tx, ty).
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Crop(pub(super) Rigid);
+
+/// The coarse hypotheses of a pair (src crop to dst crop).
+pub(super) struct CoarseSet {
+    /// The correlation's cell side, pixels.
+    pub(super) cell: usize,
+    /// Each hypothesis with its coarse score, best first.
+    pub(super) list: Vec<(f64, Crop)>,
+    /// The coarse score of every wall cell of the smaller map landing on a wall (as the FFT scales it).
+    pub(super) unit: f64,
+}
+
+/// The coarse hypotheses of placing src onto dst: the finest coarse level whose correlation fits
+/// [`FINE_FFT`] cells a side; rotations of the two maps' dominant directions' difference, the four
+/// quarter turns and offsets of -2..2 degrees; for each, src's coarse masks turned into dst's orientation
+/// and correlated with dst's over every shift (walls on dilated walls, minus walls on free cells either
+/// way) and its [`PEAKS`] best peaks, and, with a detector, the corner votes ([`vote`]).
+pub(super) fn coarse_hypotheses(
+    src: &Prepared,
+    dst: &Prepared,
+    hypotheses: &Hypotheses,
+) -> Result<CoarseSet> {
+    // The finest level whose correlation fits FINE_FFT cells a side (else the coarsest).
+    let sizes = |l: usize| {
+        let (s, d) = (src.levels[l].as_ref()?, dst.levels[l].as_ref()?);
+        let diag = ((s.ch as f64).hypot(s.cw as f64)).ceil() as usize + 2;
+        Some((diag, (d.ch.max(d.cw) + diag).next_power_of_two(), s, d))
+    };
+    let coarsest = CELLS.len() - 1;
+    let (diag, n, sc, dc) = (0..coarsest)
+        .filter_map(sizes)
+        .find(|l| l.1 <= FINE_FFT)
+        .or_else(|| sizes(coarsest))
+        .expect("the coarsest level is always prepared");
+    let cell = sc.cell;
+    if n > MAX_FFT {
+        return Err(Error::invalid(format!(
+            "maps whose explored parts span {}x{} and {}x{} pixels are too large to align (at most {} \
+             coarse cells across both)",
+            src.w,
+            src.h,
+            dst.w,
+            dst.h,
+            MAX_FFT
+        )));
+    }
+    let mut planner = FftPlanner::new();
+    let (fwd, inv) = (
+        Fft2::new(&mut planner, n, false),
+        Fft2::new(&mut planner, n, true),
+    );
+    let spectrum = |m: &[f32], w, h| {
+        let mut c = padded(m, w, h, n);
+        fwd.run(&mut c);
+        c
+    };
+    let fb_wall_dil = spectrum(&dc.cwall_dil, dc.cw, dc.ch);
+    let fb_free = spectrum(&dc.cfree, dc.cw, dc.ch);
+    let fb_wall = spectrum(&dc.cwall, dc.cw, dc.ch);
+    let fb1: Vec<Complex32> = fb_wall_dil
+        .iter()
+        .zip(&fb_free)
+        .map(|(w, f)| w - f * LAMBDA)
+        .collect();
+    let base = dst.angle - src.angle;
+    let ca = ((sc.cw as f64 - 1.0) / 2.0, (sc.ch as f64 - 1.0) / 2.0);
+    let cr = ((diag as f64 - 1.0) / 2.0, (diag as f64 - 1.0) / 2.0);
+    let half = (cell as f64 - 1.0) / 2.0;
+    let thetas: Vec<f64> = (0..4)
+        .flat_map(|k| {
+            OFFSETS
+                .iter()
+                .map(move |off| base + 90.0 * f64::from(k) + off)
+        })
+        .collect();
+    // Each hypothesis's correlation spectrum: src's two real masks go through one complex FFT (walls as
+    // the real part, free cells as the imaginary one) and are told apart by symmetry.
+    use rayon::prelude::*;
+    let spectra: Vec<Vec<Complex32>> = thetas
+        .par_iter()
+        .map(|&theta| {
+            let (c, s) = cs(theta);
+            // src's coarse masks turned by theta about their centre into a diag x diag canvas.
+            let mut z = vec![Complex32::new(0.0, 0.0); n * n];
+            for j in 0..diag {
+                for i in 0..diag {
+                    let (dx, dy) = (i as f64 - cr.0, j as f64 - cr.1);
+                    let (ax, ay) = (
+                        (c * dx + s * dy + ca.0).round(),
+                        (-s * dx + c * dy + ca.1).round(),
+                    );
+                    if ax >= 0.0 && ay >= 0.0 && (ax as usize) < sc.cw && (ay as usize) < sc.ch {
+                        let idx = ay as usize * sc.cw + ax as usize;
+                        z[j * n + i] = Complex32::new(sc.cwall[idx], sc.cfree[idx]);
+                    }
+                }
+            }
+            fwd.run(&mut z);
+            let half_c = Complex32::new(0.5, 0.0);
+            let minus_half_i = Complex32::new(0.0, -0.5);
+            (0..n * n)
+                .map(|idx| {
+                    let (ky, kx) = (idx / n, idx % n);
+                    let mirror = ((n - ky) % n) * n + (n - kx) % n;
+                    let (zk, zm) = (z[idx], z[mirror].conj());
+                    let fa1 = (zk + zm) * half_c; // walls
+                    let fa2 = (zk - zm) * minus_half_i; // free cells
+                                                        // corr(s) = sum_q src(q) dst(q + s) = IFFT(conj(FA) FB).
+                    fa1.conj() * fb1[idx] - fa2.conj() * fb_wall[idx] * LAMBDA
+                })
+                .collect()
+        })
+        .collect();
+    let mut coarse: Vec<(f64, Crop)> = Vec::new();
+    // Each rotation's correlation, kept when corner hypotheses are scored on it.
+    let want_corners = hypotheses.detector().is_some();
+    let mut maps: Vec<Vec<f32>> = Vec::new();
+    // Two real correlations per inverse FFT: the first as the real part, the second as the imaginary.
+    let firsts: Vec<usize> = (0..thetas.len()).step_by(2).collect();
+    let inverses: Vec<Vec<Complex32>> = firsts
+        .par_iter()
+        .map(|&h| {
+            let mut both: Vec<Complex32> = match spectra.get(h + 1) {
+                Some(second) => spectra[h]
+                    .iter()
+                    .zip(second)
+                    .map(|(a, b)| a + b * Complex32::new(0.0, 1.0))
+                    .collect(),
+                None => spectra[h].clone(),
+            };
+            inv.run(&mut both);
+            both
+        })
+        .collect();
+    drop(spectra);
+    for (&h, both) in firsts.iter().zip(&inverses) {
+        for (which, theta) in thetas[h..(h + 2).min(thetas.len())].iter().enumerate() {
+            let (c, s) = cs(*theta);
+            let vals: Vec<f32> = both
+                .iter()
+                .map(|v| if which == 0 { v.re } else { v.im })
+                .collect();
+            if want_corners {
+                maps.push(vals.clone());
+            }
+            let k_peaks = if hypotheses.dense() { PEAKS } else { 0 };
+            for (idx, best) in peaks(&vals, n, k_peaks) {
+                let (sx, sy) = (idx % n, idx / n);
+                let signed = |v: usize| {
+                    if v < n - diag {
+                        v as f64
+                    } else {
+                        v as f64 - n as f64
+                    }
+                };
+                let tc = (
+                    cr.0 - (c * ca.0 - s * ca.1) + signed(sx),
+                    cr.1 - (s * ca.0 + c * ca.1) + signed(sy),
+                );
+                let t = (
+                    cell as f64 * tc.0 + half - (c * half - s * half),
+                    cell as f64 * tc.1 + half - (s * half + c * half),
+                );
+                coarse.push((
+                    f64::from(best),
+                    Crop(Rigid {
+                        theta_deg: *theta,
+                        tx: t.0,
+                        ty: t.1,
+                    }),
+                ));
+            }
+        }
+    }
+    if want_corners {
+        if src.corners.is_none() || dst.corners.is_none() {
+            return Err(Error::Internal(
+                "corner hypotheses need maps prepared with their corners".to_string(),
+            ));
+        }
+        let (sk, dk) = (
+            src.corners.as_deref().unwrap_or(&[]),
+            dst.corners.as_deref().unwrap_or(&[]),
+        );
+        for (k, &theta) in thetas.iter().enumerate() {
+            let (c, s) = cs(theta);
+            for t in vote(sk, dk, theta) {
+                // Its coarse score: the correlation at the nearest shift (the inverse of the peak's
+                // translation above).
+                let u = (
+                    (t.tx - half + (c * half - s * half)) / cell as f64 - cr.0
+                        + (c * ca.0 - s * ca.1),
+                    (t.ty - half + (s * half + c * half)) / cell as f64 - cr.1
+                        + (s * ca.0 + c * ca.1),
+                );
+                let wrap = |v: f64| {
+                    let v = v.round() as i64;
+                    // The shifts the correlation holds: 0..n-diag, and -diag..0 wrapped to the end.
+                    (-(diag as i64)..(n - diag) as i64)
+                        .contains(&v)
+                        .then(|| v.rem_euclid(n as i64) as usize)
+                };
+                let (Some(sx), Some(sy)) = (wrap(u.0), wrap(u.1)) else {
+                    continue;
+                };
+                coarse.push((f64::from(maps[k][sy * n + sx]), Crop(t)));
+            }
+        }
+    }
+    coarse.sort_by(|x, y| y.0.total_cmp(&x.0));
+    let walls_cells = |c: &super::prepare::Coarse| c.cwall.iter().sum::<f32>();
+    let unit = (n * n) as f64 * f64::from(walls_cells(sc).min(walls_cells(dc)).max(1.0));
+    Ok(CoarseSet {
+        cell,
+        list: coarse,
+        unit,
+    })
+}
+
+/// `coarse`'s hypotheses (src crop to dst crop), best first, by how well each agrees on the full maps at
+/// its best of four shifts a quarter `cell` each way, in two orders: tolerant (both maps' sampled walls within 5 px
+/// of the other's walls, less twice those over 20 px deep in its free space: a bent real map's walls
+/// are often off by more than a few pixels) and strict (less, too, twice those over 8 px deep: a wrong
+/// placement in a building of many like rooms puts walls within 20 px of the other's walls everywhere).
+/// Each as its index and its best shift's transform.
+pub(super) fn screen(
+    src: &Prepared,
+    dst: &Prepared,
+    coarse: &[(f64, Crop)],
+    cell: f64,
+    backend: &mut dyn Backend,
+) -> Result<[Vec<(usize, Rigid)>; 2]> {
+    // Four shifts a quarter cell each way: every offset of up to half a cell is within a quarter cell
+    // of one of them.
+    let q = cell / 4.0;
+    let shifts = [-q, q];
+    let mut grid: Vec<Rigid> = Vec::with_capacity(coarse.len() * 4);
+    for &(_, Crop(t)) in coarse {
+        for dy in shifts {
+            for dx in shifts {
+                grid.push(Rigid {
+                    tx: t.tx + dx,
+                    ty: t.ty + dy,
+                    ..t
+                });
+            }
+        }
+    }
+    let (a, b) = score_both(src, dst, &grid, Probe::Screen, backend)?;
+    // Each map's counts weighted by its sample's stride, so both count as their full walls would.
+    let (wa, wb) = (
+        src.walls.len() as f64 / src.screen_points.len().max(1) as f64,
+        dst.walls.len() as f64 / dst.screen_points.len().max(1) as f64,
+    );
+    // The screening target's counts: [over 8 px deep, near, over 20 px deep].
+    let value = |c: &Counts, w: f64, strict: f64| {
+        w * (f64::from(c[1]) - 2.0 * f64::from(c[2]) - strict * f64::from(c[0]))
+    };
+    Ok([0.0, 2.0].map(|strict| {
+        // Per hypothesis: its best shift's value and transform (the first best on ties).
+        let best: Vec<(f64, Rigid)> = a
+            .chunks(4)
+            .zip(b.chunks(4))
+            .zip(grid.chunks(4))
+            .map(|((x, y), g)| {
+                let mut best = (f64::MIN, g[0]);
+                for k in 0..4 {
+                    let v = value(&x[k], wa, strict) + value(&y[k], wb, strict);
+                    if v > best.0 {
+                        best = (v, g[k]);
+                    }
+                }
+                best
+            })
+            .collect();
+        let mut order: Vec<usize> = (0..coarse.len()).collect();
+        // Stable: ties keep the coarse order.
+        order.sort_by(|&x, &y| best[y].0.total_cmp(&best[x].0));
+        order.into_iter().map(|i| (i, best[i].1)).collect()
+    }))
+}
+
+/// The `k` highest peaks of an `n` x `n` correlation, as (index, value): the highest value first (ties:
+/// the lower index), then each next highest at least 7 cells from every one taken in x or y (not
+/// wrapping around).
+fn peaks(vals: &[f32], n: usize, k: usize) -> Vec<(usize, f32)> {
+    let before = |x: &u32, y: &u32| {
+        vals[*y as usize]
+            .total_cmp(&vals[*x as usize])
+            .then(x.cmp(y))
+    };
+    // The highest few hundred values per peak hold the peaks almost always; all of them when not.
+    let mut m = (k * 256).min(vals.len());
+    loop {
+        let mut order: Vec<u32> = (0..vals.len() as u32).collect();
+        if m < order.len() {
+            order.select_nth_unstable_by(m, before);
+            order.truncate(m);
+        }
+        order.sort_unstable_by(before);
+        let mut taken: Vec<(usize, f32)> = Vec::with_capacity(k);
+        for &i in &order {
+            if taken.len() == k {
+                break;
+            }
+            let (x, y) = (i as usize % n, i as usize / n);
+            if taken
+                .iter()
+                .all(|&(j, _)| (j % n).abs_diff(x) > 6 || (j / n).abs_diff(y) > 6)
+            {
+                taken.push((i as usize, vals[i as usize]));
+            }
+        }
+        if taken.len() == k || m == vals.len() {
+            return taken;
+        }
+        m = vals.len();
+    }
+}
