@@ -20,7 +20,7 @@ const OFFSETS: [f64; 5] = [-2.0, -1.0, 0.0, 1.0, 2.0];
 /// Peaks kept per rotation hypothesis.
 const PEAKS: usize = 32;
 /// Largest coarse correlation side.
-const MAX_FFT: usize = 2048;
+pub(super) const MAX_FFT: usize = 2048;
 /// The finest coarse level whose correlation side is at most this is used.
 pub const FINE_FFT: usize = 256;
 
@@ -110,101 +110,102 @@ pub(super) fn coarse_hypotheses(
     // Each hypothesis's correlation spectrum: src's two real masks go through one complex FFT (walls as
     // the real part, free cells as the imaginary one) and are told apart by symmetry.
     use rayon::prelude::*;
-    let spectra: Vec<Vec<Complex32>> = thetas
-        .par_iter()
-        .map(|&theta| {
-            let (c, s) = cs(theta);
-            // src's coarse masks turned by theta about their centre into a diag x diag canvas.
-            let mut z = vec![Complex32::new(0.0, 0.0); n * n];
-            for j in 0..diag {
-                for i in 0..diag {
-                    let (dx, dy) = (i as f64 - cr.0, j as f64 - cr.1);
-                    let (ax, ay) = (
-                        (c * dx + s * dy + ca.0).round(),
-                        (-s * dx + c * dy + ca.1).round(),
-                    );
-                    if ax >= 0.0 && ay >= 0.0 && (ax as usize) < sc.cw && (ay as usize) < sc.ch {
-                        let idx = ay as usize * sc.cw + ax as usize;
-                        z[j * n + i] = Complex32::new(sc.cwall[idx], sc.cfree[idx]);
-                    }
+    // A rotation's correlation spectrum.
+    let spectrum_of = |theta: f64| -> Vec<Complex32> {
+        let (c, s) = cs(theta);
+        // src's coarse masks turned by theta about their centre into a diag x diag canvas.
+        let mut z = vec![Complex32::new(0.0, 0.0); n * n];
+        for j in 0..diag {
+            for i in 0..diag {
+                let (dx, dy) = (i as f64 - cr.0, j as f64 - cr.1);
+                let (ax, ay) = (
+                    (c * dx + s * dy + ca.0).round(),
+                    (-s * dx + c * dy + ca.1).round(),
+                );
+                if ax >= 0.0 && ay >= 0.0 && (ax as usize) < sc.cw && (ay as usize) < sc.ch {
+                    let idx = ay as usize * sc.cw + ax as usize;
+                    z[j * n + i] = Complex32::new(sc.cwall[idx], sc.cfree[idx]);
                 }
             }
-            fwd.run(&mut z);
-            let half_c = Complex32::new(0.5, 0.0);
-            let minus_half_i = Complex32::new(0.0, -0.5);
-            (0..n * n)
-                .map(|idx| {
-                    let (ky, kx) = (idx / n, idx % n);
-                    let mirror = ((n - ky) % n) * n + (n - kx) % n;
-                    let (zk, zm) = (z[idx], z[mirror].conj());
-                    let fa1 = (zk + zm) * half_c; // walls
-                    let fa2 = (zk - zm) * minus_half_i; // free cells
-                                                        // corr(s) = sum_q src(q) dst(q + s) = IFFT(conj(FA) FB).
-                    fa1.conj() * fb1[idx] - fa2.conj() * fb_wall[idx] * LAMBDA
-                })
-                .collect()
+        }
+        fwd.run(&mut z);
+        let half_c = Complex32::new(0.5, 0.0);
+        let minus_half_i = Complex32::new(0.0, -0.5);
+        (0..n * n)
+            .map(|idx| {
+                let (ky, kx) = (idx / n, idx % n);
+                let mirror = ((n - ky) % n) * n + (n - kx) % n;
+                let (zk, zm) = (z[idx], z[mirror].conj());
+                let fa1 = (zk + zm) * half_c; // walls
+                let fa2 = (zk - zm) * minus_half_i; // free cells
+                                                    // corr(s) = sum_q src(q) dst(q + s) = IFFT(conj(FA) FB).
+                fa1.conj() * fb1[idx] - fa2.conj() * fb_wall[idx] * LAMBDA
+            })
+            .collect()
+    };
+    // Each rotation's correlation, kept when corner hypotheses are scored on it.
+    let want_corners = hypotheses.detector().is_some();
+    let k_peaks = if hypotheses.dense() { PEAKS } else { 0 };
+    // Two rotations at a time, two real correlations per inverse FFT (the first as the real part, the
+    // second as the imaginary): a task holds three n x n buffers, not all rotations' spectra at once.
+    let firsts: Vec<usize> = (0..thetas.len()).step_by(2).collect();
+    type Found = (Vec<(f64, Crop)>, Vec<Vec<f32>>);
+    let found: Vec<Found> = firsts
+        .par_iter()
+        .map(|&h| {
+            let mut both = spectrum_of(thetas[h]);
+            if let Some(&second) = thetas.get(h + 1) {
+                let second = spectrum_of(second);
+                for (a, b) in both.iter_mut().zip(&second) {
+                    *a += b * Complex32::new(0.0, 1.0);
+                }
+            }
+            inv.run(&mut both);
+            let (mut peaks_found, mut maps) = (Vec::new(), Vec::new());
+            for (which, theta) in thetas[h..(h + 2).min(thetas.len())].iter().enumerate() {
+                let (c, s) = cs(*theta);
+                let vals: Vec<f32> = both
+                    .iter()
+                    .map(|v| if which == 0 { v.re } else { v.im })
+                    .collect();
+                for (idx, best) in peaks(&vals, n, k_peaks) {
+                    let (sx, sy) = (idx % n, idx / n);
+                    let signed = |v: usize| {
+                        if v < n - diag {
+                            v as f64
+                        } else {
+                            v as f64 - n as f64
+                        }
+                    };
+                    let tc = (
+                        cr.0 - (c * ca.0 - s * ca.1) + signed(sx),
+                        cr.1 - (s * ca.0 + c * ca.1) + signed(sy),
+                    );
+                    let t = (
+                        cell as f64 * tc.0 + half - (c * half - s * half),
+                        cell as f64 * tc.1 + half - (s * half + c * half),
+                    );
+                    peaks_found.push((
+                        f64::from(best),
+                        Crop(Rigid {
+                            theta_deg: *theta,
+                            tx: t.0,
+                            ty: t.1,
+                        }),
+                    ));
+                }
+                if want_corners {
+                    maps.push(vals);
+                }
+            }
+            (peaks_found, maps)
         })
         .collect();
     let mut coarse: Vec<(f64, Crop)> = Vec::new();
-    // Each rotation's correlation, kept when corner hypotheses are scored on it.
-    let want_corners = hypotheses.detector().is_some();
     let mut maps: Vec<Vec<f32>> = Vec::new();
-    // Two real correlations per inverse FFT: the first as the real part, the second as the imaginary.
-    let firsts: Vec<usize> = (0..thetas.len()).step_by(2).collect();
-    let inverses: Vec<Vec<Complex32>> = firsts
-        .par_iter()
-        .map(|&h| {
-            let mut both: Vec<Complex32> = match spectra.get(h + 1) {
-                Some(second) => spectra[h]
-                    .iter()
-                    .zip(second)
-                    .map(|(a, b)| a + b * Complex32::new(0.0, 1.0))
-                    .collect(),
-                None => spectra[h].clone(),
-            };
-            inv.run(&mut both);
-            both
-        })
-        .collect();
-    drop(spectra);
-    for (&h, both) in firsts.iter().zip(&inverses) {
-        for (which, theta) in thetas[h..(h + 2).min(thetas.len())].iter().enumerate() {
-            let (c, s) = cs(*theta);
-            let vals: Vec<f32> = both
-                .iter()
-                .map(|v| if which == 0 { v.re } else { v.im })
-                .collect();
-            if want_corners {
-                maps.push(vals.clone());
-            }
-            let k_peaks = if hypotheses.dense() { PEAKS } else { 0 };
-            for (idx, best) in peaks(&vals, n, k_peaks) {
-                let (sx, sy) = (idx % n, idx / n);
-                let signed = |v: usize| {
-                    if v < n - diag {
-                        v as f64
-                    } else {
-                        v as f64 - n as f64
-                    }
-                };
-                let tc = (
-                    cr.0 - (c * ca.0 - s * ca.1) + signed(sx),
-                    cr.1 - (s * ca.0 + c * ca.1) + signed(sy),
-                );
-                let t = (
-                    cell as f64 * tc.0 + half - (c * half - s * half),
-                    cell as f64 * tc.1 + half - (s * half + c * half),
-                );
-                coarse.push((
-                    f64::from(best),
-                    Crop(Rigid {
-                        theta_deg: *theta,
-                        tx: t.0,
-                        ty: t.1,
-                    }),
-                ));
-            }
-        }
+    for (p, m) in found {
+        coarse.extend(p);
+        maps.extend(m);
     }
     if want_corners {
         if src.corners.is_none() || dst.corners.is_none() {

@@ -18,9 +18,19 @@ pub const FREE_POINTS: usize = 4000;
 const PAD: usize = 8;
 
 /// Bytes [`Prepared`] holds for a `width` x `height` map, and its transforms' buffers (at most): two
-/// distance maps with their nearest pixels, the masks, and the transform's row buffers.
+/// distance maps with their nearest pixels, the flag bytes, the masks, and the transform's row buffers;
+/// plus what aligning it takes at most: the coarse correlation's buffers (three n x n complex spectra for
+/// each of up to 10 rotation pairs at once, and the reference map's, n of its coarsest cells and another
+/// map's diagonal, at most the correlation's limit).
 pub fn prepared_bytes(width: u32, height: u32) -> u64 {
-    (u64::from(width) * u64::from(height)).saturating_mul(42)
+    let px = u64::from(width) * u64::from(height);
+    let side = u64::from(width.max(height)).div_ceil(CELLS[CELLS.len() - 1] as u64);
+    let n = (side * 5 / 2 + 2)
+        .next_power_of_two()
+        .min(super::coarse::MAX_FFT as u64);
+    let tasks = rayon::current_num_threads().clamp(1, 10) as u64;
+    px.saturating_mul(42)
+        .saturating_add((3 * tasks + 3) * n * n * 8)
 }
 
 /// A map prepared for alignment.
