@@ -118,10 +118,8 @@ pub(super) fn coarse_hypotheses(
         for j in 0..diag {
             for i in 0..diag {
                 let (dx, dy) = (i as f64 - cr.0, j as f64 - cr.1);
-                let (ax, ay) = (
-                    (c * dx + s * dy + ca.0).round(),
-                    (-s * dx + c * dy + ca.1).round(),
-                );
+                // Rounded half up by truncation (floor for the values kept; `round` is a libm call).
+                let (ax, ay) = (c * dx + s * dy + ca.0 + 0.5, -s * dx + c * dy + ca.1 + 0.5);
                 if ax >= 0.0 && ay >= 0.0 && (ax as usize) < sc.cw && (ay as usize) < sc.ch {
                     let idx = ay as usize * sc.cw + ax as usize;
                     z[j * n + i] = Complex32::new(sc.cwall[idx], sc.cfree[idx]);
@@ -319,25 +317,28 @@ pub(super) fn screen(
 /// the lower index), then each next highest at least 7 cells from every one taken in x or y (not
 /// wrapping around).
 fn peaks(vals: &[f32], n: usize, k: usize) -> Vec<(usize, f32)> {
-    let before = |x: &u32, y: &u32| {
-        vals[*y as usize]
-            .total_cmp(&vals[*x as usize])
-            .then(x.cmp(y))
+    // Each value and index as one integer whose ascending order is the values' descending total order,
+    // then the lower index: plain integer selection and sorting, no comparator closure.
+    let keyed = |i: usize| -> u64 {
+        let b = vals[i].to_bits();
+        let ascending = if b >> 31 == 1 { !b } else { b | 0x8000_0000 };
+        (u64::from(!ascending) << 32) | i as u64
     };
     // The highest few hundred values per peak hold the peaks almost always; all of them when not.
     let mut m = (k * 256).min(vals.len());
     loop {
-        let mut order: Vec<u32> = (0..vals.len() as u32).collect();
+        let mut order: Vec<u64> = (0..vals.len()).map(keyed).collect();
         if m < order.len() {
-            order.select_nth_unstable_by(m, before);
+            order.select_nth_unstable(m);
             order.truncate(m);
         }
-        order.sort_unstable_by(before);
+        order.sort_unstable();
         let mut taken: Vec<(usize, f32)> = Vec::with_capacity(k);
-        for &i in &order {
+        for &key in &order {
             if taken.len() == k {
                 break;
             }
+            let i = (key & 0xffff_ffff) as u32;
             let (x, y) = (i as usize % n, i as usize / n);
             if taken
                 .iter()

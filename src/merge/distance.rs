@@ -4,13 +4,22 @@
 /// Exact Euclidean distance transform (Felzenszwalb and Huttenlocher) to the nearest `true` pixel, with
 /// the index of that pixel; `f32::MAX` and `u32::MAX` where there is none.
 pub(super) fn edt(mask: &[bool], w: usize, h: usize) -> (Vec<f32>, Vec<u32>) {
+    edt_with(mask, w, h, true)
+}
+
+/// [`edt`]'s distances alone (no nearest pixel tracked: less memory traffic).
+pub(super) fn edt_distance(mask: &[bool], w: usize, h: usize) -> Vec<f32> {
+    edt_with(mask, w, h, false).0
+}
+
+fn edt_with(mask: &[bool], w: usize, h: usize, with_nearest: bool) -> (Vec<f32>, Vec<u32>) {
     use rayon::prelude::*;
     const INF: f64 = 1e20;
     // Columns first: the nearest seed above and below each pixel in its column, by one sweep down and
     // one up over whole rows (the squared vertical distance is that distance squared: no parabolas
     // needed in 1-D with 0/INF input, and rows stay contiguous in memory).
     let mut g = vec![INF; w * h];
-    let mut seed_row = vec![u32::MAX; w * h];
+    let mut seed_row = vec![u32::MAX; if with_nearest { w * h } else { 0 }];
     let mut last = vec![u32::MAX; w];
     let down: Vec<usize> = (0..h).collect();
     let up: Vec<usize> = (0..h).rev().collect();
@@ -18,11 +27,12 @@ pub(super) fn edt(mask: &[bool], w: usize, h: usize) -> (Vec<f32>, Vec<u32>) {
         last.fill(u32::MAX);
         for y in ys {
             let row = y * w..(y + 1) * w;
-            for (x, (l, (gv, sr))) in last
-                .iter_mut()
-                .zip(g[row.clone()].iter_mut().zip(&mut seed_row[row.clone()]))
-                .enumerate()
-            {
+            let seeds = if with_nearest {
+                &mut seed_row[row.clone()]
+            } else {
+                &mut []
+            };
+            for (x, (l, gv)) in last.iter_mut().zip(&mut g[row.clone()]).enumerate() {
                 if mask[y * w + x] {
                     *l = y as u32;
                 }
@@ -31,16 +41,24 @@ pub(super) fn edt(mask: &[bool], w: usize, h: usize) -> (Vec<f32>, Vec<u32>) {
                     let d = (y.abs_diff(*l as usize) as f64).powi(2);
                     if d < *gv {
                         *gv = d;
-                        *sr = *l;
+                        if let Some(s) = seeds.get_mut(x) {
+                            *s = *l;
+                        }
                     }
                 }
             }
         }
     }
     let mut dist = vec![f32::MAX; w * h];
-    let mut nearest = vec![u32::MAX; w * h];
-    dist.par_chunks_mut(w.max(1))
-        .zip(nearest.par_chunks_mut(w.max(1)))
+    let mut nearest = vec![u32::MAX; if with_nearest { w * h } else { 0 }];
+    let row_len = w.max(1);
+    let nearest_rows: Vec<&mut [u32]> = if with_nearest {
+        nearest.chunks_mut(row_len).collect()
+    } else {
+        (0..h).map(|_| &mut [][..]).collect()
+    };
+    dist.par_chunks_mut(row_len)
+        .zip(nearest_rows)
         .enumerate()
         .for_each(|(y, (drow, nrow))| {
             let f = &g[y * w..(y + 1) * w];
@@ -48,10 +66,11 @@ pub(super) fn edt(mask: &[bool], w: usize, h: usize) -> (Vec<f32>, Vec<u32>) {
             envelope(f, &mut out, &mut arg);
             for x in 0..w {
                 if out[x] < INF / 2.0 {
-                    let sx = arg[x];
-                    let sy = seed_row[y * w + sx];
                     drow[x] = out[x].sqrt() as f32;
-                    nrow[x] = sy * w as u32 + sx as u32;
+                    if let Some(n) = nrow.get_mut(x) {
+                        let sx = arg[x];
+                        *n = seed_row[y * w + sx] * w as u32 + sx as u32;
+                    }
                 }
             }
         });
@@ -150,6 +169,7 @@ mod tests {
                 .map(|_| case % 10 != 0 && next() % 100 < density)
                 .collect();
             let (d, near) = edt(&m, w, h);
+            assert_eq!(edt_distance(&m, w, h), d, "case {case}");
             for i in 0..w * h {
                 let (x, y) = ((i % w) as f64, (i / w) as f64);
                 let want = (0..w * h)

@@ -2,7 +2,7 @@
 //! box (plus 8 px), wall pixels, dominant wall direction, distance maps, the scoring kernel's flags, and
 //! the coarse masks of the correlation.
 
-use super::distance::edt;
+use super::distance::{edt, edt_distance};
 use crate::cpu::merge_score::{ScoreTarget, FLAG_DEEP, FLAG_INSIDE, FLAG_NEAR};
 use crate::map::OccupancyMap;
 use crate::states::{CellState, ClassTable};
@@ -156,19 +156,23 @@ impl Prepared {
                 known[y * w + x] = s != CellState::Unknown;
             }
         }
-        let mut walls = Vec::new();
-        for y in 0..h {
-            for x in 0..w {
-                if !occ[y * w + x] {
-                    continue;
-                }
-                let touches_free = (y.saturating_sub(1)..(y + 2).min(h))
-                    .any(|yy| (x.saturating_sub(1)..(x + 2).min(w)).any(|xx| free[yy * w + xx]));
-                if touches_free {
-                    walls.push((x as f64, y as f64));
-                }
-            }
-        }
+        // Row by row on every core, in row order.
+        let walls: Vec<(f64, f64)> = {
+            use rayon::prelude::*;
+            (0..h)
+                .into_par_iter()
+                .flat_map_iter(|y| {
+                    let (occ, free) = (&occ, &free);
+                    (0..w).filter_map(move |x| {
+                        let touches_free = occ[y * w + x]
+                            && (y.saturating_sub(1)..(y + 2).min(h)).any(|yy| {
+                                (x.saturating_sub(1)..(x + 2).min(w)).any(|xx| free[yy * w + xx])
+                            });
+                        touches_free.then_some((x as f64, y as f64))
+                    })
+                })
+                .collect()
+        };
         // ICP pulls walls onto the other map's nearest wall pixel (occupied, next to free space): inside a
         // thick wall every occupied pixel is its own nearest, which would hold an estimate off by a pixel.
         let mut boundary = vec![false; w * h];
@@ -177,9 +181,9 @@ impl Prepared {
         }
         let not_free: Vec<bool> = free.iter().map(|&f| !f).collect();
         // The three distance maps at once (on every core).
-        let ((dist, _), ((_, nearest), (free_depth, _))) = rayon::join(
-            || edt(&occ, w, h),
-            || rayon::join(|| edt(&boundary, w, h), || edt(&not_free, w, h)),
+        let (dist, ((_, nearest), free_depth)) = rayon::join(
+            || edt_distance(&occ, w, h),
+            || rayon::join(|| edt(&boundary, w, h), || edt_distance(&not_free, w, h)),
         );
         let angle = dominant_angle(&walls);
         let reference = reference_points(&walls);
@@ -189,75 +193,74 @@ impl Prepared {
             .step_by(wall_points.len().div_ceil(SCREEN_POINTS).max(1))
             .copied()
             .collect();
-        // Near: within `near_px` of an occupied pixel, or (None) on one.
-        let flag_bytes = |near_px: Option<f32>, deep_px: f32| -> Vec<u8> {
-            (0..w * h)
-                .map(|i| {
-                    let near = near_px.map_or(occ[i], |d| dist[i] <= d);
-                    u8::from(known[i] || dist[i] <= 5.0) * FLAG_INSIDE
-                        + u8::from(near) * FLAG_NEAR
-                        + u8::from(free_depth[i] > deep_px) * FLAG_DEEP
-                })
-                .collect()
-        };
+        // The four flag targets and the coarse levels are independent: built on every core.
+        let bytes = |f: &(dyn Fn(usize) -> u8 + Sync)| -> Vec<u8> { (0..w * h).map(f).collect() };
+        let inside = |i: usize| u8::from(known[i] || dist[i] <= 5.0) * FLAG_INSIDE;
+        let (((walls_f, fine_f), (screen_f, free_f)), levels) = rayon::join(
+            || {
+                rayon::join(
+                    || {
+                        rayon::join(
+                            // Verification: inside, near a wall within 5 px, over 20 px deep.
+                            || {
+                                bytes(&|i| {
+                                    inside(i)
+                                        + u8::from(dist[i] <= 5.0) * FLAG_NEAR
+                                        + u8::from(free_depth[i] > 20.0) * FLAG_DEEP
+                                })
+                            },
+                            // The polish and the veto: inside, on an occupied pixel, over 3 px deep.
+                            || {
+                                bytes(&|i| {
+                                    inside(i)
+                                        + u8::from(occ[i]) * FLAG_NEAR
+                                        + u8::from(free_depth[i] > 3.0) * FLAG_DEEP
+                                })
+                            },
+                        )
+                    },
+                    || {
+                        rayon::join(
+                            // The screening's own bits: near (within 5 px), deep (over 20 px), and in
+                            // the place of inside, over 8 px deep.
+                            || {
+                                bytes(&|i| {
+                                    u8::from(free_depth[i] > 8.0) * FLAG_INSIDE
+                                        + u8::from(dist[i] <= 5.0) * FLAG_NEAR
+                                        + u8::from(free_depth[i] > 20.0) * FLAG_DEEP
+                                })
+                            },
+                            // Free space: known, free, occupied.
+                            || {
+                                bytes(&|i| {
+                                    u8::from(known[i]) * FLAG_INSIDE
+                                        + u8::from(free[i]) * FLAG_NEAR
+                                        + u8::from(occ[i]) * FLAG_DEEP
+                                })
+                            },
+                        )
+                    },
+                )
+            },
+            || coarse_levels(&occ, &free, w, h),
+        );
         // The crop is at most MAX_FFT cells a side wherever it is aligned; a larger one is refused there.
-        let flags = ScoreTarget {
+        let target = |flags: Vec<u8>| ScoreTarget {
             width: w as u32,
             height: h as u32,
-            flags: flag_bytes(Some(5.0), 20.0),
+            flags,
         };
-        let flags_fine = ScoreTarget {
-            flags: flag_bytes(None, 3.0),
-            ..flags.clone()
-        };
-        // The screening's own bits: near (within 5 px), deep (over 20 px), and in the place of inside,
-        // over 8 px deep.
-        let flags_screen = ScoreTarget {
-            flags: (0..w * h)
-                .map(|i| {
-                    u8::from(free_depth[i] > 8.0) * FLAG_INSIDE
-                        + u8::from(dist[i] <= 5.0) * FLAG_NEAR
-                        + u8::from(free_depth[i] > 20.0) * FLAG_DEEP
-                })
-                .collect(),
-            ..flags.clone()
-        };
+        let (flags, flags_fine, flags_screen, flags_free) = (
+            target(walls_f),
+            target(fine_f),
+            target(screen_f),
+            target(free_f),
+        );
         let n_free = free.iter().filter(|&&f| f).count();
         let free_points = (0..w * h)
             .filter(|&i| free[i])
             .step_by(n_free.div_ceil(FREE_POINTS).max(1))
             .map(|i| [(i % w) as u32, (i / w) as u32])
-            .collect();
-        let flags_free = ScoreTarget {
-            flags: (0..w * h)
-                .map(|i| {
-                    u8::from(known[i]) * FLAG_INSIDE
-                        + u8::from(free[i]) * FLAG_NEAR
-                        + u8::from(occ[i]) * FLAG_DEEP
-                })
-                .collect(),
-            ..flags.clone()
-        };
-        // The coarse walls leave out speckle: an occupied pixel with no occupied 8-neighbour.
-        let mut solid = vec![false; w * h];
-        for y in 0..h {
-            let rows = y.saturating_sub(1)..(y + 2).min(h);
-            for x in (0..w).filter(|&x| occ[y * w + x]) {
-                let cols = x.saturating_sub(1)..(x + 2).min(w);
-                solid[y * w + x] = rows.clone().any(|yy| {
-                    cols.clone()
-                        .any(|xx| (xx, yy) != (x, y) && occ[yy * w + xx])
-                });
-            }
-        }
-        let levels = CELLS
-            .iter()
-            .enumerate()
-            .map(|(i, &c)| {
-                // A level is chosen only when this map spans at most FINE_FFT of its cells.
-                let usable = w.max(h).div_ceil(c) <= super::align::FINE_FFT;
-                (usable || i == CELLS.len() - 1).then(|| Coarse::new(&solid, &free, w, h, c))
-            })
             .collect();
         Prepared {
             off: (x0 as f64, y0 as f64),
@@ -309,6 +312,31 @@ impl Prepared {
     }
 }
 
+/// The coarse levels of [`CELLS`] a `w` x `h` map may use: the coarsest always, a finer one when the map
+/// spans at most [`super::align::FINE_FFT`] of its cells. Their walls leave out speckle (an occupied pixel
+/// with no occupied 8-neighbour).
+fn coarse_levels(occ: &[bool], free: &[bool], w: usize, h: usize) -> Vec<Option<Coarse>> {
+    let mut solid = vec![false; w * h];
+    for y in 0..h {
+        let rows = y.saturating_sub(1)..(y + 2).min(h);
+        for x in (0..w).filter(|&x| occ[y * w + x]) {
+            let cols = x.saturating_sub(1)..(x + 2).min(w);
+            solid[y * w + x] = rows.clone().any(|yy| {
+                cols.clone()
+                    .any(|xx| (xx, yy) != (x, y) && occ[yy * w + xx])
+            });
+        }
+    }
+    CELLS
+        .iter()
+        .enumerate()
+        .map(|(i, &c)| {
+            let usable = w.max(h).div_ceil(c) <= super::align::FINE_FFT;
+            (usable || i == CELLS.len() - 1).then(|| Coarse::new(&solid, free, w, h, c))
+        })
+        .collect()
+}
+
 /// 3 x 3 dilation (max) or erosion (min) of a coarse mask; outside the mask does not count.
 fn morph(m: &[f32], w: usize, h: usize, dilate: bool) -> Vec<f32> {
     let mut out = vec![0f32; w * h];
@@ -354,12 +382,15 @@ fn dominant_angle(walls: &[(f64, f64)]) -> f64 {
         let (s, c) = deg.to_radians().sin_cos();
         let mut total = 0.0;
         for axis in 0..2 {
+            // Rounded to the nearest integer by truncating a positive value (`round` is a libm call).
+            const OFFSET: f64 = (1u64 << 40) as f64;
             let proj = |&(x, y): &(f64, f64)| -> i64 {
-                if axis == 0 {
-                    (x * c + y * s).round() as i64
+                let v = if axis == 0 {
+                    x * c + y * s
                 } else {
-                    (-x * s + y * c).round() as i64
-                }
+                    -x * s + y * c
+                };
+                (v + 0.5 + OFFSET) as i64 - (1i64 << 40)
             };
             let lo = walls.iter().map(proj).min().unwrap_or(0);
             let hi = walls.iter().map(proj).max().unwrap_or(0);
@@ -374,11 +405,18 @@ fn dominant_angle(walls: &[(f64, f64)]) -> f64 {
         }
         total
     };
+    // The 90 whole degrees on every core; the first best kept, as a loop in order would.
+    let scores: Vec<f64> = {
+        use rayon::prelude::*;
+        (0..90)
+            .into_par_iter()
+            .map(|d| score(f64::from(d)))
+            .collect()
+    };
     let mut best = (-1.0, 0.0);
-    for d in 0..90 {
-        let v = score(f64::from(d));
+    for (d, &v) in scores.iter().enumerate() {
         if v > best.0 {
-            best = (v, f64::from(d));
+            best = (v, d as f64);
         }
     }
     let a0 = best.1;
