@@ -202,11 +202,12 @@ pub fn align_prepared_with(
     let key = |r: &(f64, Rigid, Features)| {
         r.2.local * (1.0 - r.2.conflict_fine).max(0.0).sqrt() * r.2.free_agree.powi(4) * r.0 / top
     };
+    let unordered: Vec<f64> = refined.iter().map(key).collect();
     let mut order: Vec<usize> = (0..refined.len()).collect();
     // Stable: ties keep the coarse order.
-    order.sort_by(|&x, &y| key(&refined[y]).total_cmp(&key(&refined[x])));
+    order.sort_by(|&x, &y| unordered[y].total_cmp(&unordered[x]));
     let mut refined: Vec<(f64, Rigid, Features)> = order.iter().map(|&i| refined[i]).collect();
-    let keys: Vec<f64> = refined.iter().map(key).collect();
+    let keys: Vec<f64> = order.iter().map(|&i| unordered[i]).collect();
     // The chosen one polished to a fraction of a pixel, and verified again.
     let mut polished = crops[order[0]];
     // Hill-climbing from 2 px and 0.4 degree steps down to the finest: ICP stops short of the best fit
@@ -400,7 +401,7 @@ fn icp(src: &Prepared, dst: &Prepared, mut t: Rigid) -> Rigid {
         };
         let apply = t.applier();
         for &p in src.walls.iter().step_by(step) {
-            let q = apply(p);
+            let q = apply.apply(p);
             let mut target: Option<(f64, f64)> = None;
             // Squared distances: no square root per probe.
             let mut best = f64::MAX;
@@ -538,7 +539,7 @@ fn local_agreement(from: &Prepared, to: &Prepared, t: &Rigid) -> (f64, f64, f64)
     let mut tiles: std::collections::BTreeMap<(i64, i64), Vec<(f64, f64)>> = Default::default();
     let apply = t.applier();
     for &p in from.walls.iter().step_by(step) {
-        let q = apply(p);
+        let q = apply.apply(p);
         if to.index(q.0, q.1).is_some() {
             tiles
                 .entry(((q.0 / TILE).floor() as i64, (q.1 / TILE).floor() as i64))

@@ -6,7 +6,7 @@
 //! ROS map_server's values (0 occupied, 254 free, 205 unknown), and, when A has a georeference, with the
 //! origin moved so that every cell of A keeps its world coordinates.
 
-use super::transform::Rigid;
+use super::transform::{Applier, Rigid};
 use crate::error::{Error, Result};
 use crate::map::{GeoRef, MapImage, OccupancyMap, Thresholds};
 use crate::states::{CellState, ClassTable};
@@ -68,8 +68,8 @@ struct Placed<'a> {
     b: &'a MapImage,
     ca: ClassTable,
     cb: ClassTable,
-    /// The inverse transform's rotation (cos, sin) and translation, computed once for every pixel.
-    inv: [f64; 4],
+    /// The inverse transform, its sine and cosine computed once for every pixel.
+    inv: Applier,
     canvas: Canvas,
 }
 
@@ -96,11 +96,7 @@ impl<'a> Placed<'a> {
             b: ib,
             ca: ClassTable::new(&a.thresholds),
             cb: ClassTable::new(&b.thresholds),
-            inv: {
-                let inv = t.inverse();
-                let (s, c) = inv.theta_deg.to_radians().sin_cos();
-                [c, s, inv.tx, inv.ty]
-            },
+            inv: t.inverse().applier(),
             canvas,
         })
     }
@@ -118,10 +114,7 @@ impl<'a> Placed<'a> {
     /// B's state under A pixel (x, y).
     #[inline]
     fn b(&self, x: i64, y: i64) -> CellState {
-        // Rigid::apply's arithmetic, with the sine and cosine computed once.
-        let [c, s, tx, ty] = self.inv;
-        let (x, y) = (x as f64, y as f64);
-        let (bx, by) = (c * x - s * y + tx, s * x + c * y + ty);
+        let (bx, by) = self.inv.apply((x as f64, y as f64));
         let (bx, by) = (bx.round(), by.round());
         if bx < 0.0
             || by < 0.0

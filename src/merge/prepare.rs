@@ -193,69 +193,53 @@ impl Prepared {
             .step_by(wall_points.len().div_ceil(SCREEN_POINTS).max(1))
             .copied()
             .collect();
-        // The four flag targets and the coarse levels are independent: built on every core.
-        let bytes = |f: &(dyn Fn(usize) -> u8 + Sync)| -> Vec<u8> { (0..w * h).map(f).collect() };
+        // The scoring kernel's four flag targets, a byte a pixel: (inside, near, deep) bits as each
+        // probe reads them.
         let inside = |i: usize| u8::from(known[i] || dist[i] <= 5.0) * FLAG_INSIDE;
-        let (((walls_f, fine_f), (screen_f, free_f)), levels) = rayon::join(
+        // Verification: inside, near a wall within 5 px, over 20 px deep.
+        let verification = |i: usize| {
+            inside(i)
+                + u8::from(dist[i] <= 5.0) * FLAG_NEAR
+                + u8::from(free_depth[i] > 20.0) * FLAG_DEEP
+        };
+        // The polish and the veto: inside, on an occupied pixel, over 3 px deep.
+        let fine = |i: usize| {
+            inside(i) + u8::from(occ[i]) * FLAG_NEAR + u8::from(free_depth[i] > 3.0) * FLAG_DEEP
+        };
+        // The screening's own bits: near (within 5 px), deep (over 20 px), and in the place of inside,
+        // over 8 px deep.
+        let screening = |i: usize| {
+            u8::from(free_depth[i] > 8.0) * FLAG_INSIDE
+                + u8::from(dist[i] <= 5.0) * FLAG_NEAR
+                + u8::from(free_depth[i] > 20.0) * FLAG_DEEP
+        };
+        // Free space: known, free, occupied.
+        let free_space = |i: usize| {
+            u8::from(known[i]) * FLAG_INSIDE
+                + u8::from(free[i]) * FLAG_NEAR
+                + u8::from(occ[i]) * FLAG_DEEP
+        };
+        let specs: [&(dyn Fn(usize) -> u8 + Sync); 4] =
+            [&verification, &fine, &screening, &free_space];
+        // The crop is at most MAX_FFT cells a side wherever it is aligned; a larger one is refused there.
+        let target = |f: &&(dyn Fn(usize) -> u8 + Sync)| ScoreTarget {
+            width: w as u32,
+            height: h as u32,
+            flags: (0..w * h).map(f).collect(),
+        };
+        // The targets and the coarse levels are independent: built on every core.
+        let (targets, levels) = rayon::join(
             || {
-                rayon::join(
-                    || {
-                        rayon::join(
-                            // Verification: inside, near a wall within 5 px, over 20 px deep.
-                            || {
-                                bytes(&|i| {
-                                    inside(i)
-                                        + u8::from(dist[i] <= 5.0) * FLAG_NEAR
-                                        + u8::from(free_depth[i] > 20.0) * FLAG_DEEP
-                                })
-                            },
-                            // The polish and the veto: inside, on an occupied pixel, over 3 px deep.
-                            || {
-                                bytes(&|i| {
-                                    inside(i)
-                                        + u8::from(occ[i]) * FLAG_NEAR
-                                        + u8::from(free_depth[i] > 3.0) * FLAG_DEEP
-                                })
-                            },
-                        )
-                    },
-                    || {
-                        rayon::join(
-                            // The screening's own bits: near (within 5 px), deep (over 20 px), and in
-                            // the place of inside, over 8 px deep.
-                            || {
-                                bytes(&|i| {
-                                    u8::from(free_depth[i] > 8.0) * FLAG_INSIDE
-                                        + u8::from(dist[i] <= 5.0) * FLAG_NEAR
-                                        + u8::from(free_depth[i] > 20.0) * FLAG_DEEP
-                                })
-                            },
-                            // Free space: known, free, occupied.
-                            || {
-                                bytes(&|i| {
-                                    u8::from(known[i]) * FLAG_INSIDE
-                                        + u8::from(free[i]) * FLAG_NEAR
-                                        + u8::from(occ[i]) * FLAG_DEEP
-                                })
-                            },
-                        )
-                    },
-                )
+                use rayon::prelude::*;
+                specs.par_iter().map(target).collect::<Vec<_>>()
             },
             || coarse_levels(&occ, &free, w, h),
         );
-        // The crop is at most MAX_FFT cells a side wherever it is aligned; a larger one is refused there.
-        let target = |flags: Vec<u8>| ScoreTarget {
-            width: w as u32,
-            height: h as u32,
-            flags,
+        let Ok([flags, flags_fine, flags_screen, flags_free]) =
+            <[ScoreTarget; 4]>::try_from(targets)
+        else {
+            unreachable!("four specs make four targets");
         };
-        let (flags, flags_fine, flags_screen, flags_free) = (
-            target(walls_f),
-            target(fine_f),
-            target(screen_f),
-            target(free_f),
-        );
         let n_free = free.iter().filter(|&&f| f).count();
         let free_points = (0..w * h)
             .filter(|&i| free[i])

@@ -17,6 +17,26 @@ pub struct Rigid {
     pub ty: f64,
 }
 
+/// A [`Rigid`] ready to map many points: its rotation's cosine and sine, and its translation.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Applier {
+    c: f64,
+    s: f64,
+    tx: f64,
+    ty: f64,
+}
+
+impl Applier {
+    /// Where point `p` lands ([`Rigid::apply`]).
+    #[inline]
+    pub fn apply(&self, (x, y): (f64, f64)) -> (f64, f64) {
+        (
+            self.c * x - self.s * y + self.tx,
+            self.s * x + self.c * y + self.ty,
+        )
+    }
+}
+
 impl Rigid {
     /// The identity.
     pub const IDENTITY: Rigid = Rigid {
@@ -27,15 +47,19 @@ impl Rigid {
 
     /// Where point `p` of B lands in A.
     pub fn apply(&self, p: (f64, f64)) -> (f64, f64) {
-        self.applier()(p)
+        self.applier().apply(p)
     }
 
     /// [`Rigid::apply`] with the rotation's sine and cosine computed once, for many points (the same
     /// results).
-    pub fn applier(&self) -> impl Fn((f64, f64)) -> (f64, f64) + Copy {
+    pub fn applier(&self) -> Applier {
         let (s, c) = self.theta_deg.to_radians().sin_cos();
-        let (tx, ty) = (self.tx, self.ty);
-        move |(x, y)| (c * x - s * y + tx, s * x + c * y + ty)
+        Applier {
+            c,
+            s,
+            tx: self.tx,
+            ty: self.ty,
+        }
     }
 
     /// The transform from A to B.
