@@ -1,5 +1,6 @@
 //! `ogm-corners merge A B`: align map B onto map A with no initial pose, and write the merged map when the
-//! alignment is confident (see [`ogm_corners::merge`]).
+//! alignment is confident (see [`ogm_corners::merge`]). With more maps, a folder, or `--poses` /
+//! `--init-poses`: every map placed at once ([`super::merge_many`]).
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -18,25 +19,34 @@ use super::write_stdout;
 
 #[derive(Args, Debug)]
 pub(super) struct MergeArgs {
-    /// The reference map (yaml or image): the merged map is in its frame.
-    a: PathBuf,
-    /// The map to place onto A.
-    b: PathBuf,
-    /// Write the merged map: `NAME.yaml` (with `NAME.pgm` beside it) or `NAME.pgm`. Only when merged.
+    /// The maps (yaml or image) or folders of maps. Two maps: B aligned onto A (the merged map is in A's
+    /// frame). More, or a folder: every map placed at once, each group's merged map in the frame of its
+    /// first map.
+    #[arg(required = true, value_name = "A B | MAPS... | DIR")]
+    pub(super) maps: Vec<PathBuf>,
+    /// Write the merged map: `NAME.yaml` (with `NAME.pgm` beside it) or `NAME.pgm`. Only when merged; with
+    /// many maps, group 0 as NAME and group k as `NAME-k`.
     #[arg(short, long, value_name = "MERGED.yaml|.pgm")]
-    output: Option<PathBuf>,
-    /// Write a picture of the alignment (A and B in two colours, agreement and conflicts). Only when
-    /// merged.
+    pub(super) output: Option<PathBuf>,
+    /// Write a picture of the alignment (two maps: A and B in two colours, agreement and conflicts; many:
+    /// every map's walls in its own colour). Only when merged; with many maps, per group as for `-o`.
     #[arg(long, value_name = "PNG")]
-    overlay: Option<PathBuf>,
+    pub(super) overlay: Option<PathBuf>,
+    /// Place every map at once (also for two) and write each map's pose in its group's merged map as JSON.
+    #[arg(long, value_name = "FILE")]
+    pub(super) poses: Option<PathBuf>,
+    /// Place every map at once and write the multirobot_map_merge parameters (`init_pose_x/y/z/yaw` per
+    /// robot, for `known_init_poses: true`) as a rosparam yaml.
+    #[arg(long, value_name = "YAML")]
+    pub(super) init_poses: Option<PathBuf>,
     /// Output format of the verdict.
     #[arg(long, value_enum, default_value = "text")]
-    format: super::TextOrJson,
+    pub(super) format: super::TextOrJson,
     /// Where the candidates are scored (the transform-scoring kernel): the same counts, so the same
     /// verdict, on every backend. The CPU by default: a pair scores a handful of candidates, less work
     /// than opening a GPU.
     #[arg(long, value_enum, default_value = "cpu")]
-    backend: super::BackendArg,
+    pub(super) backend: super::BackendArg,
 }
 
 /// The JSON verdict.
@@ -59,28 +69,18 @@ struct Verdict<'a> {
 
 pub(super) fn run(a: MergeArgs, budget: &Budget) -> Result<()> {
     super::check_stdout()?;
+    let pair = a.maps.len() == 2
+        && a.maps.iter().all(|p| !p.is_dir())
+        && a.poses.is_none()
+        && a.init_poses.is_none();
+    if !pair {
+        return super::merge_many::run(a, budget);
+    }
     let mut inputs = files::Inputs::new();
-    for p in [&a.a, &a.b] {
+    for p in &a.maps {
         super::claim_input(p, budget, &prepared_bytes, &mut inputs)?;
     }
-    let (yaml_out, pgm_out) = match &a.output {
-        Some(o)
-            if o.extension()
-                .is_some_and(|e| e.eq_ignore_ascii_case("yaml")) =>
-        {
-            (Some(o.clone()), Some(o.with_extension("pgm")))
-        }
-        Some(o) if o.extension().is_some_and(|e| e.eq_ignore_ascii_case("pgm")) => {
-            (None, Some(o.clone()))
-        }
-        Some(o) => {
-            return Err(Error::invalid(format!(
-                "{}: the merged map is written as NAME.yaml (with NAME.pgm) or NAME.pgm",
-                o.display()
-            )))
-        }
-        None => (None, None),
-    };
+    let (yaml_out, pgm_out) = output_names(a.output.as_deref())?;
     for (p, what) in [
         (&yaml_out, "-o"),
         (&pgm_out, "-o"),
@@ -90,8 +90,8 @@ pub(super) fn run(a: MergeArgs, budget: &Budget) -> Result<()> {
             inputs.claim_output(p, what)?;
         }
     }
-    let map_a = OccupancyMap::load(&a.a)?;
-    let mut map_b = OccupancyMap::load(&a.b)?;
+    let map_a = OccupancyMap::load(&a.maps[0])?;
+    let mut map_b = OccupancyMap::load(&a.maps[1])?;
     let mut b_scale = 1.0;
     if let (Some(ga), Some(gb)) = (map_a.georef, map_b.georef) {
         if (ga.resolution - gb.resolution).abs() > 1e-9 * ga.resolution {
@@ -183,8 +183,29 @@ pub(super) fn run(a: MergeArgs, budget: &Budget) -> Result<()> {
     Ok(())
 }
 
+/// The merged map's files for `-o`: `NAME.yaml` gives the yaml and `NAME.pgm`; `NAME.pgm` the image
+/// alone.
+pub(super) fn output_names(o: Option<&Path>) -> Result<(Option<PathBuf>, Option<PathBuf>)> {
+    match o {
+        Some(o)
+            if o.extension()
+                .is_some_and(|e| e.eq_ignore_ascii_case("yaml")) =>
+        {
+            Ok((Some(o.to_path_buf()), Some(o.with_extension("pgm"))))
+        }
+        Some(o) if o.extension().is_some_and(|e| e.eq_ignore_ascii_case("pgm")) => {
+            Ok((None, Some(o.to_path_buf())))
+        }
+        Some(o) => Err(Error::invalid(format!(
+            "{}: the merged map is written as NAME.yaml (with NAME.pgm) or NAME.pgm",
+            o.display()
+        ))),
+        None => Ok((None, None)),
+    }
+}
+
 /// The merged map's yaml: its image beside it, A's resolution, the origin that keeps A's cells in place.
-fn write_yaml(yaml: &Path, pgm: &Path, merged: &OccupancyMap) -> Result<()> {
+pub(super) fn write_yaml(yaml: &Path, pgm: &Path, merged: &OccupancyMap) -> Result<()> {
     let image = pgm
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())

@@ -7,6 +7,8 @@ use clap::Args;
 
 use ogm_corners::memory::Budget;
 use ogm_corners::merge::eval;
+use ogm_corners::merge::global::eval as global_eval;
+use ogm_corners::merge::global::GlobalOptions;
 use ogm_corners::merge::pairs::PairSet;
 use ogm_corners::merge::MergeOptions;
 use ogm_corners::{Error, OccupancyMap, Result};
@@ -16,7 +18,7 @@ use super::write_stdout;
 #[derive(Args, Debug)]
 pub(super) struct MergeEvalArgs {
     /// The pair file (the format of `pairs.json` in the shared merge-pairs data); not with --synthetic.
-    #[arg(required_unless_present = "synthetic", conflicts_with = "synthetic")]
+    #[arg(required_unless_present_any = ["synthetic", "global"], conflicts_with = "synthetic")]
     pairs: Option<PathBuf>,
     /// Folder of the maps, `NAME.png|pgm|yaml` (default: `maps` beside the pair file).
     #[arg(long)]
@@ -37,12 +39,22 @@ pub(super) struct MergeEvalArgs {
     seed: u64,
     /// Also write every synthetic pair into DIR (`a_<map>-<overlap>-<k>.pgm` and `b_...`) with a
     /// `pairs.json` of their truths: `merge-eval DIR/pairs.json` runs them again, `merge` takes any of them.
-    #[arg(long, value_name = "DIR", requires = "synthetic")]
+    /// With `--global` and no pair file: the synthetic set's maps (`part-NN.pgm`), for `merge DIR`.
+    #[arg(long, value_name = "DIR")]
     save_pairs: Option<PathBuf>,
     /// Instead of one run: the ablation of where hypotheses come from (dense correlation; corners of each
     /// detector alone; both), one row each (a pair file only; takes a few minutes).
     #[arg(long, conflicts_with = "synthetic")]
     ablation: bool,
+    /// Instead of pairs: every building's maps placed at once (`merge A B C ...`), every two buildings'
+    /// maps together (they must come out as separate groups), the cost as the number of maps grows, and a
+    /// synthetic set of `--set-size` maps cut from one office (takes a few minutes). Without a pair
+    /// file: the synthetic set alone.
+    #[arg(long, conflicts_with_all = ["synthetic", "ablation"])]
+    global: bool,
+    /// Maps in the synthetic set of `--global`.
+    #[arg(long, default_value_t = 50, value_parser = clap::value_parser!(u32).range(2..=400))]
+    set_size: u32,
     /// Output: a summary table, or every pair's record as JSON.
     #[arg(long, value_enum, default_value = "md")]
     format: super::TextOrJsonMd,
@@ -56,6 +68,14 @@ pub(super) fn run(a: MergeEvalArgs, budget: &Budget) -> Result<()> {
         )));
     }
     super::check_stdout()?;
+    if a.global {
+        return run_global(&a);
+    }
+    if a.save_pairs.is_some() && a.synthetic.is_none() {
+        return Err(Error::invalid(
+            "--save-pairs writes synthetic pairs (--synthetic) or the synthetic set (--global without a pair file)",
+        ));
+    }
     let (rows, prep_ms) = match (&a.pairs, &a.synthetic) {
         (Some(pairs), _) => {
             let set = PairSet::load(pairs)?;
@@ -152,4 +172,93 @@ fn synthetic_sources(
         .map(|p| Ok((ogm_corners::map::map_name(p), OccupancyMap::load(p)?)))
         .collect::<Result<_>>()?;
     Ok((maps, inputs))
+}
+
+/// Every map the pair set names, with its building (from its pairs), read from `maps`.
+fn library(set: &PairSet, maps: &std::path::Path) -> Result<global_eval::Library> {
+    let mut named: std::collections::BTreeMap<String, String> = Default::default();
+    for p in &set.pairs {
+        for m in [&p.src, &p.dst] {
+            named.entry(m.clone()).or_insert_with(|| p.building.clone());
+        }
+    }
+    let maps = named
+        .into_iter()
+        .map(|(name, building)| {
+            let map = OccupancyMap::load(eval::map_path(maps, &name))?;
+            Ok((name, building, map))
+        })
+        .collect::<Result<_>>()?;
+    Ok(global_eval::Library { maps })
+}
+
+/// `merge-eval --global`: the suite over a pair file's buildings, or the synthetic set alone.
+fn run_global(a: &MergeEvalArgs) -> Result<()> {
+    let bar = indicatif::ProgressBar::new(0);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template("{msg}: {bar:30} {pos}/{len} pairs")
+            .expect("valid template"),
+    );
+    let progress = |label: &str, k: usize, n: usize| {
+        bar.set_message(label.to_string());
+        bar.set_length(n as u64);
+        bar.set_position(k as u64);
+    };
+    let options = GlobalOptions::default();
+    let size = a.set_size as usize;
+    let rows = match &a.pairs {
+        Some(pairs) => {
+            if a.save_pairs.is_some() {
+                return Err(Error::invalid(
+                    "--save-pairs with --global writes the synthetic set: give no pair file",
+                ));
+            }
+            let set = PairSet::load(pairs)?;
+            let maps = a.maps.clone().unwrap_or_else(|| {
+                pairs
+                    .parent()
+                    .unwrap_or(std::path::Path::new("."))
+                    .join("maps")
+            });
+            let lib = library(&set, &maps)?;
+            global_eval::suite(&lib, &set.pairs, &options, size, a.seed, &progress)?
+        }
+        None => {
+            let (names, maps, truths) = global_eval::synthetic_maps(size, a.seed)?;
+            if let Some(dir) = &a.save_pairs {
+                save_set(dir, &names, &maps, &truths)?;
+            }
+            let label = format!("synthetic office, {size} maps");
+            vec![global_eval::score_maps(
+                &label, names, &maps, &truths, &options, &progress,
+            )?]
+        }
+    };
+    bar.finish_and_clear();
+    write_stdout(|out| match a.format {
+        super::TextOrJsonMd::Md => global_eval::write_rows(out, &rows),
+        super::TextOrJsonMd::Json => {
+            serde_json::to_writer_pretty(&mut *out, &rows)?;
+            writeln!(out)
+        }
+    })
+}
+
+/// Writes a synthetic set into `dir`: `NAME.pgm` per map and `pairs.json` with every ordered pair's truth.
+fn save_set(
+    dir: &std::path::Path,
+    names: &[String],
+    maps: &[OccupancyMap],
+    truths: &[ogm_corners::merge::pairs::TruePair],
+) -> Result<()> {
+    std::fs::create_dir_all(dir)
+        .map_err(|e| Error::input(dir, format!("cannot create the folder: {e}")))?;
+    for (n, m) in names.iter().zip(maps) {
+        m.image.write_pgm(&dir.join(format!("{n}.pgm")))?;
+    }
+    let doc = serde_json::json!({ "pairs": truths, "negatives": [] });
+    ogm_corners::files::write_atomic(&dir.join("pairs.json"), |out| {
+        serde_json::to_writer_pretty(&mut *out, &doc)?;
+        writeln!(out)
+    })
 }

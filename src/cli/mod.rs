@@ -9,6 +9,7 @@ mod eval;
 mod info;
 mod merge;
 mod merge_eval;
+mod merge_many;
 mod rules;
 
 use std::io::{BufWriter, Write};

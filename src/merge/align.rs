@@ -74,8 +74,11 @@ impl Default for MergeOptions {
 pub struct Candidate {
     /// B's pixels to A's.
     pub transform: Rigid,
-    /// Its verification.
+    /// Its verification, with its ratios over the best candidate distinct from it.
     pub features: Features,
+    /// The acceptance rule's value minus its threshold for this candidate (its ratios are below 1 when
+    /// another candidate is better): the evidence for it that a many-map placement weighs.
+    pub score: f64,
 }
 
 /// The result of [`align`].
@@ -125,7 +128,7 @@ pub fn align_prepared_with(
 ) -> Result<Alignment> {
     // In the prototype's terms: src = B (moved), dst = A (reference); transforms map src to dst.
     let (src, dst) = (b, a);
-    if src.walls.len() < 20 || dst.walls.len() < 20 {
+    if !src.alignable() || !dst.alignable() {
         return Ok(declined(
             "a map has (almost) no walls next to free space: nothing to align",
         ));
@@ -289,13 +292,41 @@ pub fn align_prepared_with(
             features.coarse_ratio
         )
     });
-    let candidates = refined
-        .iter()
-        .map(|&(_, transform, features)| Candidate {
+    // Each other candidate's ratios over the best candidate distinct from it, and its rule value.
+    let mut candidates: Vec<Candidate> = Vec::with_capacity(refined.len());
+    for (i, &(coarse, transform, mut f)) in refined.iter().enumerate() {
+        if i == 0 {
+            f = features;
+        } else {
+            let (mut other_coarse, mut other_key) = (f64::NEG_INFINITY, f64::NEG_INFINITY);
+            for (j, r) in refined.iter().enumerate() {
+                if j != i && transform_distance(&r.1, &transform) > DISTINCT_PX {
+                    other_coarse = other_coarse.max(r.0);
+                    other_key = other_key.max(keys[j]);
+                }
+            }
+            let ratio = |mine: f64, other: f64| {
+                if other > 0.0 {
+                    (mine / other).min(MAX_RATIO)
+                } else {
+                    MAX_RATIO
+                }
+            };
+            f.coarse_ratio = ratio(coarse, other_coarse);
+            f.choice = keys[i];
+            f.choice_ratio = ratio(keys[i], other_key);
+        }
+        let score = if i == 0 {
+            score
+        } else {
+            options.accept.margin(&f)
+        };
+        candidates.push(Candidate {
             transform,
-            features,
-        })
-        .collect();
+            features: f,
+            score,
+        });
+    }
     Ok(Alignment {
         transform: best,
         features,
@@ -499,6 +530,37 @@ fn verify(
             },
         )
         .collect())
+}
+
+/// The verification features of `t` (B's pixels to A's) on the full maps, as [`align`] measures its
+/// candidates' (the coarse score and local agreement aside): what checks a placement that no pair
+/// chose.
+pub(super) fn check(
+    a: &Prepared,
+    b: &Prepared,
+    t: &Rigid,
+    backend: &mut dyn Backend,
+) -> Result<Features> {
+    Ok(verify(b, a, &[map_to_crop(b, a, t)], backend)?[0])
+}
+
+/// Where `t` (B's pixels to A's) makes the maps overlap, in B's pixels: the mean of B's sampled wall
+/// pixels that land in A's known area's box (B's walls' centre when none do). Two estimates of a pair are
+/// compared there: maps bend, so estimates that agree where the maps overlap can differ far from it.
+pub(super) fn overlap_centre(a: &Prepared, b: &Prepared, t: &Rigid) -> (f64, f64) {
+    let apply = map_to_crop(b, a, t).applier();
+    let (mut sx, mut sy, mut n) = (0.0, 0.0, 0usize);
+    for p in &b.screen_points {
+        let p = (f64::from(p[0]), f64::from(p[1]));
+        let q = apply.apply(p);
+        if a.index(q.0, q.1).is_some() {
+            (sx, sy, n) = (sx + p.0, sy + p.1, n + 1);
+        }
+    }
+    if n == 0 {
+        return b.reference_in_map()[4];
+    }
+    (sx / n as f64 + b.off.0, sy / n as f64 + b.off.1)
 }
 
 /// How far apart two transforms are: their translations' distance plus 10 px a degree of turn.

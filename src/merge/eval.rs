@@ -44,6 +44,16 @@ pub struct PairRecord {
     pub accurate_candidates: Vec<bool>,
 }
 
+/// The file of map `name` in the folder `maps`: `NAME.yaml`, `.png` or `.pgm`, the first that exists
+/// (`NAME.png` when none does, for the error).
+pub fn map_path(maps: &Path, name: &str) -> std::path::PathBuf {
+    ["yaml", "png", "pgm"]
+        .iter()
+        .map(|e| maps.join(format!("{name}.{e}")))
+        .find(|p| p.is_file())
+        .unwrap_or_else(|| maps.join(format!("{name}.png")))
+}
+
 /// Runs the merger on every pair and negative of `set`, maps read from `maps/<NAME>.png` (or `.pgm`,
 /// `.yaml`), each map prepared once.
 pub fn run(set: &PairSet, maps: &Path, options: &MergeOptions) -> Result<(Vec<PairRecord>, f64)> {
@@ -51,12 +61,7 @@ pub fn run(set: &PairSet, maps: &Path, options: &MergeOptions) -> Result<(Vec<Pa
     let mut prep_ms = 0.0;
     let mut get = |name: &str, prepared: &mut HashMap<String, Prepared>| -> Result<()> {
         if !prepared.contains_key(name) {
-            let path = ["yaml", "png", "pgm"]
-                .iter()
-                .map(|e| maps.join(format!("{name}.{e}")))
-                .find(|p| p.is_file())
-                .unwrap_or_else(|| maps.join(format!("{name}.png")));
-            let map = OccupancyMap::load(&path)?;
+            let map = OccupancyMap::load(map_path(maps, name))?;
             let t = Instant::now();
             let p = match options.hypotheses.detector() {
                 Some(d) => Prepared::with_corners(&map, d)?,

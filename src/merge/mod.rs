@@ -6,6 +6,8 @@
 //! - [`compose`](mod@compose): the merged map in A's frame.
 //! - [`pairs`]: pair sets with ground truth and their success test (`merge-eval`).
 //! - [`synthetic`]: pairs with exact truth cut from any map.
+//! - [`global`]: many maps at once: every pair aligned, one consistent placement of all.
+//! - [`mosaic`]: the merged map of many placed maps, and its picture.
 //! - [`hypotheses`]: where the aligner's hypotheses come from (dense correlation, corners, both).
 
 mod accept;
@@ -15,7 +17,9 @@ pub mod compose;
 mod distance;
 pub mod eval;
 mod fft;
+pub mod global;
 pub mod hypotheses;
+pub mod mosaic;
 pub mod pairs;
 mod prepare;
 mod score;

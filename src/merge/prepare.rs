@@ -285,6 +285,24 @@ impl Prepared {
         Ok(p)
     }
 
+    /// Its wall bounding box corners and centroid (the centroid last), in the map's own pixels.
+    pub(super) fn reference_in_map(&self) -> [(f64, f64); 5] {
+        self.reference
+            .map(|(x, y)| (x + self.off.0, y + self.off.1))
+    }
+
+    /// The corners of its known area's bounding box (plus the margin), in the map's own pixels.
+    pub(super) fn bounds_in_map(&self) -> [(f64, f64); 4] {
+        let (x0, y0) = self.off;
+        let (x1, y1) = (x0 + self.w as f64 - 1.0, y0 + self.h as f64 - 1.0);
+        [(x0, y0), (x1, y0), (x0, y1), (x1, y1)]
+    }
+
+    /// Whether it has enough walls next to free space to be aligned at all.
+    pub(super) fn alignable(&self) -> bool {
+        self.walls.len() >= 20
+    }
+
     /// Crop index of the pixel nearest to (x, y), if inside the crop.
     #[inline]
     pub(super) fn index(&self, x: f64, y: f64) -> Option<usize> {

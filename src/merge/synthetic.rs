@@ -86,12 +86,7 @@ pub fn synthetic_pair(
         }
         (x0, y0, x1.max(x0), y1.max(y0))
     };
-    let value = |s: CellState, r: &mut Rng| match s {
-        CellState::Free if spec.noise > 0.0 && r.chance(spec.noise) => OCCUPIED,
-        CellState::Free => FREE,
-        CellState::Occupied => OCCUPIED,
-        CellState::Unknown => UNKNOWN,
-    };
+    let value = |s: CellState, r: &mut Rng| written(s, spec.noise, r);
     // A: its part, cropped to its known area.
     let (ax0, ay0, ax1, ay1) = bbox(&in_a);
     let (aw, ah) = (ax1 - ax0, ay1 - ay0);
@@ -108,55 +103,17 @@ pub fn synthetic_pair(
         }
     }
     // B: its part turned by theta about its centre into a square canvas.
-    let (bx0, by0, bx1, by1) = bbox(&in_b);
-    let cb = (
-        (bx0 + bx1) as f64 / 2.0 - 0.5,
-        (by0 + by1) as f64 / 2.0 - 0.5,
-    );
-    let diag = ((bx1 - bx0) as f64).hypot((by1 - by0) as f64);
     let margin = f64::from(rng.range(4, 48));
-    let side = (diag + 2.0 * margin).ceil();
-    if side > MAX_PART_SIDE {
-        return None;
-    }
-    let side = side as usize;
     let theta = unit(&mut rng) * 360.0;
-    let cq = ((side as f64 - 1.0) / 2.0, (side as f64 - 1.0) / 2.0);
-    // B's pixel q lies at source point R(theta) (q - cq) + cb.
-    let rot = Rigid {
-        theta_deg: theta,
-        tx: 0.0,
-        ty: 0.0,
-    };
-    let r_cq = rot.apply(cq);
-    let to_source = Rigid {
-        theta_deg: theta,
-        tx: cb.0 - r_cq.0,
-        ty: cb.1 - r_cq.1,
-    };
-    let mut b_px = vec![UNKNOWN; side * side];
-    let (mut kx0, mut ky0, mut kx1, mut ky1) = (f64::MAX, f64::MAX, f64::MIN, f64::MIN);
-    for y in 0..side {
-        for x in 0..side {
-            let (sx, sy) = to_source.apply((x as f64, y as f64));
-            let (sx, sy) = (sx.round(), sy.round());
-            if sx < 0.0 || sy < 0.0 || sx >= w as f64 || sy >= h as f64 {
-                continue;
-            }
-            let (sx, sy) = (sx as usize, sy as usize);
-            if in_b(sx, sy) {
-                let s = state(sx, sy);
-                b_px[y * side + x] = value(s, &mut rng);
-                if s != CellState::Unknown {
-                    let (fx, fy) = (x as f64, y as f64);
-                    (kx0, ky0, kx1, ky1) = (kx0.min(fx), ky0.min(fy), kx1.max(fx), ky1.max(fy));
-                }
-            }
-        }
-    }
-    if kx1 < kx0 {
-        return None;
-    }
+    let (b_px, side, to_source, (kx0, ky0, kx1, ky1)) = turned(
+        &state,
+        (w, h),
+        &in_b,
+        bbox(&in_b),
+        theta,
+        margin,
+        &mut |s| value(s, &mut rng),
+    )?;
     let truth = Rigid {
         tx: to_source.tx - ax0 as f64,
         ty: to_source.ty - ay0 as f64,
@@ -172,14 +129,160 @@ pub fn synthetic_pair(
         a: make(aw, ah, a_px)?,
         b: make(side, side, b_px)?,
         truth,
-        check_points: vec![
-            (kx0, ky0),
-            (kx1, ky0),
-            (kx0, ky1),
-            (kx1, ky1),
-            ((kx0 + kx1) / 2.0, (ky0 + ky1) / 2.0),
-        ],
+        check_points: box_points(kx0, ky0, kx1, ky1),
     })
+}
+
+/// A cell's value as written (map_server's), a free cell turned occupied with probability `noise`.
+fn written(s: CellState, noise: f64, rng: &mut Rng) -> u8 {
+    match s {
+        CellState::Free if noise > 0.0 && rng.chance(noise) => OCCUPIED,
+        CellState::Free => FREE,
+        CellState::Occupied => OCCUPIED,
+        CellState::Unknown => UNKNOWN,
+    }
+}
+
+/// A box's corners and centre: where estimates are checked.
+fn box_points(x0: f64, y0: f64, x1: f64, y1: f64) -> Vec<(f64, f64)> {
+    vec![
+        (x0, y0),
+        (x1, y0),
+        (x0, y1),
+        (x1, y1),
+        ((x0 + x1) / 2.0, (y0 + y1) / 2.0),
+    ]
+}
+
+/// The pixels of a `w` x `h` source for which `keep` holds, within the box `(x0, y0, x1, y1)`, turned by
+/// `theta` degrees about the box's centre into a square canvas holding its diagonal and `margin` on each
+/// side, each cell's value from its state by `value`: the canvas, its side, the transform from its pixels
+/// to the source's, and its known area's bounding box (`None` when it holds nothing known or is too large).
+#[allow(clippy::type_complexity)]
+fn turned(
+    state: &dyn Fn(usize, usize) -> CellState,
+    (w, h): (usize, usize),
+    keep: &dyn Fn(usize, usize) -> bool,
+    (bx0, by0, bx1, by1): (usize, usize, usize, usize),
+    theta: f64,
+    margin: f64,
+    value: &mut dyn FnMut(CellState) -> u8,
+) -> Option<(Vec<u8>, usize, Rigid, (f64, f64, f64, f64))> {
+    let cb = (
+        (bx0 + bx1) as f64 / 2.0 - 0.5,
+        (by0 + by1) as f64 / 2.0 - 0.5,
+    );
+    let diag = ((bx1 - bx0) as f64).hypot((by1 - by0) as f64);
+    let side = (diag + 2.0 * margin).ceil();
+    if side > MAX_PART_SIDE {
+        return None;
+    }
+    let side = side as usize;
+    let cq = ((side as f64 - 1.0) / 2.0, (side as f64 - 1.0) / 2.0);
+    // The canvas pixel q lies at source point R(theta) (q - cq) + cb.
+    let rot = Rigid {
+        theta_deg: theta,
+        tx: 0.0,
+        ty: 0.0,
+    };
+    let r_cq = rot.apply(cq);
+    let to_source = Rigid {
+        theta_deg: theta,
+        tx: cb.0 - r_cq.0,
+        ty: cb.1 - r_cq.1,
+    };
+    let mut px = vec![UNKNOWN; side * side];
+    let (mut kx0, mut ky0, mut kx1, mut ky1) = (f64::MAX, f64::MAX, f64::MIN, f64::MIN);
+    for y in 0..side {
+        for x in 0..side {
+            let (sx, sy) = to_source.apply((x as f64, y as f64));
+            let (sx, sy) = (sx.round(), sy.round());
+            if sx < 0.0 || sy < 0.0 || sx >= w as f64 || sy >= h as f64 {
+                continue;
+            }
+            let (sx, sy) = (sx as usize, sy as usize);
+            if keep(sx, sy) {
+                let s = state(sx, sy);
+                px[y * side + x] = value(s);
+                if s != CellState::Unknown {
+                    let (fx, fy) = (x as f64, y as f64);
+                    (kx0, ky0, kx1, ky1) = (kx0.min(fx), ky0.min(fy), kx1.max(fx), ky1.max(fy));
+                }
+            }
+        }
+    }
+    (kx1 >= kx0).then_some((px, side, to_source, (kx0, ky0, kx1, ky1)))
+}
+
+/// One map of a synthetic set: a window of the source turned and shifted, with its exact pose.
+#[derive(Clone, Debug)]
+pub struct SyntheticCrop {
+    /// The map.
+    pub map: OccupancyMap,
+    /// Its pixels to the source's, exact.
+    pub pose: Rigid,
+    /// Points of it (its known area's bounding box corners and centre) where an estimate is checked.
+    pub check_points: Vec<(f64, f64)>,
+}
+
+/// `n` overlapping maps cut from `source`, deterministic in `seed`: windows on a jittered grid over its
+/// known area (each about 1.8 grid steps across, so neighbours share about 45% of a window), each turned
+/// by a random angle into a square canvas with a random margin, with speckle at `noise`. `None` when the
+/// source's known area is under [`MIN_EXTENT`] across or a window would exceed [`MAX_PART_SIDE`].
+pub fn synthetic_set(
+    source: &OccupancyMap,
+    n: usize,
+    noise: f64,
+    seed: u64,
+) -> Option<Vec<SyntheticCrop>> {
+    let classes = ClassTable::new(&source.thresholds);
+    let img = &source.image;
+    let (w, h) = (img.width() as usize, img.height() as usize);
+    let state = |x: usize, y: usize| classes.state(img.pixels()[y * w + x]);
+    let (mut x0, mut y0, mut x1, mut y1) = (w, h, 0, 0);
+    for y in 0..h {
+        for x in 0..w {
+            if state(x, y) != CellState::Unknown {
+                (x0, y0, x1, y1) = (x0.min(x), y0.min(y), x1.max(x + 1), y1.max(y + 1));
+            }
+        }
+    }
+    if n == 0 || x1 < x0 + MIN_EXTENT as usize || y1 < y0 + MIN_EXTENT as usize {
+        return None;
+    }
+    let (ew, eh) = ((x1 - x0) as f64, (y1 - y0) as f64);
+    let cols = ((n as f64 * ew / eh).sqrt().round() as usize).clamp(1, n);
+    let rows = n.div_ceil(cols);
+    let (sx, sy) = (ew / cols as f64, eh / rows as f64);
+    let mut rng = Rng::new(seed);
+    let unit = |r: &mut Rng| f64::from(r.range(0, 1 << 24)) / f64::from(1u32 << 24);
+    let mut out = Vec::with_capacity(n);
+    for k in 0..n {
+        let (c, r) = (k % cols, k / cols);
+        // The window's centre jittered by up to a fifth of a step.
+        let cx = x0 as f64 + (c as f64 + 0.5 + 0.4 * (unit(&mut rng) - 0.5)) * sx;
+        let cy = y0 as f64 + (r as f64 + 0.5 + 0.4 * (unit(&mut rng) - 0.5)) * sy;
+        let (hw, hh) = (0.9 * sx.max(sy), 0.9 * sx.max(sy));
+        let clampu = |v: f64, hi: usize| v.clamp(0.0, hi as f64) as usize;
+        let b = (
+            clampu(cx - hw, w),
+            clampu(cy - hh, h),
+            clampu(cx + hw, w),
+            clampu(cy + hh, h),
+        );
+        let keep = |x: usize, y: usize| x >= b.0 && x < b.2 && y >= b.1 && y < b.3;
+        let margin = f64::from(rng.range(4, 48));
+        let theta = unit(&mut rng) * 360.0;
+        let value = &mut |s: CellState| written(s, noise, &mut rng);
+        let (px, side, pose, (kx0, ky0, kx1, ky1)) =
+            turned(&state, (w, h), &keep, b, theta, margin, value)?;
+        out.push(SyntheticCrop {
+            map: OccupancyMap::from_image(MapImage::new(side as u32, side as u32, px).ok()?),
+            pose: pose.normalized(),
+            check_points: box_points(kx0, ky0, kx1, ky1),
+        });
+    }
+    Some(out)
 }
 
 impl SyntheticPair {

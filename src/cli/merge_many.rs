@@ -1,0 +1,161 @@
+//! `ogm-corners merge A B C ... | DIR`: every map placed at once (see [`ogm_corners::merge::global`]): each
+//! group's merged map and picture, each map's pose (`--poses`), the multirobot_map_merge parameters
+//! (`--init-poses`).
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use ogm_corners::files;
+use ogm_corners::memory::Budget;
+use ogm_corners::merge::align::prepared_bytes;
+use ogm_corners::merge::global::{self, report, GlobalOptions};
+use ogm_corners::merge::{compose, mosaic};
+use ogm_corners::{Error, OccupancyMap, Result};
+
+use super::merge::{output_names, write_yaml, MergeArgs};
+use super::write_stdout;
+
+/// `NAME.ext` for group 0, `NAME-k.ext` for group k.
+fn group_path(base: &Path, g: usize) -> PathBuf {
+    if g == 0 {
+        return base.to_path_buf();
+    }
+    let stem = base
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let name = match base.extension() {
+        Some(e) => format!("{stem}-{g}.{}", e.to_string_lossy()),
+        None => format!("{stem}-{g}"),
+    };
+    base.with_file_name(name)
+}
+
+pub(super) fn run(a: MergeArgs, budget: &Budget) -> Result<()> {
+    let (paths, mut inputs) = super::map_inputs(&a.maps, budget, &prepared_bytes)?;
+    if paths.len() < 2 {
+        return Err(Error::invalid(format!(
+            "merge needs at least two maps; found {}",
+            paths.len()
+        )));
+    }
+    // Every map and its preparation are held at once.
+    let mut total: u64 = 0;
+    for p in &paths {
+        let (w, h, _) = OccupancyMap::probe(p)?;
+        total = total
+            .saturating_add(u64::from(w) * u64::from(h))
+            .saturating_add(prepared_bytes(w, h));
+    }
+    budget.check(
+        format_args!("{} maps and their preparation", paths.len()),
+        total,
+    )?;
+    let (yaml_out, pgm_out) = output_names(a.output.as_deref())?;
+    // Every file it may write, checked against the inputs before any work: at most one group per two maps.
+    for g in 0..paths.len() / 2 {
+        for (p, what) in [
+            (&yaml_out, "-o"),
+            (&pgm_out, "-o"),
+            (&a.overlay, "--overlay"),
+        ] {
+            if let Some(p) = p {
+                inputs.claim_output(&group_path(p, g), what)?;
+            }
+        }
+    }
+    for (p, what) in [(&a.poses, "--poses"), (&a.init_poses, "--init-poses")] {
+        if let Some(p) = p {
+            inputs.claim_output(p, what)?;
+        }
+    }
+    let names: Vec<String> = paths.iter().map(|p| p.display().to_string()).collect();
+    let mut maps = paths
+        .iter()
+        .map(OccupancyMap::load)
+        .collect::<Result<Vec<_>>>()?;
+    // Every map at the first georeferenced map's resolution.
+    let mut scales = vec![None; maps.len()];
+    if let Some(res) = maps.iter().find_map(|m| m.georef).map(|g| g.resolution) {
+        for (m, s) in maps.iter_mut().zip(&mut scales) {
+            if let Some(g) = m.georef {
+                if (g.resolution - res).abs() > 1e-9 * res {
+                    *s = Some(g.resolution / res);
+                    *m = compose::resample(m, res)?;
+                }
+            }
+        }
+    }
+    let start = Instant::now();
+    let options = GlobalOptions::default();
+    let bar = indicatif::ProgressBar::new(0);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template(
+            "{bar:30} {pos}/{len} pairs, {elapsed} (eta {eta})",
+        )
+        .expect("valid template"),
+    );
+    let mut backend = super::backend_on(a.backend)?;
+    let run = global::run(&maps, &options, backend.as_mut(), &|k, n| {
+        bar.set_length(n as u64);
+        bar.set_position(k as u64);
+    })?;
+    bar.finish_and_clear();
+    let seconds = start.elapsed().as_secs_f64();
+    let placement = &run.placement;
+    let group_maps = |g: usize| -> (Vec<&OccupancyMap>, Vec<ogm_corners::merge::Rigid>) {
+        placement.groups[g]
+            .iter()
+            .map(|&m| (&maps[m], placement.maps[m].pose))
+            .unzip()
+    };
+    let frames = (0..placement.groups.len())
+        .map(|g| {
+            let (ms, ps) = group_maps(g);
+            mosaic::frame(&ms, &ps)
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let mut doc = report::poses(&names, &maps, &scales, &run, &frames, seconds);
+    for g in 0..placement.groups.len() {
+        let (ms, ps) = group_maps(g);
+        if let Some(pgm) = &pgm_out {
+            let pgm = group_path(pgm, g);
+            let (merged, _) = mosaic::compose_many(&ms, &ps)?;
+            merged.image.write_pgm(&pgm)?;
+            doc.groups[g].merged = Some(pgm.display().to_string());
+            if let Some(yaml) = &yaml_out {
+                let yaml = group_path(yaml, g);
+                write_yaml(&yaml, &pgm, &merged)?;
+                doc.groups[g].merged = Some(yaml.display().to_string());
+            }
+        }
+        if let Some(png) = &a.overlay {
+            let png = group_path(png, g);
+            files::write_png(&png, &mosaic::overlay_many(&ms, &ps)?)?;
+            doc.groups[g].overlay = Some(png.display().to_string());
+        }
+    }
+    if let Some(p) = &a.poses {
+        files::write_atomic(p, |out| {
+            serde_json::to_writer_pretty(&mut *out, &doc)?;
+            writeln!(out)
+        })?;
+    }
+    if let Some(p) = &a.init_poses {
+        let text = report::init_poses_yaml(&doc);
+        files::write_atomic(p, |out| out.write_all(text.as_bytes()))?;
+    }
+    write_stdout(|out| match a.format {
+        super::TextOrJson::Json => {
+            serde_json::to_writer_pretty(&mut *out, &doc)?;
+            writeln!(out)
+        }
+        super::TextOrJson::Text => report::write_text(out, &doc),
+    })?;
+    if placement.groups.is_empty() {
+        return Err(Error::Declined(
+            "no two maps could be placed together with confidence".to_string(),
+        ));
+    }
+    Ok(())
+}

@@ -1,0 +1,444 @@
+//! `merge-eval --global`: many maps placed at once, checked against pair ground truth: per building, mixed
+//! sets of two buildings, and the cost as the number of maps grows.
+
+use std::io::{self, Write};
+
+use serde::Serialize;
+
+use super::graph::Placement;
+use super::{GlobalOptions, Pairwise, Timing};
+use crate::cpu::CpuBackend;
+use crate::error::Result;
+use crate::map::OccupancyMap;
+use crate::merge::pairs::TruePair;
+use crate::merge::transform::Rigid;
+
+/// Many maps placed: the pairwise alignments, the placement, the time.
+#[derive(Clone, Debug, Serialize)]
+pub struct SetResult {
+    /// The maps' names, as given.
+    pub names: Vec<String>,
+    /// Every pair's alignment.
+    pub pairwise: Pairwise,
+    /// The placement.
+    pub placement: Placement,
+    /// Where the time went.
+    pub timing: Timing,
+}
+
+/// Places `maps` on the CPU path ([`super::run`]); `progress` hears (pairs done, pairs in all).
+pub fn run_maps(
+    names: Vec<String>,
+    maps: &[OccupancyMap],
+    options: &GlobalOptions,
+    progress: &(dyn Fn(usize, usize) + Sync),
+) -> Result<SetResult> {
+    let r = super::run(maps, options, &mut CpuBackend, progress)?;
+    Ok(SetResult {
+        names,
+        pairwise: r.pairwise,
+        placement: r.placement,
+        timing: r.timing,
+    })
+}
+
+impl SetResult {
+    /// The transform from map `src`'s pixels to map `dst`'s that the placement implies, when both are
+    /// placed in one group.
+    pub fn derived(&self, src: usize, dst: usize) -> Option<Rigid> {
+        let (s, d) = (&self.placement.maps[src], &self.placement.maps[dst]);
+        (s.group.is_some() && s.group == d.group).then(|| d.pose.inverse().after(&s.pose))
+    }
+
+    /// The transform from `src` to `dst` that the pair test alone accepted, when it did.
+    pub fn pairwise_alone(&self, src: usize, dst: usize) -> Option<Rigid> {
+        let (a, b) = (src.min(dst), src.max(dst));
+        let v = self.pairwise.pairs.iter().find(|p| p.a == a && p.b == b)?;
+        // The verdict maps b to a.
+        v.accepted.then(|| {
+            if dst == a {
+                v.transform
+            } else {
+                v.transform.inverse()
+            }
+        })
+    }
+
+    fn index(&self, name: &str) -> Option<usize> {
+        self.names.iter().position(|n| n == name)
+    }
+}
+
+/// How a set came out against its ground truth.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct SetRow {
+    /// What the set is.
+    pub label: String,
+    /// Maps given.
+    pub maps: usize,
+    /// Maps placed (in a group of two or more).
+    pub placed: usize,
+    /// Placed maps whose every annotated pair with another map of their group is accurate.
+    pub correct: usize,
+    /// Placed maps with at least one annotated pair in their group that is not.
+    pub wrong: usize,
+    /// Groups formed.
+    pub groups: usize,
+    /// Maps placed into a group whose other maps are mostly of another building.
+    pub foreign: usize,
+    /// Annotated ordered pairs among the maps.
+    pub pairs: usize,
+    /// Of them: the placement's implied transform accurate, wrong, not given (not in one group).
+    pub derived_accurate: usize,
+    /// See `derived_accurate`.
+    pub derived_wrong: usize,
+    /// The same for the pair test's accepts chained along their maximum spanning tree (by rule value),
+    /// as m-explore's map_merge chains its pairwise matches.
+    pub chained_accurate: usize,
+    /// See `chained_accurate`.
+    pub chained_wrong: usize,
+    /// The same for the pair test alone (one alignment per unordered pair).
+    pub pairwise_accurate: usize,
+    /// See `pairwise_accurate`.
+    pub pairwise_wrong: usize,
+    /// Accepted pairwise merges the placement dropped.
+    pub dropped: usize,
+    /// Pairs the placement rests on through a candidate the pair test did not accept (a cycle
+    /// confirmed it).
+    pub confirmed: usize,
+    /// Pairs aligned.
+    pub aligned: usize,
+    /// Time.
+    pub timing: Timing,
+}
+
+/// Scores `result` against `truths` (pairs of names; those naming maps not in the set are ignored) and
+/// `building` (each map's building, for mixed sets).
+pub fn score(
+    label: &str,
+    result: &SetResult,
+    truths: &[TruePair],
+    building: &dyn Fn(&str) -> String,
+) -> SetRow {
+    let n = result.names.len();
+    let mut row = SetRow {
+        label: label.to_string(),
+        maps: n,
+        groups: result.placement.groups.len(),
+        dropped: result.placement.dropped.len(),
+        confirmed: result
+            .placement
+            .kept
+            .iter()
+            .filter(|&&i| !result.pairwise.edges[i].accepted)
+            .count(),
+        aligned: result.pairwise.pairs.len(),
+        timing: result.timing,
+        ..SetRow::default()
+    };
+    // A group's building: the most frequent among its maps (ties: the first map's).
+    let group_building = |members: &[usize]| {
+        let names: Vec<String> = members
+            .iter()
+            .map(|&m| building(&result.names[m]))
+            .collect();
+        let count = |b: &String| names.iter().filter(|x| *x == b).count();
+        let most = names.iter().map(count).max().unwrap_or(0);
+        names
+            .iter()
+            .find(|b| count(b) == most)
+            .cloned()
+            .unwrap_or_default()
+    };
+    let mut bad = vec![false; n];
+    let mut checked = vec![false; n];
+    let chained = chain(&result.pairwise);
+    for t in truths {
+        let (Some(s), Some(d)) = (result.index(&t.src), result.index(&t.dst)) else {
+            continue;
+        };
+        row.pairs += 1;
+        if let Some(est) = result.derived(s, d) {
+            checked[s] = true;
+            checked[d] = true;
+            if t.accurate(&est) {
+                row.derived_accurate += 1;
+            } else {
+                row.derived_wrong += 1;
+                bad[s] = true;
+                bad[d] = true;
+            }
+        }
+        if let Some(est) = chained[s]
+            .zip(chained[d])
+            .and_then(|((gs, ps), (gd, pd))| (gs == gd).then(|| pd.inverse().after(&ps)))
+        {
+            if t.accurate(&est) {
+                row.chained_accurate += 1;
+            } else {
+                row.chained_wrong += 1;
+            }
+        }
+        if let Some(est) = result.pairwise_alone(s, d) {
+            if t.accurate(&est) {
+                row.pairwise_accurate += 1;
+            } else {
+                row.pairwise_wrong += 1;
+            }
+        }
+    }
+    for (m, p) in result.placement.maps.iter().enumerate() {
+        let Some(g) = p.group else { continue };
+        row.placed += 1;
+        // Placed with a map of its building that has no annotated pair with it: not checked.
+        if bad[m] {
+            row.wrong += 1;
+        } else if checked[m] {
+            row.correct += 1;
+        }
+        if building(&result.names[m]) != group_building(&result.placement.groups[g]) {
+            row.foreign += 1;
+        }
+    }
+    row
+}
+
+/// The table of [`SetRow`]s.
+pub fn write_rows(out: &mut dyn Write, rows: &[SetRow]) -> io::Result<()> {
+    writeln!(
+        out,
+        "| set | maps | placed | placed correctly | placed wrongly | groups | in another building's group | annotated pairs | derived: accurate | derived: wrong | chained accepts: accurate | chained accepts: wrong | pairwise alone: accurate | pairwise alone: wrong | accepted pairs dropped | unaccepted pairs used | pairs aligned | prepare s | align s | place s | total s |"
+    )?;
+    writeln!(
+        out,
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
+    )?;
+    for r in rows {
+        let pct = |k: usize| 100.0 * k as f64 / r.pairs.max(1) as f64;
+        writeln!(
+            out,
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} ({:.1}%) | {} | {} ({:.1}%) | {} | {} ({:.1}%) | {} | {} | {} | {} | {:.2} | {:.2} | {:.2} | {:.2} |",
+            r.label,
+            r.maps,
+            r.placed,
+            r.correct,
+            r.wrong,
+            r.groups,
+            r.foreign,
+            r.pairs,
+            r.derived_accurate,
+            pct(r.derived_accurate),
+            r.derived_wrong,
+            r.chained_accurate,
+            pct(r.chained_accurate),
+            r.chained_wrong,
+            r.pairwise_accurate,
+            pct(r.pairwise_accurate),
+            r.pairwise_wrong,
+            r.dropped,
+            r.confirmed,
+            r.aligned,
+            r.timing.prepare,
+            r.timing.align,
+            r.timing.place,
+            r.timing.total()
+        )?;
+    }
+    Ok(())
+}
+
+/// Where a suite's maps come from: named maps with their buildings.
+pub struct Library {
+    /// (name, building, map), in name order.
+    pub maps: Vec<(String, String, OccupancyMap)>,
+}
+
+impl Library {
+    fn of(&self, building: &str) -> Vec<usize> {
+        (0..self.maps.len())
+            .filter(|&i| self.maps[i].1 == building)
+            .collect()
+    }
+
+    fn building_of(&self, name: &str) -> String {
+        self.maps
+            .iter()
+            .find(|m| m.0 == name)
+            .map_or_else(String::new, |m| m.1.clone())
+    }
+}
+
+/// The `--global` suite over a pair set's maps: each building alone; every two buildings together, and
+/// all of them; the first 4 and 8 maps of the largest building (the cost as N grows); and a synthetic set
+/// of `synthetic` maps cut from one large synthetic office (seed `seed`) (exact truth, the synthetic success
+/// test). `progress` hears what runs.
+pub fn suite(
+    lib: &Library,
+    truths: &[TruePair],
+    options: &GlobalOptions,
+    synthetic: usize,
+    seed: u64,
+    progress: &(dyn Fn(&str, usize, usize) + Sync),
+) -> Result<Vec<SetRow>> {
+    let mut buildings: Vec<String> = Vec::new();
+    for m in &lib.maps {
+        if !buildings.contains(&m.1) {
+            buildings.push(m.1.clone());
+        }
+    }
+    let building = |name: &str| lib.building_of(name);
+    let run = |label: &str, members: &[usize]| -> Result<SetRow> {
+        let names = members.iter().map(|&i| lib.maps[i].0.clone()).collect();
+        let maps: Vec<OccupancyMap> = members.iter().map(|&i| lib.maps[i].2.clone()).collect();
+        let result = run_maps(names, &maps, options, &|k, n| progress(label, k, n))?;
+        Ok(score(label, &result, truths, &building))
+    };
+    let mut rows = Vec::new();
+    for b in &buildings {
+        rows.push(run(b, &lib.of(b))?);
+    }
+    for (i, x) in buildings.iter().enumerate() {
+        for y in &buildings[i + 1..] {
+            let mut both = lib.of(x);
+            both.extend(lib.of(y));
+            both.sort_unstable();
+            rows.push(run(&format!("{x} + {y}"), &both)?);
+        }
+    }
+    if buildings.len() > 2 {
+        let all: Vec<usize> = (0..lib.maps.len()).collect();
+        rows.push(run("all buildings", &all)?);
+    }
+    if let Some(largest) = buildings.iter().max_by_key(|b| lib.of(b).len()) {
+        let members = lib.of(largest);
+        for k in [4, 8] {
+            if members.len() > k {
+                rows.push(run(&format!("{largest}, first {k}"), &members[..k])?);
+            }
+        }
+    }
+    let (names, maps, truths) = synthetic_maps(synthetic, seed)?;
+    let label = format!("synthetic office, {synthetic} maps");
+    rows.push(score_maps(
+        &label, names, &maps, &truths, options, progress,
+    )?);
+    Ok(rows)
+}
+
+/// Places `maps` and scores them against `truths`, labelled `label`, each map its own "building".
+pub fn score_maps(
+    label: &str,
+    names: Vec<String>,
+    maps: &[OccupancyMap],
+    truths: &[TruePair],
+    options: &GlobalOptions,
+    progress: &(dyn Fn(&str, usize, usize) + Sync),
+) -> Result<SetRow> {
+    let result = run_maps(names, maps, options, &|k, m| progress(label, k, m))?;
+    Ok(score(label, &result, truths, &|_| "synthetic".to_string()))
+}
+
+/// `n` maps cut from one synthetic office with every ordered pair's exact truth (the synthetic limits).
+pub fn synthetic_maps(
+    n: usize,
+    seed: u64,
+) -> Result<(Vec<String>, Vec<OccupancyMap>, Vec<TruePair>)> {
+    use crate::merge::synthetic::{synthetic_set, SYNTHETIC_RMS_LIMIT_PX, SYNTHETIC_ROT_LIMIT_DEG};
+    // About 580 px a grid step: a 1044 px window each. The office is generated at half that size and
+    // doubled, so its rooms and walls are as large in pixels as those of the real sensor maps (a 5 cm
+    // grid); at its own scale a window would show a dense grid of small rooms.
+    let cols = (n as f64 * 4.0 / 3.0).sqrt().round().max(1.0);
+    let rows = (n as f64 / cols).ceil();
+    let (w, h) = ((cols * 290.0) as u32, (rows * 290.0) as u32);
+    let half = crate::synth::office_map(w.max(128), h.max(128), seed)?;
+    let (w2, h2) = (half.width() * 2, half.height() * 2);
+    let px = (0..h2)
+        .flat_map(|y| (0..w2).map(move |x| (x, y)))
+        .map(|(x, y)| half.get(x / 2, y / 2))
+        .collect();
+    let source = OccupancyMap::from_image(crate::map::MapImage::new(w2, h2, px)?);
+    let crops = synthetic_set(&source, n, 0.0, seed).ok_or_else(|| {
+        crate::error::Error::invalid("the synthetic office is too small to cut a set from")
+    })?;
+    let names: Vec<String> = (0..n).map(|k| format!("part-{k:02}")).collect();
+    let mut truths = Vec::new();
+    for (s, cs) in crops.iter().enumerate() {
+        for (d, cd) in crops.iter().enumerate() {
+            if s == d {
+                continue;
+            }
+            let t = cd.pose.inverse().after(&cs.pose);
+            truths.push(TruePair {
+                src: names[s].clone(),
+                dst: names[d].clone(),
+                building: "synthetic".to_string(),
+                theta_deg: t.theta_deg,
+                tx: t.tx,
+                ty: t.ty,
+                rms_limit_px: SYNTHETIC_RMS_LIMIT_PX,
+                rot_limit_deg: SYNTHETIC_ROT_LIMIT_DEG,
+                src_points: cs.check_points.iter().map(|p| [p.0, p.1]).collect(),
+                dst_points: cs
+                    .check_points
+                    .iter()
+                    .map(|&p| {
+                        let q = t.apply(p);
+                        [q.0, q.1]
+                    })
+                    .collect(),
+            });
+        }
+    }
+    Ok((names, crops.into_iter().map(|c| c.map).collect(), truths))
+}
+
+/// Each map's tree (by its first map) and pose in it, chaining the pair test's accepts along their
+/// maximum spanning tree by rule value (Kruskal, then outward from each tree's first map); `None` for a
+/// map in no accepted pair. The baseline the placement is measured against.
+pub fn chain(pairwise: &Pairwise) -> Vec<Option<(usize, Rigid)>> {
+    let n = pairwise.n;
+    let mut accepted: Vec<&super::PairVerdict> =
+        pairwise.pairs.iter().filter(|p| p.accepted).collect();
+    accepted.sort_by(|x, y| {
+        y.score
+            .total_cmp(&x.score)
+            .then((x.a, x.b).cmp(&(y.a, y.b)))
+    });
+    let mut root: Vec<usize> = (0..n).collect();
+    fn find(root: &mut [usize], mut i: usize) -> usize {
+        while root[i] != i {
+            root[i] = root[root[i]];
+            i = root[i];
+        }
+        i
+    }
+    let mut tree: Vec<Vec<(usize, Rigid)>> = vec![Vec::new(); n];
+    for p in accepted {
+        let (ra, rb) = (find(&mut root, p.a), find(&mut root, p.b));
+        if ra != rb {
+            root[ra.max(rb)] = ra.min(rb);
+            // b -> a, and a -> b.
+            tree[p.a].push((p.b, p.transform));
+            tree[p.b].push((p.a, p.transform.inverse()));
+        }
+    }
+    let mut out: Vec<Option<(usize, Rigid)>> = vec![None; n];
+    for start in 0..n {
+        if out[start].is_some() || tree[start].is_empty() {
+            continue;
+        }
+        out[start] = Some((start, Rigid::IDENTITY));
+        let mut stack = vec![start];
+        while let Some(u) = stack.pop() {
+            let pu = out[u].expect("visited").1;
+            for &(v, t) in &tree[u] {
+                // t maps v's pixels to u's.
+                if out[v].is_none() {
+                    out[v] = Some((start, pu.after(&t)));
+                    stack.push(v);
+                }
+            }
+        }
+    }
+    out
+}

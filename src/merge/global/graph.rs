@@ -1,0 +1,473 @@
+//! The placement of many maps from the graph of their pairwise candidates: triangle support and
+//! contradiction of each edge, then groups grown by agglomeration (see the [module docs](super)).
+
+use std::collections::{BTreeMap, BTreeSet};
+
+use serde::Serialize;
+
+use super::{Edge, GlobalOptions, Pairwise};
+use crate::backend::Backend;
+use crate::error::Result;
+use crate::merge::accept::{contradiction, Features, MAX_CONTRADICTION, MAX_FINE_CONFLICT};
+use crate::merge::align::{check, Prepared};
+use crate::merge::transform::Rigid;
+
+/// Candidates below this pair rule value are not used (the pair test accepts from 0).
+pub const WEAK_FROM: f64 = -16.0;
+/// Two placements of a map agree within this turn, degrees...
+pub const LOOP_DEG: f64 = 5.0;
+/// ... and this displacement of its walls' centre, pixels.
+pub const LOOP_PX: f64 = 60.0;
+/// A group's placement into another is ambiguous when a distinct one has this share of its support.
+pub const AMBIGUITY: f64 = 0.5;
+
+/// Whether a candidate passes the pair test's contradiction vetoes (the self-symmetry aside: cycles are
+/// what settle a symmetric map's placement).
+pub fn passes_vetoes(f: &Features) -> bool {
+    f.conflict_fine <= MAX_FINE_CONFLICT && contradiction(f) <= MAX_CONTRADICTION
+}
+
+/// Two maps put together contradict each other densely when over [`DENSE_FREE_AGREE`] of the free space
+/// falling in the other's known area lands on its walls or unknown (with at least [`DENSE_FREE_INSIDE`] of
+/// it in there), or over [`DENSE_CONFLICT`] of their walls lie over 20 px deep in the other's free space.
+/// Looser than the pair vetoes: a placement through other maps is off by a few pixels more than a pair's
+/// own estimate, and bent maps drift apart by more than 3 px (of the real pairs' right candidates, free
+/// agreement is 0.93 at least and deep conflict 0.18 at most; the fine conflict reaches 0.55).
+pub fn densely_contradicted(f: &Features) -> bool {
+    (f.free_inside >= DENSE_FREE_INSIDE && f.free_agree < DENSE_FREE_AGREE)
+        || f.conflict > DENSE_CONFLICT
+}
+
+/// See [`densely_contradicted`].
+pub const DENSE_FREE_AGREE: f64 = 0.90;
+/// See [`densely_contradicted`].
+pub const DENSE_FREE_INSIDE: f64 = 0.02;
+/// See [`densely_contradicted`].
+pub const DENSE_CONFLICT: f64 = 0.25;
+
+/// An edge's own weight: its pair rule value on an exponential scale (e every 8), capped, so that one
+/// strong pair does not outvote several cycles.
+pub fn weight(e: &Edge) -> f64 {
+    (e.score / 8.0).clamp(-4.0, 2.0).exp()
+}
+
+/// What the cycles say about one edge.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct EdgeEvidence {
+    /// Its own weight ([`weight`]).
+    pub own: f64,
+    /// Sum over third maps of the weaker of the two edges through it that compose to this one.
+    pub support: f64,
+    /// For an accepted edge: sum over third maps of the weaker of two accepted edges through it that
+    /// compose to something else.
+    pub contradicted: f64,
+}
+
+impl EdgeEvidence {
+    /// The weight it votes with: its own plus its support, less its contradiction (at least 0).
+    pub fn vote(&self) -> f64 {
+        (self.own + self.support - self.contradicted).max(0.0)
+    }
+}
+
+/// Whether two transforms of a map into one frame agree at its point `centre` (their rotations and where
+/// they put it).
+fn agree(x: &Rigid, y: &Rigid, centre: (f64, f64), options: &GlobalOptions) -> bool {
+    let d = (x.theta_deg - y.theta_deg + 180.0).rem_euclid(360.0) - 180.0;
+    let (p, q) = (x.apply(centre), y.apply(centre));
+    d.abs() <= options.loop_deg && (p.0 - q.0).hypot(p.1 - q.1) <= options.loop_px
+}
+
+/// The edges of each unordered pair, by index into `pairwise.edges`.
+fn by_pair(pairwise: &Pairwise) -> BTreeMap<(usize, usize), Vec<usize>> {
+    let mut out: BTreeMap<(usize, usize), Vec<usize>> = BTreeMap::new();
+    for (i, e) in pairwise.edges.iter().enumerate() {
+        out.entry((e.a, e.b)).or_default().push(i);
+    }
+    out
+}
+
+/// Triangle support and contradiction of every edge.
+pub fn evidence(pairwise: &Pairwise, options: &GlobalOptions) -> Vec<EdgeEvidence> {
+    use rayon::prelude::*;
+    let pairs = by_pair(pairwise);
+    let edges = &pairwise.edges;
+    let of = |u: usize, v: usize| pairs.get(&(u.min(v), u.max(v))).map_or(&[][..], |v| v);
+    edges
+        .par_iter()
+        .map(|e| {
+            let (i, j) = (e.a, e.b);
+            let direct = e.toward(i); // j -> i
+            let mut ev = EdgeEvidence {
+                own: weight(e),
+                ..EdgeEvidence::default()
+            };
+            for k in (0..pairwise.n).filter(|&k| k != i && k != j) {
+                let (ik, jk) = (of(i, k), of(j, k));
+                let mut best: f64 = 0.0;
+                let mut against: f64 = 0.0;
+                for &x in ik {
+                    let ex = &edges[x];
+                    let k_to_i = ex.toward(i);
+                    for &y in jk {
+                        let ey = &edges[y];
+                        // j -> k -> i.
+                        let path = k_to_i.after(&ey.toward(k));
+                        let w = weight(ex).min(weight(ey));
+                        if agree(&direct, &path, e.at, options) {
+                            best = best.max(w);
+                        } else if e.accepted && ex.accepted && ey.accepted {
+                            against = against.max(w);
+                        }
+                    }
+                }
+                ev.support += best;
+                // Two accepted edges that compose to this one outweigh a contradiction through the
+                // same third map.
+                if best == 0.0 {
+                    ev.contradicted += against;
+                }
+            }
+            ev
+        })
+        .collect()
+}
+
+/// Whether an edge counts on its own: accepted by the pair test and not contradicted more than it is
+/// supported, or confirmed by a cycle.
+fn trusted(e: &Edge, ev: &EdgeEvidence) -> bool {
+    (e.accepted && ev.contradicted < ev.own + ev.support) || ev.support > 0.0
+}
+
+/// Where each map lands and why.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct MapPlacement {
+    /// Its group (maps placed together), numbered by their first map; `None` when not placed.
+    pub group: Option<usize>,
+    /// Its pixels to its group's frame (the group's first map's pixels).
+    pub pose: Rigid,
+    /// Why it is not placed, when not.
+    pub reason: Option<String>,
+}
+
+/// Why an edge was not used although the pair test accepted it.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Dropped {
+    /// The edge.
+    pub edge: Edge,
+    /// Why.
+    pub reason: String,
+}
+
+/// The placement of every map.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Placement {
+    /// One entry per map.
+    pub maps: Vec<MapPlacement>,
+    /// The groups' members, each group's first map first (its frame), groups by first map.
+    pub groups: Vec<Vec<usize>>,
+    /// The edges the placement rests on (the pose graph's), by index into the pairwise edges.
+    pub kept: Vec<usize>,
+    /// Accepted pairwise merges the placement contradicts.
+    pub dropped: Vec<Dropped>,
+}
+
+/// One vote cluster: a placement of group `h` into group `g`'s frame and what stands behind it.
+#[derive(Clone, Debug)]
+struct Cluster {
+    /// H's frame to G's.
+    placement: Rigid,
+    /// Sum over map pairs of their best agreeing vote.
+    support: f64,
+    /// Map pairs voting for it.
+    pairs: usize,
+    /// Whether a trusted edge votes for it.
+    trusted: bool,
+    /// The edge whose placement it is.
+    first: usize,
+    /// The map pairs (G's map, H's map) voting for it, each with its best vote.
+    votes: BTreeMap<(usize, usize), f64>,
+}
+
+/// State of the agglomeration.
+struct Groups {
+    /// Each map's group (by its first map) and pose in it.
+    of: Vec<usize>,
+    pose: Vec<Rigid>,
+}
+
+impl Groups {
+    fn members(&self, g: usize) -> Vec<usize> {
+        (0..self.of.len()).filter(|&m| self.of[m] == g).collect()
+    }
+}
+
+/// The placement of every map over the pairwise candidates and their evidence ([`evidence`]),
+/// deterministic; `backend` scores the dense checks.
+pub fn place(
+    pairwise: &Pairwise,
+    maps: &[Prepared],
+    ev: &[EdgeEvidence],
+    options: &GlobalOptions,
+    backend: &mut dyn Backend,
+) -> Result<Placement> {
+    let n = pairwise.n;
+    let edges = &pairwise.edges;
+    let mut groups = Groups {
+        of: (0..n).collect(),
+        pose: vec![Rigid::IDENTITY; n],
+    };
+    let mut rejected: BTreeSet<(usize, usize, usize)> = BTreeSet::new();
+    let mut ambiguous = vec![false; n];
+    let mut contradicted = vec![false; n];
+    loop {
+        // Every pair of groups' best placement, the strongest first.
+        let mut options_now: Vec<(usize, usize, Cluster)> = Vec::new();
+        let group_ids: BTreeSet<usize> = groups.of.iter().copied().collect();
+        for &g in &group_ids {
+            for &h in group_ids.range(g + 1..) {
+                let clusters = clusters(g, h, &groups, edges, ev, options);
+                let Some(best) = clusters.first() else {
+                    continue;
+                };
+                let valid = best.trusted || best.pairs >= 2;
+                let runner_up = clusters
+                    .iter()
+                    .skip(1)
+                    .filter(|c| c.trusted || c.pairs >= 2)
+                    .map(|c| c.support)
+                    .fold(0.0, f64::max);
+                if !valid {
+                    continue;
+                }
+                if runner_up >= AMBIGUITY * best.support {
+                    for m in groups.members(h).into_iter().chain(groups.members(g)) {
+                        ambiguous[m] = true;
+                    }
+                    continue;
+                }
+                if !rejected.contains(&(g, h, best.first)) {
+                    options_now.push((g, h, best.clone()));
+                }
+            }
+        }
+        options_now.sort_by(|x, y| {
+            y.2.support
+                .total_cmp(&x.2.support)
+                .then((x.0, x.1).cmp(&(y.0, y.1)))
+        });
+        let mut merged = false;
+        for (g, h, c) in options_now {
+            if densely_consistent(g, h, &c, &groups, maps, backend)? {
+                for m in groups.members(h) {
+                    groups.pose[m] = c.placement.after(&groups.pose[m]).normalized();
+                    groups.of[m] = g;
+                }
+                merged = true;
+                break;
+            }
+            for m in groups.members(h).into_iter().chain(groups.members(g)) {
+                contradicted[m] = true;
+            }
+            rejected.insert((g, h, c.first));
+        }
+        if !merged {
+            break;
+        }
+    }
+    // The edges the placement rests on: per pair within a group, the best-voting one that agrees.
+    let mut kept = Vec::new();
+    let mut dropped = Vec::new();
+    for (&(u, v), list) in &by_pair(pairwise) {
+        let same = groups.of[u] == groups.of[v];
+        let implied = groups.pose[u].inverse().after(&groups.pose[v]); // v -> u
+        let agreeing = list
+            .iter()
+            .copied()
+            .filter(|&i| same && agree(&edges[i].toward(u), &implied, edges[i].at_in(v), options))
+            .filter(|&i| ev[i].vote() > 0.0)
+            .max_by(|&x, &y| ev[x].vote().total_cmp(&ev[y].vote()).then(y.cmp(&x)));
+        if let Some(i) = agreeing {
+            kept.push(i);
+        }
+        for &i in list {
+            let e = &edges[i];
+            if !e.accepted {
+                continue;
+            }
+            let reason = if same {
+                let x = e.toward(u);
+                let at = e.at_in(v);
+                if agree(&x, &implied, at, options) {
+                    continue;
+                }
+                let (p, q) = (x.apply(at), implied.apply(at));
+                let turn = (x.theta_deg - implied.theta_deg + 180.0).rem_euclid(360.0) - 180.0;
+                format!(
+                    "the placement through the other maps differs by {:.1} deg and {:.0} px where \
+                     the two overlap",
+                    turn.abs(),
+                    (p.0 - q.0).hypot(p.1 - q.1)
+                )
+            } else if ev[i].vote() == 0.0 {
+                "contradicted by cycles: other maps compose to another placement".to_string()
+            } else {
+                "not used: it would join two groups that other pairs place apart, or the maps \
+                 it puts together contradict each other densely"
+                    .to_string()
+            };
+            dropped.push(Dropped { edge: *e, reason });
+        }
+    }
+    let mut sizes = vec![0usize; n];
+    for &g in &groups.of {
+        sizes[g] += 1;
+    }
+    let group_list: Vec<Vec<usize>> = (0..n)
+        .filter(|&g| sizes[g] >= 2 && groups.of[g] == g)
+        .map(|g| groups.members(g))
+        .collect();
+    let maps_out = (0..n)
+        .map(|m| {
+            let g = groups.of[m];
+            if sizes[g] >= 2 {
+                MapPlacement {
+                    group: Some(group_list.iter().position(|l| l[0] == g).unwrap_or(0)),
+                    pose: groups.pose[m],
+                    reason: None,
+                }
+            } else {
+                let reason = if contradicted[m] {
+                    "its placements by the other maps contradict themselves densely (walls on free space)"
+                } else if ambiguous[m] {
+                    "ambiguous: the other maps support two different placements of it alike"
+                } else if edges.iter().any(|e| (e.a == m || e.b == m) && e.accepted) {
+                    "its accepted pairwise merges are contradicted by cycles"
+                } else {
+                    "no confident alignment with any other map (no accepted pair, no confirming cycle)"
+                };
+                MapPlacement {
+                    group: None,
+                    pose: Rigid::IDENTITY,
+                    reason: Some(reason.to_string()),
+                }
+            }
+        })
+        .collect();
+    Ok(Placement {
+        maps: maps_out,
+        groups: group_list,
+        kept,
+        dropped,
+    })
+}
+
+/// The votes of all edges between groups `g` and `h` for placements of H into G, clustered, the best
+/// supported first.
+fn clusters(
+    g: usize,
+    h: usize,
+    groups: &Groups,
+    edges: &[Edge],
+    ev: &[EdgeEvidence],
+    options: &GlobalOptions,
+) -> Vec<Cluster> {
+    // Proposals: (edge, map of G, map of H, placement H -> G, vote).
+    let mut proposals: Vec<(usize, usize, usize, Rigid, f64)> = Vec::new();
+    for (i, e) in edges.iter().enumerate() {
+        let (u, v) = match (groups.of[e.a], groups.of[e.b]) {
+            (x, y) if x == g && y == h => (e.a, e.b),
+            (x, y) if x == h && y == g => (e.b, e.a),
+            _ => continue,
+        };
+        let vote = ev[i].vote();
+        if vote <= 0.0 {
+            continue;
+        }
+        // H -> v's pixels -> u's pixels -> G.
+        let y = groups.pose[u]
+            .after(&e.toward(u))
+            .after(&groups.pose[v].inverse());
+        proposals.push((i, u, v, y, vote));
+    }
+    proposals.sort_by(|x, y| y.4.total_cmp(&x.4).then(x.0.cmp(&y.0)));
+    let mut clusters: Vec<Cluster> = Vec::new();
+    for &(i, u, v, y, vote) in &proposals {
+        // Compared where the edge's maps overlap, in H's frame.
+        let at = groups.pose[v].apply(edges[i].at_in(v));
+        let k = match clusters
+            .iter()
+            .position(|c| agree(&c.placement, &y, at, options))
+        {
+            Some(k) => k,
+            None => {
+                clusters.push(Cluster {
+                    placement: y,
+                    support: 0.0,
+                    pairs: 0,
+                    trusted: false,
+                    first: i,
+                    votes: BTreeMap::new(),
+                });
+                clusters.len() - 1
+            }
+        };
+        let c = &mut clusters[k];
+        let best = c.votes.entry((u, v)).or_insert(0.0);
+        *best = best.max(vote);
+        c.trusted |= trusted(&edges[i], &ev[i]);
+    }
+    for c in &mut clusters {
+        c.support = c.votes.values().sum();
+        c.pairs = c.votes.len();
+    }
+    clusters.sort_by(|x, y| y.support.total_cmp(&x.support).then(x.first.cmp(&y.first)));
+    clusters
+}
+
+/// Whether placing group H into G by the cluster's placement puts no overlapping pair of their maps that
+/// does not vote for it in dense contradiction ([`densely_contradicted`] on the transform it implies
+/// between them). The voters' own pair evidence stands for them: a rigid placement through other maps
+/// can be tens of pixels off for a bent pair.
+fn densely_consistent(
+    g: usize,
+    h: usize,
+    cluster: &Cluster,
+    groups: &Groups,
+    maps: &[Prepared],
+    backend: &mut dyn Backend,
+) -> Result<bool> {
+    let bounds = |m: usize, t: &Rigid| {
+        let pts = maps[m].bounds_in_map().map(|p| t.apply(p));
+        let (mut lo, mut hi) = ((f64::MAX, f64::MAX), (f64::MIN, f64::MIN));
+        for p in pts {
+            lo = (lo.0.min(p.0), lo.1.min(p.1));
+            hi = (hi.0.max(p.0), hi.1.max(p.1));
+        }
+        (lo, hi)
+    };
+    let placement = &cluster.placement;
+    for u in groups.members(g) {
+        let bu = bounds(u, &groups.pose[u]);
+        for v in groups.members(h) {
+            if cluster.votes.contains_key(&(u, v)) {
+                continue;
+            }
+            let pv = placement.after(&groups.pose[v]);
+            let bv = bounds(v, &pv);
+            let overlap = bu.0 .0 <= bv.1 .0
+                && bv.0 .0 <= bu.1 .0
+                && bu.0 .1 <= bv.1 .1
+                && bv.0 .1 <= bu.1 .1;
+            if !overlap {
+                continue;
+            }
+            let t = groups.pose[u].inverse().after(&pv); // v -> u
+            let f = check(&maps[u], &maps[v], &t, backend)?;
+            if densely_contradicted(&f) {
+                return Ok(false);
+            }
+        }
+    }
+    Ok(true)
+}

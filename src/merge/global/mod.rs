@@ -1,0 +1,348 @@
+//! Merging many maps at once: every pair aligned (each map prepared once, the pairs in parallel), then
+//! one consistent placement of every map chosen over the graph of all pairwise candidates, not only each
+//! pair's best one ([`place`]), and the merged map of each group ([`super::mosaic`]).
+//!
+//! Why a set of maps is easier than a pair: true pairwise transforms agree around cycles (A -> B -> C
+//! composes to A -> C) and wrong ones almost never do. So a candidate no single-pair test would accept
+//! is used when a cycle confirms it, and an accepted one that cycles contradict is dropped:
+//!
+//! 1. Every candidate of every pair is an edge weighted by its evidence (the pair rule's value,
+//!    [`Candidate::score`](super::align::Candidate)); the weak ones (rule value from
+//!    [`GlobalOptions::weak_from`]) only count where a cycle confirms them.
+//! 2. Triangles ([`graph`]): an edge gains the weight of each third map through which two other edges
+//!    compose to it within [`GlobalOptions::loop_deg`] and [`GlobalOptions::loop_px`]; an accepted edge
+//!    loses the weight of each third map through which two accepted edges compose to something else.
+//! 3. Groups grow by agglomeration: the best-supported placement of one group into another (votes of all
+//!    edges between them, clustered), taken only when an accepted edge or a cycle stands behind it, no
+//!    other placement comes close, and no overlapping pair of maps it puts together contradicts itself
+//!    densely (the pair test's vetoes on the implied transform).
+//! 4. A weighted pose-graph least squares over the edges consistent with the placement ([`posegraph`]).
+
+pub mod eval;
+pub mod graph;
+pub mod posegraph;
+pub mod report;
+
+use serde::Serialize;
+
+use super::align::{align_prepared, overlap_centre, Candidate, MergeOptions, Prepared};
+use super::transform::Rigid;
+use crate::error::Result;
+
+/// How to place many maps.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GlobalOptions {
+    /// The pairwise alignment.
+    pub pair: MergeOptions,
+    /// Candidates whose pair rule value is below this are not used at all.
+    pub weak_from: f64,
+    /// Two placements of a map agree when they differ by at most this turn, degrees...
+    pub loop_deg: f64,
+    /// ... and move its walls' centre by at most this, pixels.
+    pub loop_px: f64,
+}
+
+impl Default for GlobalOptions {
+    fn default() -> Self {
+        GlobalOptions {
+            pair: MergeOptions::default(),
+            weak_from: graph::WEAK_FROM,
+            loop_deg: graph::LOOP_DEG,
+            loop_px: graph::LOOP_PX,
+        }
+    }
+}
+
+/// One pairwise candidate: map `b`'s pixels to map `a`'s (`a < b`).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct Edge {
+    /// The reference map's index.
+    pub a: usize,
+    /// The moved map's index.
+    pub b: usize,
+    /// Its rank among the pair's candidates (0: the pair's choice).
+    pub rank: usize,
+    /// B's pixels to A's.
+    pub transform: Rigid,
+    /// The pair rule's value for it.
+    pub score: f64,
+    /// Whether the pair test accepted it (the choice only).
+    pub accepted: bool,
+    /// Where it makes the maps overlap, in B's pixels ([`overlap_centre`](super::align)): where it is
+    /// compared with other estimates of B's placement.
+    pub at: (f64, f64),
+}
+
+impl Edge {
+    /// [`Edge::at`] in map `of`'s pixels (`of` is `a` or `b`).
+    pub fn at_in(&self, of: usize) -> (f64, f64) {
+        if of == self.b {
+            self.at
+        } else {
+            self.transform.apply(self.at)
+        }
+    }
+}
+
+impl Edge {
+    /// The transform from the other map's pixels to map `to`'s (`to` is `a` or `b`).
+    pub fn toward(&self, to: usize) -> Rigid {
+        if to == self.a {
+            self.transform
+        } else {
+            self.transform.inverse()
+        }
+    }
+
+    /// The other map.
+    pub fn other(&self, of: usize) -> usize {
+        if of == self.a {
+            self.b
+        } else {
+            self.a
+        }
+    }
+}
+
+/// The pair test's verdict on one pair.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct PairVerdict {
+    /// The reference map.
+    pub a: usize,
+    /// The moved map.
+    pub b: usize,
+    /// Whether the pair test accepted its choice.
+    pub accepted: bool,
+    /// Its choice (B's pixels to A's).
+    pub transform: Rigid,
+    /// Its rule value.
+    pub score: f64,
+    /// Why not, when not.
+    pub reason: Option<String>,
+}
+
+/// Every pair of a set of maps aligned.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct Pairwise {
+    /// How many maps.
+    pub n: usize,
+    /// Every usable candidate of every pair, pair by pair (`a` then `b` ascending), best first.
+    pub edges: Vec<Edge>,
+    /// Each pair's verdict, in the same order.
+    pub pairs: Vec<PairVerdict>,
+}
+
+/// Aligns every pair of `maps` (map `b` onto map `a` for `a < b`), the pairs in parallel; `progress` is
+/// told after each pair (pairs done, pairs in all) from whichever thread finished it.
+pub fn align_all(
+    maps: &[Prepared],
+    options: &GlobalOptions,
+    progress: &(dyn Fn(usize, usize) + Sync),
+) -> Result<Pairwise> {
+    use rayon::prelude::*;
+    let n = maps.len();
+    let pairs: Vec<(usize, usize)> = (0..n)
+        .flat_map(|a| (a + 1..n).map(move |b| (a, b)))
+        .collect();
+    let done = std::sync::atomic::AtomicUsize::new(0);
+    let total = pairs.len();
+    let results: Vec<Result<super::Alignment>> = pairs
+        .par_iter()
+        .map(|&(a, b)| {
+            let al = align_prepared(&maps[a], &maps[b], &options.pair);
+            let k = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+            progress(k, total);
+            al
+        })
+        .collect();
+    let mut out = Pairwise {
+        n,
+        ..Pairwise::default()
+    };
+    for (&(a, b), al) in pairs.iter().zip(results) {
+        let al = al?;
+        out.pairs.push(PairVerdict {
+            a,
+            b,
+            accepted: al.accepted,
+            transform: al.transform,
+            score: al.score,
+            reason: al.reason.clone(),
+        });
+        out.edges.extend(edges_of(
+            (a, &maps[a]),
+            (b, &maps[b]),
+            &al.candidates,
+            al.accepted,
+            options,
+        ));
+    }
+    Ok(out)
+}
+
+/// A pair's usable candidates as edges: the accepted choice, and every candidate from the weak rule
+/// value on that no veto declines.
+fn edges_of(
+    (a, pa): (usize, &Prepared),
+    (b, pb): (usize, &Prepared),
+    candidates: &[Candidate],
+    accepted: bool,
+    options: &GlobalOptions,
+) -> Vec<Edge> {
+    candidates
+        .iter()
+        .enumerate()
+        .filter(|(rank, c)| {
+            (*rank == 0 && accepted)
+                || (c.score >= options.weak_from && graph::passes_vetoes(&c.features))
+        })
+        .map(|(rank, c)| Edge {
+            a,
+            b,
+            rank,
+            transform: c.transform,
+            score: c.score,
+            accepted: rank == 0 && accepted,
+            at: overlap_centre(pa, pb, &c.transform),
+        })
+        .collect()
+}
+
+/// Where every map lands: the graph's placement ([`graph::place`]) with each group's poses from the
+/// pose graph over the edges it kept ([`posegraph::solve`]).
+pub fn place(
+    pairwise: &Pairwise,
+    maps: &[Prepared],
+    options: &GlobalOptions,
+    backend: &mut dyn crate::backend::Backend,
+) -> Result<graph::Placement> {
+    let ev = graph::evidence(pairwise, options);
+    let mut placement = graph::place(pairwise, maps, &ev, options, backend)?;
+    let start: Vec<Rigid> = placement.maps.iter().map(|m| m.pose).collect();
+    for members in &placement.groups {
+        let constraints: Vec<posegraph::Constraint> = placement
+            .kept
+            .iter()
+            .filter(|&&i| members.contains(&pairwise.edges[i].a))
+            .map(|&i| {
+                let e = &pairwise.edges[i];
+                posegraph::Constraint {
+                    u: e.a,
+                    v: e.b,
+                    transform: e.transform,
+                    points: maps[e.b].reference_in_map().to_vec(),
+                    weight: ev[i].vote(),
+                }
+            })
+            .collect();
+        let solved = posegraph::solve(&start, members[0], &constraints);
+        for &m in members {
+            placement.maps[m].pose = solved[m];
+        }
+    }
+    Ok(placement)
+}
+
+/// Seconds spent on each stage of [`run`].
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct Timing {
+    /// Preparing every map (in parallel).
+    pub prepare: f64,
+    /// Aligning every pair (in parallel).
+    pub align: f64,
+    /// The placement over the graph and the pose graph.
+    pub place: f64,
+}
+
+impl Timing {
+    /// All stages.
+    pub fn total(&self) -> f64 {
+        self.prepare + self.align + self.place
+    }
+}
+
+/// Many maps placed ([`run`]).
+#[derive(Clone, Debug, Serialize)]
+pub struct Run {
+    /// Every pair of distinct maps aligned (indices of the maps as given).
+    pub pairwise: Pairwise,
+    /// Where every map lands (a duplicate where its first copy does, in its group after it).
+    pub placement: graph::Placement,
+    /// For each map, the earlier map it is a copy of (the same pixels and thresholds), if any.
+    pub duplicate_of: Vec<Option<usize>>,
+    /// Where the time went.
+    pub timing: Timing,
+}
+
+/// Places `maps`: every distinct map prepared once and every pair of them aligned (both in parallel),
+/// then [`place`]d; a map given twice is aligned once and placed with its first copy. `progress` hears
+/// (pairs done, pairs in all); `backend` scores the placement's dense checks.
+pub fn run(
+    maps: &[crate::map::OccupancyMap],
+    options: &GlobalOptions,
+    backend: &mut dyn crate::backend::Backend,
+    progress: &(dyn Fn(usize, usize) + Sync),
+) -> Result<Run> {
+    use rayon::prelude::*;
+    use std::time::Instant;
+    let duplicate_of: Vec<Option<usize>> = (0..maps.len())
+        .map(|i| {
+            (0..i).find(|&j| {
+                maps[j].image == maps[i].image && maps[j].thresholds == maps[i].thresholds
+            })
+        })
+        .collect();
+    let unique: Vec<usize> = (0..maps.len())
+        .filter(|&i| duplicate_of[i].is_none())
+        .collect();
+    let t = Instant::now();
+    let prepared: Vec<Prepared> = unique
+        .par_iter()
+        .map(|&i| Prepared::new(&maps[i]))
+        .collect();
+    let prepare = t.elapsed().as_secs_f64();
+    let t = Instant::now();
+    let mut pairwise = align_all(&prepared, options, progress)?;
+    let align = t.elapsed().as_secs_f64();
+    let t = Instant::now();
+    let mut placement = place(&pairwise, &prepared, options, backend)?;
+    let place = t.elapsed().as_secs_f64();
+    // Back to the maps' own indices.
+    pairwise.n = maps.len();
+    for e in &mut pairwise.edges {
+        (e.a, e.b) = (unique[e.a], unique[e.b]);
+    }
+    for p in &mut pairwise.pairs {
+        (p.a, p.b) = (unique[p.a], unique[p.b]);
+    }
+    for d in &mut placement.dropped {
+        (d.edge.a, d.edge.b) = (unique[d.edge.a], unique[d.edge.b]);
+    }
+    let mut by_map = Vec::with_capacity(maps.len());
+    for (i, dup) in duplicate_of.iter().enumerate() {
+        let first = dup.unwrap_or(i);
+        let k = unique
+            .binary_search(&first)
+            .expect("a first copy is unique");
+        by_map.push(placement.maps[k].clone());
+    }
+    for members in &mut placement.groups {
+        let mut all: Vec<usize> = Vec::new();
+        for &k in members.iter() {
+            all.push(unique[k]);
+            all.extend((0..maps.len()).filter(|&i| duplicate_of[i] == Some(unique[k])));
+        }
+        *members = all;
+    }
+    placement.maps = by_map;
+    Ok(Run {
+        pairwise,
+        placement,
+        duplicate_of,
+        timing: Timing {
+            prepare,
+            align,
+            place,
+        },
+    })
+}

@@ -1,0 +1,249 @@
+//! What `merge A B C ...` reports: each map's pose in its group's merged map (the `--poses` JSON and the
+//! text verdict), and the multirobot_map_merge parameters (`--init-poses`).
+
+use std::io::{self, Write};
+
+use serde::Serialize;
+
+use super::graph::Placement;
+use super::Pairwise;
+use crate::map::OccupancyMap;
+use crate::merge::mosaic::Frame;
+use crate::merge::transform::{to_world, Rigid, WorldRigid};
+
+/// One map's entry.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct MapEntry {
+    /// Its path as given.
+    pub map: String,
+    /// Whether it is placed.
+    pub placed: bool,
+    /// Its group (maps placed together); `null` when not placed.
+    pub group: Option<usize>,
+    /// Its pixels to its group's merged-map pixels (at the group's resolution: see `scale`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub transform: Option<Rigid>,
+    /// Its map frame's pose in the merged map's frame (metres, radians), when both have a yaml.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub world: Option<WorldRigid>,
+    /// Its pixels per group pixel, when its resolution differs from the group's (it was resampled
+    /// before aligning, and `transform` applies to the resampled pixels: its pixels divided by this).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub scale: Option<f64>,
+    /// Why it is not placed.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub reason: Option<String>,
+    /// The map given earlier that it is a copy of (the same pixels): aligned once, placed with it.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub copy_of: Option<String>,
+}
+
+/// One group's entry.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct GroupEntry {
+    /// Its id.
+    pub id: usize,
+    /// Its maps (paths as given), its frame's map first.
+    pub maps: Vec<String>,
+    /// The merged map's size, pixels.
+    pub width: u32,
+    /// See `width`.
+    pub height: u32,
+    /// Where its merged map was written.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub merged: Option<String>,
+    /// Where its picture was written.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub overlay: Option<String>,
+}
+
+/// An accepted pairwise merge the placement did not use.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct DroppedEntry {
+    /// The reference map.
+    pub a: String,
+    /// The moved map.
+    pub b: String,
+    /// Why.
+    pub reason: String,
+}
+
+/// The whole report.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Poses {
+    /// One entry per input map, in the order given.
+    pub maps: Vec<MapEntry>,
+    /// The groups.
+    pub groups: Vec<GroupEntry>,
+    /// Accepted pairwise merges the placement dropped.
+    pub dropped: Vec<DroppedEntry>,
+    /// Pairs aligned.
+    pub pairs_aligned: usize,
+    /// Of them, accepted by the pair test.
+    pub pairs_accepted: usize,
+    /// Seconds, end to end (reading the maps aside).
+    pub seconds: f64,
+}
+
+/// The report of `run` of `maps` (named `names`; `scales` as [`MapEntry::scale`]), each group's
+/// canvas in `frames`.
+pub fn poses(
+    names: &[String],
+    maps: &[OccupancyMap],
+    scales: &[Option<f64>],
+    run: &super::Run,
+    frames: &[Frame],
+    seconds: f64,
+) -> Poses {
+    let (pairwise, placement): (&Pairwise, &Placement) = (&run.pairwise, &run.placement);
+    let copy_of = |m: usize| run.duplicate_of[m].map(|d| names[d].clone());
+    let entries = placement
+        .maps
+        .iter()
+        .enumerate()
+        .map(|(m, p)| {
+            let Some(g) = p.group else {
+                return MapEntry {
+                    map: names[m].clone(),
+                    placed: false,
+                    group: None,
+                    transform: None,
+                    world: None,
+                    scale: scales[m],
+                    reason: p.reason.clone(),
+                    copy_of: copy_of(m),
+                };
+            };
+            let first = placement.groups[g][0];
+            let world = match (maps[first].georef, maps[m].georef) {
+                (Some(ga), Some(gm)) => Some(to_world(
+                    &p.pose,
+                    &ga,
+                    maps[first].image.height(),
+                    &gm,
+                    maps[m].image.height(),
+                )),
+                _ => None,
+            };
+            MapEntry {
+                map: names[m].clone(),
+                placed: true,
+                group: Some(g),
+                transform: Some(frames[g].to_canvas(&p.pose)),
+                world,
+                scale: scales[m],
+                reason: None,
+                copy_of: copy_of(m),
+            }
+        })
+        .collect();
+    let groups = placement
+        .groups
+        .iter()
+        .enumerate()
+        .map(|(g, members)| GroupEntry {
+            id: g,
+            maps: members.iter().map(|&m| names[m].clone()).collect(),
+            width: frames[g].width,
+            height: frames[g].height,
+            merged: None,
+            overlay: None,
+        })
+        .collect();
+    Poses {
+        maps: entries,
+        groups,
+        dropped: placement
+            .dropped
+            .iter()
+            .map(|d| DroppedEntry {
+                a: names[d.edge.a].clone(),
+                b: names[d.edge.b].clone(),
+                reason: d.reason.clone(),
+            })
+            .collect(),
+        pairs_aligned: pairwise.pairs.len(),
+        pairs_accepted: pairwise.pairs.iter().filter(|p| p.accepted).count(),
+        seconds,
+    }
+}
+
+/// The text verdict: a line per map, then the groups and the totals.
+pub fn write_text(out: &mut dyn Write, doc: &Poses) -> io::Result<()> {
+    for m in &doc.maps {
+        match (&m.group, &m.transform) {
+            (Some(g), Some(t)) => {
+                write!(
+                    out,
+                    "{}: group {g}, {:.2} deg, ({:.1}, {:.1}) px",
+                    m.map, t.theta_deg, t.tx, t.ty
+                )?;
+                if let Some(w) = m.world {
+                    write!(
+                        out,
+                        " = {:.2} deg, ({:.3}, {:.3}) m",
+                        w.yaw.to_degrees(),
+                        w.x,
+                        w.y
+                    )?;
+                }
+                if let Some(c) = &m.copy_of {
+                    write!(out, " (a copy of {c})")?;
+                }
+                writeln!(out)?;
+            }
+            _ => writeln!(
+                out,
+                "{}: not placed: {}",
+                m.map,
+                m.reason.as_deref().unwrap_or("not confident")
+            )?,
+        }
+    }
+    let placed = doc.maps.iter().filter(|m| m.placed).count();
+    writeln!(
+        out,
+        "{placed} of {} maps placed in {} group(s); {} pairs aligned, {} accepted, {} of those dropped as \
+         inconsistent; {:.1} s",
+        doc.maps.len(),
+        doc.groups.len(),
+        doc.pairs_aligned,
+        doc.pairs_accepted,
+        doc.dropped.len(),
+        doc.seconds
+    )
+}
+
+/// The multirobot_map_merge parameters of the placed maps (`rosparam load` format): per robot (the map's
+/// file stem), `map_merge/init_pose_{x,y,z,yaw}`: the pose of its map frame in its group's merged frame.
+/// Maps without a yaml or not placed are listed as comments.
+pub fn init_poses_yaml(doc: &Poses) -> String {
+    let mut s = String::from(
+        "# multirobot_map_merge with known_init_poses: each robot's map frame in the merged frame of its\n\
+         # group (the frame of the group's first map), as found by ogm-corners merge.\n",
+    );
+    for m in &doc.maps {
+        let robot = std::path::Path::new(&m.map)
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_else(|| m.map.clone());
+        let robot = serde_yaml::to_string(&robot).unwrap_or_default();
+        let robot = robot.trim_end();
+        match (m.world, m.group) {
+            (Some(w), Some(g)) => s.push_str(&format!(
+                // `{:?}` keeps a decimal point: YAML reads `0` as an integer, `0.0` as a float.
+                "{robot}:  # group {g}\n  map_merge:\n    init_pose_x: {:?}\n    init_pose_y: {:?}\n    \
+                 init_pose_z: 0.0\n    init_pose_yaw: {:?}\n",
+                w.x, w.y, w.yaw
+            )),
+            (None, Some(g)) => s.push_str(&format!(
+                "# {robot}: group {g}, but it or its group's first map has no yaml (no world frame)\n"
+            )),
+            _ => s.push_str(&format!(
+                "# {robot}: not placed: {}\n",
+                m.reason.as_deref().unwrap_or("not confident")
+            )),
+        }
+    }
+    s
+}

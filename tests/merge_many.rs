@@ -1,0 +1,364 @@
+//! Many maps placed at once (`merge A B C ...`, `ogm_corners::merge::global`): synthetic sets with exact
+//! truth, a wrong pairwise accept repaired by cycles, unrelated sets kept apart, determinism, the CLI and
+//! its outputs, and the real buildings when the shared data is there.
+
+mod common;
+
+use ogm_corners::cpu::CpuBackend;
+use ogm_corners::merge::align::Prepared;
+use ogm_corners::merge::global::eval::{run_maps, synthetic_maps};
+use ogm_corners::merge::global::{align_all, place, GlobalOptions, Pairwise};
+use ogm_corners::merge::pairs::TruePair;
+use ogm_corners::merge::Rigid;
+use ogm_corners::{MapImage, OccupancyMap};
+
+/// Every ordered pair of `truths` among placed maps: the placement's implied transform within `rot` deg
+/// and `rms` px of the truth at the check points. Returns how many were checked.
+fn assert_placed_within(
+    names: &[String],
+    poses: &[Option<Rigid>],
+    truths: &[TruePair],
+    rot: f64,
+    rms: f64,
+) -> usize {
+    let at = |n: &str| names.iter().position(|x| x == n).unwrap();
+    let mut checked = 0;
+    for t in truths {
+        let (Some(s), Some(d)) = (poses[at(&t.src)], poses[at(&t.dst)]) else {
+            continue;
+        };
+        let (r, e) = t.errors(&d.inverse().after(&s));
+        assert!(
+            r <= rot && e <= rms,
+            "{} -> {}: {r:.2} deg, {e:.2} px off",
+            t.src,
+            t.dst
+        );
+        checked += 1;
+    }
+    checked
+}
+
+#[test]
+fn synthetic_sets_are_placed_within_a_pixel_and_half_a_degree() {
+    for (n, seed) in [(3, 2), (6, 5), (10, 9)] {
+        let (names, maps, truths) = synthetic_maps(n, seed).unwrap();
+        let r = run_maps(names.clone(), &maps, &GlobalOptions::default(), &|_, _| {}).unwrap();
+        let poses: Vec<Option<Rigid>> = r
+            .placement
+            .maps
+            .iter()
+            .map(|m| m.group.map(|_| m.pose))
+            .collect();
+        // One group holding every map.
+        assert_eq!(r.placement.groups.len(), 1, "{n} maps: {:?}", r.placement);
+        assert!(
+            poses.iter().all(Option::is_some),
+            "{n} maps: {:?}",
+            r.placement.maps
+        );
+        let checked = assert_placed_within(&names, &poses, &truths, 0.5, 1.0);
+        assert_eq!(checked, n * (n - 1));
+        assert_eq!(r.pairwise.pairs.len(), n * (n - 1) / 2);
+    }
+}
+
+fn prepare(maps: &[OccupancyMap]) -> Vec<Prepared> {
+    maps.iter().map(Prepared::new).collect()
+}
+
+#[test]
+fn a_wrong_pairwise_accept_is_dropped_by_the_cycles_and_the_placement_is_repeatable() {
+    let (names, maps, truths) = synthetic_maps(5, 4).unwrap();
+    let prepared = prepare(&maps);
+    let options = GlobalOptions::default();
+    let pairwise = align_all(&prepared, &options, &|_, _| {}).unwrap();
+    let placed = place(&pairwise, &prepared, &options, &mut CpuBackend).unwrap();
+    // Deterministic: the same placement again, to the bit.
+    assert_eq!(
+        placed,
+        place(&pairwise, &prepared, &options, &mut CpuBackend).unwrap()
+    );
+    let again = align_all(&prepared, &options, &|_, _| {}).unwrap();
+    assert_eq!(
+        serde_json::to_string(&again).unwrap(),
+        serde_json::to_string(&pairwise).unwrap()
+    );
+    // Inject a confident wrong accept: the choice of the most confident pair turned by 90 degrees about
+    // the moved map's overlap and shifted, with a rule value above every real one.
+    let mut bad: Pairwise = pairwise.clone();
+    let i = (0..bad.edges.len())
+        .filter(|&i| bad.edges[i].accepted)
+        .max_by(|&x, &y| bad.edges[x].score.total_cmp(&bad.edges[y].score))
+        .unwrap();
+    let top = bad.edges.iter().map(|e| e.score).fold(f64::MIN, f64::max);
+    let e = &mut bad.edges[i];
+    let c = e.at;
+    let turn = Rigid {
+        theta_deg: 90.0,
+        tx: c.0 + c.1 + 150.0,
+        ty: c.1 - c.0,
+    };
+    e.transform = e.transform.after(&turn);
+    e.score = top + 20.0;
+    let (wrong_a, wrong_b) = (e.a, e.b);
+    let placed = place(&bad, &prepared, &options, &mut CpuBackend).unwrap();
+    let poses: Vec<Option<Rigid>> = placed
+        .maps
+        .iter()
+        .map(|m| m.group.map(|_| m.pose))
+        .collect();
+    assert!(poses.iter().all(Option::is_some), "{:?}", placed.maps);
+    assert_placed_within(&names, &poses, &truths, 0.5, 1.0);
+    assert!(
+        placed
+            .dropped
+            .iter()
+            .any(|d| (d.edge.a, d.edge.b) == (wrong_a, wrong_b)),
+        "{:?}",
+        placed.dropped
+    );
+}
+
+#[test]
+fn maps_of_unrelated_places_form_separate_groups_and_a_lone_map_is_not_placed() {
+    let (mut names, mut maps, _) = synthetic_maps(3, 11).unwrap();
+    let (other_names, other_maps, _) = synthetic_maps(3, 12).unwrap();
+    names.extend(other_names.iter().map(|n| format!("other-{n}")));
+    maps.extend(other_maps);
+    // A blank map overlaps nothing.
+    names.push("blank".to_string());
+    maps.push(OccupancyMap::from_image(
+        MapImage::filled(200, 200, 254).unwrap(),
+    ));
+    let r = run_maps(names, &maps, &GlobalOptions::default(), &|_, _| {}).unwrap();
+    let groups: Vec<Option<usize>> = r.placement.maps.iter().map(|m| m.group).collect();
+    assert_eq!(r.placement.groups.len(), 2, "{groups:?}");
+    assert!(groups[..3].iter().all(|g| *g == groups[0] && g.is_some()));
+    assert!(groups[3..6].iter().all(|g| *g == groups[3] && g.is_some()));
+    assert_ne!(groups[0], groups[3]);
+    assert_eq!(groups[6], None);
+    assert!(r.placement.maps[6].reason.is_some());
+}
+
+fn write_map(dir: &std::path::Path, name: &str, map: &OccupancyMap, resolution: f64) {
+    map.image
+        .write_pgm(&dir.join(format!("{name}.pgm")))
+        .unwrap();
+    std::fs::write(
+        dir.join(format!("{name}.yaml")),
+        format!("image: {name}.pgm\nresolution: {resolution}\norigin: [-1.0, 2.0, 0.0]\n"),
+    )
+    .unwrap();
+}
+
+#[test]
+fn merge_command_places_many_maps_and_writes_every_output() {
+    let d = tempfile::tempdir().unwrap();
+    let dir = d.path().join("fleet");
+    std::fs::create_dir(&dir).unwrap();
+    let (names, maps, _) = synthetic_maps(4, 3).unwrap();
+    for (n, m) in names.iter().zip(&maps) {
+        write_map(&dir, n, m, 0.05);
+    }
+    MapImage::filled(120, 120, 205)
+        .unwrap()
+        .write_pgm(&d.path().join("unknown.pgm"))
+        .unwrap();
+    let run = |args: &[&str]| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_ogm-corners"))
+            .arg("merge")
+            .args(args)
+            .current_dir(d.path())
+            .output()
+            .unwrap()
+    };
+    let o = run(&[
+        "fleet",
+        "unknown.pgm",
+        "-o",
+        "merged.yaml",
+        "--overlay",
+        "merged.png",
+        "--poses",
+        "poses.json",
+        "--init-poses",
+        "init.yaml",
+    ]);
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(text.contains("4 of 5 maps placed in 1 group(s)"), "{text}");
+    assert!(text.contains("unknown.pgm: not placed: "), "{text}");
+    let v: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(d.path().join("poses.json")).unwrap()).unwrap();
+    let entries = v["maps"].as_array().unwrap();
+    assert_eq!(entries.len(), 5);
+    let merged = OccupancyMap::load(d.path().join("merged.yaml")).unwrap();
+    let first = OccupancyMap::load(dir.join(format!("{}.yaml", names[0]))).unwrap();
+    for e in entries {
+        if e["map"].as_str().unwrap().ends_with("unknown.pgm") {
+            assert_eq!(e["placed"], false);
+            assert!(e["group"].is_null());
+            assert!(e["reason"].as_str().is_some_and(|r| !r.is_empty()));
+            continue;
+        }
+        assert_eq!(e["placed"], true, "{e}");
+        assert_eq!(e["group"], 0);
+        for k in ["theta_deg", "tx", "ty"] {
+            assert!(e["transform"][k].is_f64(), "{e}");
+        }
+        for k in ["yaw", "x", "y"] {
+            assert!(e["world"][k].is_f64(), "{e}");
+        }
+    }
+    // The first map's transform into the merged map is a pure shift, and its cells keep their world
+    // coordinates in the merged yaml.
+    let t = &entries[0]["transform"];
+    assert!(t["theta_deg"].as_f64().unwrap().abs() < 1e-9);
+    let (tx, ty) = (t["tx"].as_f64().unwrap(), t["ty"].as_f64().unwrap());
+    let (g, g0) = (merged.georef.unwrap(), first.georef.unwrap());
+    let p = g.pixel_to_world(tx.round() as u32, ty.round() as u32, merged.image.height());
+    let q = g0.pixel_to_world(0, 0, first.image.height());
+    assert!((p.0 - q.0).abs() < 1e-6 && (p.1 - q.1).abs() < 1e-6);
+    assert!(d.path().join("merged.pgm").is_file());
+    assert!(d.path().join("merged.png").is_file());
+    let init = std::fs::read_to_string(d.path().join("init.yaml")).unwrap();
+    let y: serde_yaml::Value = serde_yaml::from_str(&init).unwrap();
+    for n in &names {
+        assert!(
+            y[n.as_str()]["map_merge"]["init_pose_yaw"].is_f64(),
+            "{init}"
+        );
+    }
+    assert!(init.contains("# unknown: not placed"), "{init}");
+    // JSON on standard output: the same document.
+    let o = run(&["fleet", "--format", "json"]);
+    assert_eq!(o.status.code(), Some(0));
+    let w: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(w["maps"].as_array().unwrap().len(), 4);
+    // The same file twice: both placed, at the same pose.
+    let a = format!("fleet/{}.yaml", names[0]);
+    let b = format!("fleet/{}.yaml", names[1]);
+    let o = run(&[&a, &a, &b, "--format", "json"]);
+    assert_eq!(o.status.code(), Some(0));
+    let w: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(w["maps"][0]["transform"], w["maps"][1]["transform"]);
+    // Nothing in common: exit 3 with the verdict; bad input: exit 2, one line, nothing written.
+    let o = run(&["unknown.pgm", "unknown.pgm", "unknown.pgm"]);
+    assert_eq!(
+        o.status.code(),
+        Some(3),
+        "{}",
+        String::from_utf8_lossy(&o.stdout)
+    );
+    for args in [
+        vec!["fleet", "missing.pgm"],
+        vec!["unknown.pgm"],
+        vec!["fleet", "-o", "m.txt"],
+        vec!["fleet", "--poses", "fleet/part-00.pgm"],
+    ] {
+        let o = run(&args);
+        assert_eq!(o.status.code(), Some(2), "{args:?}");
+        assert_eq!(
+            String::from_utf8_lossy(&o.stderr).lines().count(),
+            1,
+            "{args:?}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+    }
+}
+
+#[test]
+fn maps_of_different_resolutions_are_placed_at_the_first_maps_resolution() {
+    let d = tempfile::tempdir().unwrap();
+    let (names, maps, truths) = synthetic_maps(3, 6).unwrap();
+    write_map(d.path(), &names[0], &maps[0], 0.05);
+    write_map(d.path(), &names[1], &maps[1], 0.05);
+    // The third at half the resolution: every other pixel.
+    let m = &maps[2].image;
+    let (w, h) = (m.width() / 2, m.height() / 2);
+    let px = (0..h)
+        .flat_map(|y| (0..w).map(move |x| (x, y)))
+        .map(|(x, y)| m.get(2 * x, 2 * y))
+        .collect();
+    let coarse = OccupancyMap::from_image(MapImage::new(w, h, px).unwrap());
+    write_map(d.path(), &names[2], &coarse, 0.1);
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_ogm-corners"))
+        .args(["merge", ".", "--format", "json"])
+        .current_dir(d.path())
+        .output()
+        .unwrap();
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let entries = v["maps"].as_array().unwrap();
+    assert!(entries.iter().all(|e| e["placed"] == true), "{v}");
+    let third = entries
+        .iter()
+        .find(|e| e["map"].as_str().unwrap().contains(&names[2]))
+        .unwrap();
+    assert_eq!(third["scale"].as_f64(), Some(2.0));
+    // Its world pose agrees with the truth to within a coarse pixel.
+    let t = truths
+        .iter()
+        .find(|t| t.src == names[2] && t.dst == names[0])
+        .unwrap();
+    let first = entries
+        .iter()
+        .find(|e| e["map"].as_str().unwrap().contains(&names[0]))
+        .unwrap();
+    let yaw = |e: &serde_json::Value| e["world"]["yaw"].as_f64().unwrap();
+    let turn = (yaw(third) - yaw(first)).to_degrees() + t.theta_deg;
+    assert!(
+        (turn + 180.0).rem_euclid(360.0) - 180.0 < 0.5,
+        "{turn}: {third} {first}"
+    );
+}
+
+#[test]
+fn the_real_buildings_are_placed_whole_and_never_into_each_other() {
+    let Some(dir) = common::merge_pairs() else {
+        return;
+    };
+    let set = ogm_corners::merge::pairs::PairSet::load(&dir.join("pairs.json")).unwrap();
+    // The two apartments (8 maps, 28 pairs): quick enough for every run; F5 is `merge-eval --global`'s.
+    let names: Vec<String> = ["HIH", "KPT4A"]
+        .iter()
+        .flat_map(|b| (1..=4).map(move |k| format!("{b}_{k:02}")))
+        .collect();
+    let maps: Vec<OccupancyMap> = names
+        .iter()
+        .map(|n| OccupancyMap::load(dir.join("maps").join(format!("{n}.png"))).unwrap())
+        .collect();
+    let r = run_maps(names.clone(), &maps, &GlobalOptions::default(), &|_, _| {}).unwrap();
+    let groups: Vec<Option<usize>> = r.placement.maps.iter().map(|m| m.group).collect();
+    // Measured: each apartment one group of 4 (README, "Merging many maps").
+    assert_eq!(r.placement.groups.len(), 2, "{groups:?}");
+    assert!(groups[..4].iter().all(|g| g.is_some() && *g == groups[0]));
+    assert!(groups[4..].iter().all(|g| g.is_some() && *g == groups[4]));
+    let poses: Vec<Option<Rigid>> = r
+        .placement
+        .maps
+        .iter()
+        .map(|m| m.group.map(|_| m.pose))
+        .collect();
+    for t in &set.pairs {
+        let (Some(s), Some(d)) = (
+            names.iter().position(|n| *n == t.src),
+            names.iter().position(|n| *n == t.dst),
+        ) else {
+            continue;
+        };
+        let est = poses[d].unwrap().inverse().after(&poses[s].unwrap());
+        assert!(t.accurate(&est), "{} -> {}", t.src, t.dst);
+    }
+}
