@@ -223,19 +223,55 @@ pub fn write_atomic(path: &Path, f: impl FnOnce(&mut dyn Write) -> io::Result<()
     file.commit()
 }
 
+/// Outputs that stand together (a merged map, its yaml, its picture, the poses): each written into its
+/// temporary file, and all renamed into place by [`Staged::commit`] only once every one was written, so a
+/// failure (a full disk, a missing folder) leaves none of them, and an interrupt almost never some.
+#[derive(Default)]
+pub struct Staged {
+    files: Vec<AtomicFile>,
+}
+
+impl Staged {
+    /// Writes `path` with `f` into its temporary file.
+    pub fn write(
+        &mut self,
+        path: &Path,
+        f: impl FnOnce(&mut dyn Write) -> io::Result<()>,
+    ) -> Result<()> {
+        let mut file = AtomicFile::create(path)?;
+        // Flushed now: a device written directly (`/dev/full`) fails here, before any file is renamed.
+        f(&mut file)
+            .and_then(|()| file.flush())
+            .map_err(|e| Error::output(path, e))?;
+        self.files.push(file);
+        Ok(())
+    }
+
+    /// Renames every file into place, in the order written.
+    pub fn commit(self) -> Result<()> {
+        for f in self.files {
+            f.commit()?;
+        }
+        Ok(())
+    }
+}
+
 /// Writes a PNG atomically.
 pub fn write_png(path: &Path, img: &image::RgbImage) -> Result<()> {
+    write_atomic(path, |w| encode_png(w, img))
+}
+
+/// `img` as a PNG into `w`.
+pub fn encode_png(w: &mut dyn Write, img: &image::RgbImage) -> io::Result<()> {
     use image::ImageEncoder as _;
-    write_atomic(path, |w| {
-        image::codecs::png::PngEncoder::new(w)
-            .write_image(
-                img.as_raw(),
-                img.width(),
-                img.height(),
-                image::ExtendedColorType::Rgb8,
-            )
-            .map_err(io::Error::other)
-    })
+    image::codecs::png::PngEncoder::new(w)
+        .write_image(
+            img.as_raw(),
+            img.width(),
+            img.height(),
+            image::ExtendedColorType::Rgb8,
+        )
+        .map_err(io::Error::other)
 }
 
 /// Creates `dir` (and its parents) unless it exists; a file in its place is a usage error (exit 2), not

@@ -71,13 +71,14 @@ fn prepare(maps: &[OccupancyMap]) -> Vec<Prepared> {
 fn a_wrong_pairwise_accept_is_dropped_by_the_cycles_and_the_placement_is_repeatable() {
     let (names, maps, truths) = synthetic_maps(5, 4).unwrap();
     let prepared = prepare(&maps);
+    let refs: Vec<&OccupancyMap> = maps.iter().collect();
     let options = GlobalOptions::default();
     let pairwise = align_all(&prepared, &options, &|_, _| {}).unwrap();
-    let placed = place(&pairwise, &prepared, &options, &mut CpuBackend).unwrap();
+    let placed = place(&pairwise, &prepared, &refs, &options, &mut CpuBackend).unwrap();
     // Deterministic: the same placement again, to the bit.
     assert_eq!(
         placed,
-        place(&pairwise, &prepared, &options, &mut CpuBackend).unwrap()
+        place(&pairwise, &prepared, &refs, &options, &mut CpuBackend).unwrap()
     );
     let again = align_all(&prepared, &options, &|_, _| {}).unwrap();
     assert_eq!(
@@ -102,7 +103,7 @@ fn a_wrong_pairwise_accept_is_dropped_by_the_cycles_and_the_placement_is_repeata
     e.transform = e.transform.after(&turn);
     e.score = top + 20.0;
     let (wrong_a, wrong_b) = (e.a, e.b);
-    let placed = place(&bad, &prepared, &options, &mut CpuBackend).unwrap();
+    let placed = place(&bad, &prepared, &refs, &options, &mut CpuBackend).unwrap();
     let poses: Vec<Option<Rigid>> = placed
         .maps
         .iter()
@@ -118,6 +119,41 @@ fn a_wrong_pairwise_accept_is_dropped_by_the_cycles_and_the_placement_is_repeata
         "{:?}",
         placed.dropped
     );
+}
+
+#[test]
+fn cycles_and_the_mosaic_place_a_map_whose_pairs_no_pair_test_accepted() {
+    let (names, maps, truths) = synthetic_maps(5, 4).unwrap();
+    let prepared = prepare(&maps);
+    let refs: Vec<&OccupancyMap> = maps.iter().collect();
+    let options = GlobalOptions::default();
+    let mut pairwise = align_all(&prepared, &options, &|_, _| {}).unwrap();
+    // Every pair of the last map declined, as if each pair test had been unsure.
+    let last = maps.len() - 1;
+    let mut demoted = 0;
+    for e in pairwise.edges.iter_mut().filter(|e| e.b == last) {
+        demoted += usize::from(e.accepted);
+        e.accepted = false;
+    }
+    for p in pairwise.pairs.iter_mut().filter(|p| p.b == last) {
+        p.accepted = false;
+    }
+    assert!(
+        demoted >= 2,
+        "the set should give the last map two accepted pairs"
+    );
+    let placed = place(&pairwise, &prepared, &refs, &options, &mut CpuBackend).unwrap();
+    let poses: Vec<Option<Rigid>> = placed
+        .maps
+        .iter()
+        .map(|m| m.group.map(|_| m.pose))
+        .collect();
+    assert!(poses[last].is_some(), "{:?}", placed.maps[last]);
+    assert!(placed
+        .kept
+        .iter()
+        .any(|&i| pairwise.edges[i].b == last && !pairwise.edges[i].accepted));
+    assert_placed_within(&names, &poses, &truths, 0.5, 1.0);
 }
 
 #[test]
@@ -248,14 +284,49 @@ fn merge_command_places_many_maps_and_writes_every_output() {
     assert_eq!(o.status.code(), Some(0));
     let w: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert_eq!(w["maps"][0]["transform"], w["maps"][1]["transform"]);
-    // Nothing in common: exit 3 with the verdict; bad input: exit 2, one line, nothing written.
+    // Three copies of one map: one group, in place (as `merge X X` merges at the identity); of a map
+    // with nothing to align, none.
+    let o = run(&[&a, &a, &a, "--format", "json"]);
+    assert_eq!(o.status.code(), Some(0));
+    let w: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(w["groups"].as_array().unwrap().len(), 1, "{w}");
+    assert_eq!(w["maps"][2]["copy_of"], a.as_str());
     let o = run(&["unknown.pgm", "unknown.pgm", "unknown.pgm"]);
+    assert_eq!(o.status.code(), Some(3));
+    // Nothing in common: exit 3 with the verdict.
+    MapImage::filled(90, 90, 254)
+        .unwrap()
+        .write_pgm(&d.path().join("free.pgm"))
+        .unwrap();
+    let o = run(&["unknown.pgm", "free.pgm", &a]);
     assert_eq!(
         o.status.code(),
         Some(3),
         "{}",
         String::from_utf8_lossy(&o.stdout)
     );
+    // An output that cannot be written leaves none of the others; a missing output folder is refused
+    // before the work.
+    #[cfg(target_os = "linux")]
+    {
+        let o = run(&[
+            "fleet",
+            "-o",
+            "w.yaml",
+            "--overlay",
+            "w.png",
+            "--poses",
+            "/dev/full",
+        ]);
+        assert_eq!(o.status.code(), Some(1));
+        for f in ["w.yaml", "w.pgm", "w.png"] {
+            assert!(!d.path().join(f).exists(), "{f} left behind");
+        }
+    }
+    let o = run(&["fleet", "--overlay", "nowhere/x.png"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("folder does not exist"));
+    // Bad input: exit 2, one line, nothing written.
     for args in [
         vec!["fleet", "missing.pgm"],
         vec!["unknown.pgm"],
@@ -330,6 +401,20 @@ fn the_real_buildings_are_placed_whole_and_never_into_each_other() {
         return;
     };
     let set = ogm_corners::merge::pairs::PairSet::load(&dir.join("pairs.json")).unwrap();
+    // Two maps of each apartment: maps of one place give alike wrong answers for a map of another, and
+    // their agreeing votes must not join the two.
+    let four: Vec<String> = ["HIH_01", "HIH_02", "KPT4A_01", "KPT4A_02"]
+        .iter()
+        .map(|s| s.to_string())
+        .collect();
+    let maps: Vec<OccupancyMap> = four
+        .iter()
+        .map(|n| OccupancyMap::load(dir.join("maps").join(format!("{n}.png"))).unwrap())
+        .collect();
+    let r = run_maps(four, &maps, &GlobalOptions::default(), &|_, _| {}).unwrap();
+    let g: Vec<Option<usize>> = r.placement.maps.iter().map(|m| m.group).collect();
+    assert!(g[0] != g[2] || g[0].is_none(), "{g:?}");
+    assert!(g[1] != g[3] || g[1].is_none(), "{g:?}");
     // The two apartments (8 maps, 28 pairs): quick enough for every run; F5 is `merge-eval --global`'s.
     let names: Vec<String> = ["HIH", "KPT4A"]
         .iter()

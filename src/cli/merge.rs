@@ -44,7 +44,8 @@ pub(super) struct MergeArgs {
     pub(super) format: super::TextOrJson,
     /// Where the candidates are scored (the transform-scoring kernel): the same counts, so the same
     /// verdict, on every backend. The CPU by default: a pair scores a handful of candidates, less work
-    /// than opening a GPU.
+    /// than opening a GPU. With many maps, the placement's dense checks (the pairs are aligned on every
+    /// CPU core).
     #[arg(long, value_enum, default_value = "cpu")]
     pub(super) backend: super::BackendArg,
 }
@@ -206,16 +207,22 @@ pub(super) fn output_names(o: Option<&Path>) -> Result<(Option<PathBuf>, Option<
 
 /// The merged map's yaml: its image beside it, A's resolution, the origin that keeps A's cells in place.
 pub(super) fn write_yaml(yaml: &Path, pgm: &Path, merged: &OccupancyMap) -> Result<()> {
+    let text = yaml_text(pgm, merged, "A");
+    files::write_atomic(yaml, |out| out.write_all(text.as_bytes()))
+}
+
+/// The merged map's yaml text (its image `pgm` beside it); `reference` names the map whose frame it keeps,
+/// for the placeholder comment when that map had no yaml.
+pub(super) fn yaml_text(pgm: &Path, merged: &OccupancyMap, reference: &str) -> String {
     let image = pgm
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_default();
-    let text = match merged.georef {
+    match merged.georef {
         Some(g) => ogm_corners::map::map_yaml_text(&image, g.resolution, g.origin),
         None => format!(
-            "# A had no yaml: resolution 1 and origin 0 are placeholders.\n{}",
+            "# {reference} had no yaml: resolution 1 and origin 0 are placeholders.\n{}",
             ogm_corners::map::map_yaml_text(&image, 1.0, [0.0; 3])
         ),
-    };
-    files::write_atomic(yaml, |out| out.write_all(text.as_bytes()))
+    }
 }

@@ -12,7 +12,7 @@ use ogm_corners::merge::global::{self, report, GlobalOptions};
 use ogm_corners::merge::{compose, mosaic};
 use ogm_corners::{Error, OccupancyMap, Result};
 
-use super::merge::{output_names, write_yaml, MergeArgs};
+use super::merge::{output_names, yaml_text, MergeArgs};
 use super::write_stdout;
 
 /// `NAME.ext` for group 0, `NAME-k.ext` for group k.
@@ -69,6 +69,16 @@ pub(super) fn run(a: MergeArgs, budget: &Budget) -> Result<()> {
             inputs.claim_output(p, what)?;
         }
     }
+    // A missing output folder is found now, not after the work.
+    for p in [&yaml_out, &pgm_out, &a.overlay, &a.poses, &a.init_poses]
+        .into_iter()
+        .flatten()
+    {
+        let parent = p.parent().filter(|d| !d.as_os_str().is_empty());
+        if parent.is_some_and(|d| !d.is_dir()) {
+            return Err(Error::input(p, "its folder does not exist"));
+        }
+    }
     let names: Vec<String> = paths.iter().map(|p| p.display().to_string()).collect();
     let mut maps = paths
         .iter()
@@ -116,35 +126,46 @@ pub(super) fn run(a: MergeArgs, budget: &Budget) -> Result<()> {
         })
         .collect::<Result<Vec<_>>>()?;
     let mut doc = report::poses(&names, &maps, &scales, &run, &frames, seconds);
+    // Every output staged, then all renamed into place together: a failure leaves none of them.
+    let mut staged = files::Staged::default();
     for g in 0..placement.groups.len() {
         let (ms, ps) = group_maps(g);
         if let Some(pgm) = &pgm_out {
             let pgm = group_path(pgm, g);
             let (merged, _) = mosaic::compose_many(&ms, &ps)?;
-            merged.image.write_pgm(&pgm)?;
+            staged.write(&pgm, |out| merged.image.write_pgm_to(out))?;
             doc.groups[g].merged = Some(pgm.display().to_string());
             if let Some(yaml) = &yaml_out {
                 let yaml = group_path(yaml, g);
-                write_yaml(&yaml, &pgm, &merged)?;
+                let text = yaml_text(&pgm, &merged, "the group's first map");
+                staged.write(&yaml, |out| out.write_all(text.as_bytes()))?;
                 doc.groups[g].merged = Some(yaml.display().to_string());
             }
         }
         if let Some(png) = &a.overlay {
             let png = group_path(png, g);
-            files::write_png(&png, &mosaic::overlay_many(&ms, &ps)?)?;
+            let picture = mosaic::overlay_many(&ms, &ps)?;
+            staged.write(&png, |out| files::encode_png(out, &picture))?;
             doc.groups[g].overlay = Some(png.display().to_string());
         }
     }
     if let Some(p) = &a.poses {
-        files::write_atomic(p, |out| {
+        staged.write(p, |out| {
             serde_json::to_writer_pretty(&mut *out, &doc)?;
             writeln!(out)
         })?;
     }
     if let Some(p) = &a.init_poses {
         let text = report::init_poses_yaml(&doc);
-        files::write_atomic(p, |out| out.write_all(text.as_bytes()))?;
+        if doc.maps.iter().all(|m| m.world.is_none()) {
+            ogm_corners::say!(
+                "ogm-corners: note: {}: no placed map has a world frame (a yaml), so it lists none",
+                p.display()
+            );
+        }
+        staged.write(p, |out| out.write_all(text.as_bytes()))?;
     }
+    staged.commit()?;
     write_stdout(|out| match a.format {
         super::TextOrJson::Json => {
             serde_json::to_writer_pretty(&mut *out, &doc)?;

@@ -94,10 +94,13 @@ impl MapImage {
     /// Writes the map as a binary PGM (P5), atomically ([`files::write_atomic`]), without a second copy
     /// of the pixels.
     pub fn write_pgm(&self, path: &Path) -> Result<()> {
-        files::write_atomic(path, |out| {
-            write!(out, "P5\n{} {}\n255\n", self.width, self.height)?;
-            out.write_all(&self.pixels)
-        })
+        files::write_atomic(path, |out| self.write_pgm_to(out))
+    }
+
+    /// The image as a binary PGM (P5, maxval 255) into `out`.
+    pub fn write_pgm_to(&self, out: &mut dyn std::io::Write) -> std::io::Result<()> {
+        write!(out, "P5\n{} {}\n255\n", self.width, self.height)?;
+        out.write_all(&self.pixels)
     }
 }
 

@@ -268,8 +268,11 @@ impl Library {
     }
 }
 
+/// Sets of two maps of each of two buildings, at most, for each pair of buildings ([`suite`]).
+pub const SMALL_MIXED: usize = 12;
+
 /// The `--global` suite over a pair set's maps: each building alone; every two buildings together, and
-/// all of them; the first 4 and 8 maps of the largest building (the cost as N grows); and a synthetic set
+/// all of them; two maps of each of two buildings ([`SMALL_MIXED`] sets a pair of buildings); the first 4 and 8 maps of the largest building (the cost as N grows); and a synthetic set
 /// of `synthetic` maps cut from one large synthetic office (seed `seed`) (exact truth, the synthetic success
 /// test). `progress` hears what runs.
 pub fn suite(
@@ -304,6 +307,56 @@ pub fn suite(
             both.sort_unstable();
             rows.push(run(&format!("{x} + {y}"), &both)?);
         }
+    }
+    // Small mixed sets, where two maps of one place give alike wrong answers for a map of another: two
+    // maps of each of two buildings, every combination of their pairs up to SMALL_MIXED a pair of
+    // buildings (evenly spread over them), summed into one row.
+    let mut small = SetRow {
+        label: String::new(),
+        ..SetRow::default()
+    };
+    let mut sets = 0;
+    for (i, x) in buildings.iter().enumerate() {
+        for y in &buildings[i + 1..] {
+            let two = |b: &str| -> Vec<(usize, usize)> {
+                let m = lib.of(b);
+                (0..m.len())
+                    .flat_map(|p| (p + 1..m.len()).map(move |q| (p, q)))
+                    .map(|(p, q)| (m[p], m[q]))
+                    .collect()
+            };
+            let (px, py) = (two(x), two(y));
+            let all = px.len() * py.len();
+            let step = all.div_ceil(SMALL_MIXED).max(1);
+            for k in (0..all).step_by(step) {
+                let ((a, b), (c, d)) = (px[k / py.len()], py[k % py.len()]);
+                let r = run(&format!("{x} + {y}, 2 + 2"), &[a, b, c, d])?;
+                sets += 1;
+                small.maps += r.maps;
+                small.placed += r.placed;
+                small.correct += r.correct;
+                small.wrong += r.wrong;
+                small.groups += r.groups;
+                small.foreign += r.foreign;
+                small.pairs += r.pairs;
+                small.derived_accurate += r.derived_accurate;
+                small.derived_wrong += r.derived_wrong;
+                small.chained_accurate += r.chained_accurate;
+                small.chained_wrong += r.chained_wrong;
+                small.pairwise_accurate += r.pairwise_accurate;
+                small.pairwise_wrong += r.pairwise_wrong;
+                small.dropped += r.dropped;
+                small.confirmed += r.confirmed;
+                small.aligned += r.aligned;
+                small.timing.prepare += r.timing.prepare;
+                small.timing.align += r.timing.align;
+                small.timing.place += r.timing.place;
+            }
+        }
+    }
+    if sets > 0 {
+        small.label = format!("2 + 2 maps of two buildings ({sets} sets, summed)");
+        rows.push(small);
     }
     if buildings.len() > 2 {
         let all: Vec<usize> = (0..lib.maps.len()).collect();

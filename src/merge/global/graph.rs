@@ -8,8 +8,10 @@ use serde::Serialize;
 use super::{Edge, GlobalOptions, Pairwise};
 use crate::backend::Backend;
 use crate::error::Result;
+use crate::map::OccupancyMap;
 use crate::merge::accept::{contradiction, Features, MAX_CONTRADICTION, MAX_FINE_CONFLICT};
-use crate::merge::align::{check, Prepared};
+use crate::merge::align::{align_prepared_with, check, Prepared};
+use crate::merge::mosaic::compose_many;
 use crate::merge::transform::Rigid;
 
 /// Candidates below this pair rule value are not used (the pair test accepts from 0).
@@ -133,10 +135,10 @@ pub fn evidence(pairwise: &Pairwise, options: &GlobalOptions) -> Vec<EdgeEvidenc
         .collect()
 }
 
-/// Whether an edge counts on its own: accepted by the pair test and not contradicted more than it is
-/// supported, or confirmed by a cycle.
+/// Whether an edge joins groups on its own: accepted by the pair test and not contradicted more than it
+/// is supported.
 fn trusted(e: &Edge, ev: &EdgeEvidence) -> bool {
-    (e.accepted && ev.contradicted < ev.own + ev.support) || ev.support > 0.0
+    e.accepted && ev.contradicted < ev.own + ev.support
 }
 
 /// Where each map lands and why.
@@ -181,8 +183,10 @@ struct Cluster {
     support: f64,
     /// Map pairs voting for it.
     pairs: usize,
-    /// Whether a trusted edge votes for it.
+    /// Whether a trusted edge ([`trusted`]) votes for it.
     trusted: bool,
+    /// Whether an edge confirmed by a cycle votes for it.
+    confirmed: bool,
     /// The edge whose placement it is.
     first: usize,
     /// The map pairs (G's map, H's map) voting for it, each with its best vote.
@@ -203,10 +207,11 @@ impl Groups {
 }
 
 /// The placement of every map over the pairwise candidates and their evidence ([`evidence`]),
-/// deterministic; `backend` scores the dense checks.
+/// deterministic; `maps` prepared from `images`; `backend` scores the dense checks.
 pub fn place(
     pairwise: &Pairwise,
     maps: &[Prepared],
+    images: &[&OccupancyMap],
     ev: &[EdgeEvidence],
     options: &GlobalOptions,
     backend: &mut dyn Backend,
@@ -221,8 +226,10 @@ pub fn place(
     let mut ambiguous = vec![false; n];
     let mut contradicted = vec![false; n];
     loop {
-        // Every pair of groups' best placement, the strongest first.
-        let mut options_now: Vec<(usize, usize, Cluster)> = Vec::new();
+        // Every pair of groups' best placement: those a trusted edge stands behind first, the strongest
+        // first; then those only cycles or several pairs stand behind (the groups' mosaics must pass the
+        // pair test).
+        let mut options_now: Vec<(usize, usize, Cluster, bool)> = Vec::new();
         let group_ids: BTreeSet<usize> = groups.of.iter().copied().collect();
         for &g in &group_ids {
             for &h in group_ids.range(g + 1..) {
@@ -230,16 +237,19 @@ pub fn place(
                 let Some(best) = clusters.first() else {
                     continue;
                 };
-                let valid = best.trusted || best.pairs >= 2;
+                // Two single maps: their pair test has spoken.
+                let mosaic_worth = groups.members(g).len() + groups.members(h).len() > 2;
+                let valid =
+                    |c: &Cluster| c.trusted || (mosaic_worth && (c.pairs >= 2 || c.confirmed));
+                if !valid(best) {
+                    continue;
+                }
                 let runner_up = clusters
                     .iter()
                     .skip(1)
-                    .filter(|c| c.trusted || c.pairs >= 2)
+                    .filter(|c| valid(c))
                     .map(|c| c.support)
                     .fold(0.0, f64::max);
-                if !valid {
-                    continue;
-                }
                 if runner_up >= AMBIGUITY * best.support {
                     for m in groups.members(h).into_iter().chain(groups.members(g)) {
                         ambiguous[m] = true;
@@ -247,18 +257,20 @@ pub fn place(
                     continue;
                 }
                 if !rejected.contains(&(g, h, best.first)) {
-                    options_now.push((g, h, best.clone()));
+                    options_now.push((g, h, best.clone(), best.trusted));
                 }
             }
         }
         options_now.sort_by(|x, y| {
-            y.2.support
-                .total_cmp(&x.2.support)
+            y.3.cmp(&x.3)
+                .then(y.2.support.total_cmp(&x.2.support))
                 .then((x.0, x.1).cmp(&(y.0, y.1)))
         });
         let mut merged = false;
-        for (g, h, c) in options_now {
-            if densely_consistent(g, h, &c, &groups, maps, backend)? {
+        for (g, h, c, trusted) in options_now {
+            let ok = densely_consistent(g, h, &c, &groups, maps, backend)?
+                && (trusted || mosaics_agree(g, h, &c, &groups, images, options, backend)?);
+            if ok {
                 for m in groups.members(h) {
                     groups.pose[m] = c.placement.after(&groups.pose[m]).normalized();
                     groups.of[m] = g;
@@ -338,7 +350,8 @@ pub fn place(
                 }
             } else {
                 let reason = if contradicted[m] {
-                    "its placements by the other maps contradict themselves densely (walls on free space)"
+                    "its placements by the other maps are contradicted densely (walls on free space), or \
+                     their mosaics fail the pair test"
                 } else if ambiguous[m] {
                     "ambiguous: the other maps support two different placements of it alike"
                 } else if edges.iter().any(|e| (e.a == m || e.b == m) && e.accepted) {
@@ -406,6 +419,7 @@ fn clusters(
                     support: 0.0,
                     pairs: 0,
                     trusted: false,
+                    confirmed: false,
                     first: i,
                     votes: BTreeMap::new(),
                 });
@@ -416,6 +430,7 @@ fn clusters(
         let best = c.votes.entry((u, v)).or_insert(0.0);
         *best = best.max(vote);
         c.trusted |= trusted(&edges[i], &ev[i]);
+        c.confirmed |= ev[i].support > 0.0;
     }
     for c in &mut clusters {
         c.support = c.votes.values().sum();
@@ -470,4 +485,50 @@ fn densely_consistent(
         }
     }
     Ok(true)
+}
+
+/// Whether the pair test, run on the two groups' merged maps, accepts a placement of H into G that agrees
+/// with the cluster's: what a join that no accepted edge stands behind must pass. Maps of one place give
+/// alike wrong answers for a map of another place, so their agreeing weak votes are not independent
+/// evidence; their mosaics cover more of the place than any one map and so test it better.
+fn mosaics_agree(
+    g: usize,
+    h: usize,
+    cluster: &Cluster,
+    groups: &Groups,
+    images: &[&OccupancyMap],
+    options: &GlobalOptions,
+    backend: &mut dyn Backend,
+) -> Result<bool> {
+    let mosaic = |k: usize| {
+        let members = groups.members(k);
+        let maps: Vec<&OccupancyMap> = members.iter().map(|&m| images[m]).collect();
+        let poses: Vec<Rigid> = members.iter().map(|&m| groups.pose[m]).collect();
+        compose_many(&maps, &poses)
+    };
+    // A canvas too large to compose is no evidence either way: not joined.
+    let (Ok((a, fa)), Ok((b, fb))) = (mosaic(g), mosaic(h)) else {
+        return Ok(false);
+    };
+    let (pa, pb) = (Prepared::new(&a), Prepared::new(&b));
+    let al = align_prepared_with(&pa, &pb, &options.pair, backend)?;
+    if !al.accepted {
+        return Ok(false);
+    }
+    // The cluster's placement between the mosaics' pixels: H's mosaic -> H's frame -> G's frame -> G's
+    // mosaic.
+    let shift = |x: i64, y: i64| Rigid {
+        theta_deg: 0.0,
+        tx: x as f64,
+        ty: y as f64,
+    };
+    let expected = shift(-fa.x0, -fa.y0)
+        .after(&cluster.placement)
+        .after(&shift(fb.x0, fb.y0));
+    Ok(agree(
+        &al.transform,
+        &expected,
+        pb.reference_in_map()[4],
+        options,
+    ))
 }

@@ -13,9 +13,9 @@
 //!    compose to it within [`GlobalOptions::loop_deg`] and [`GlobalOptions::loop_px`]; an accepted edge
 //!    loses the weight of each third map through which two accepted edges compose to something else.
 //! 3. Groups grow by agglomeration: the best-supported placement of one group into another (votes of all
-//!    edges between them, clustered), taken only when an accepted edge or a cycle stands behind it, no
-//!    other placement comes close, and no overlapping pair of maps it puts together contradicts itself
-//!    densely (the pair test's vetoes on the implied transform).
+//!    edges between them, clustered), taken when an accepted edge stands behind it (or, when only cycles
+//!    or several pairs do, when the pair test on the two groups' mosaics agrees), no other placement
+//!    comes close, and no overlapping pair of maps it puts together contradicts itself densely.
 //! 4. A weighted pose-graph least squares over the edges consistent with the placement ([`posegraph`]).
 
 pub mod eval;
@@ -209,15 +209,16 @@ fn edges_of(
 }
 
 /// Where every map lands: the graph's placement ([`graph::place`]) with each group's poses from the
-/// pose graph over the edges it kept ([`posegraph::solve`]).
+/// pose graph over the edges it kept ([`posegraph::solve`]); `maps` prepared from `images`.
 pub fn place(
     pairwise: &Pairwise,
     maps: &[Prepared],
+    images: &[&crate::map::OccupancyMap],
     options: &GlobalOptions,
     backend: &mut dyn crate::backend::Backend,
 ) -> Result<graph::Placement> {
     let ev = graph::evidence(pairwise, options);
-    let mut placement = graph::place(pairwise, maps, &ev, options, backend)?;
+    let mut placement = graph::place(pairwise, maps, images, &ev, options, backend)?;
     let start: Vec<Rigid> = placement.maps.iter().map(|m| m.pose).collect();
     for members in &placement.groups {
         let constraints: Vec<posegraph::Constraint> = placement
@@ -236,8 +237,18 @@ pub fn place(
             })
             .collect();
         let solved = posegraph::solve(&start, members[0], &constraints);
-        for &m in members {
-            placement.maps[m].pose = solved[m];
+        // The least squares only spreads the loop errors: a solution that moves a map further than two
+        // placements may disagree (an ill-conditioned system) keeps the agglomeration's poses.
+        let moved_far = members.iter().any(|&m| {
+            let c = maps[m].reference_in_map()[4];
+            let (p, q) = (start[m].apply(c), solved[m].apply(c));
+            let turn = (start[m].theta_deg - solved[m].theta_deg + 180.0).rem_euclid(360.0) - 180.0;
+            turn.abs() > options.loop_deg || (p.0 - q.0).hypot(p.1 - q.1) > options.loop_px
+        });
+        if !moved_far {
+            for &m in members {
+                placement.maps[m].pose = solved[m];
+            }
         }
     }
     Ok(placement)
@@ -305,7 +316,8 @@ pub fn run(
     let mut pairwise = align_all(&prepared, options, progress)?;
     let align = t.elapsed().as_secs_f64();
     let t = Instant::now();
-    let mut placement = place(&pairwise, &prepared, options, backend)?;
+    let images: Vec<&crate::map::OccupancyMap> = unique.iter().map(|&i| &maps[i]).collect();
+    let mut placement = place(&pairwise, &prepared, &images, options, backend)?;
     let place = t.elapsed().as_secs_f64();
     // Back to the maps' own indices.
     pairwise.n = maps.len();
@@ -335,6 +347,30 @@ pub fn run(
         *members = all;
     }
     placement.maps = by_map;
+    // Copies of a map that joined nothing still lie together: a group of their own, in place.
+    for (k, &first) in unique.iter().enumerate() {
+        let copies: Vec<usize> = (0..maps.len())
+            .filter(|&i| duplicate_of[i] == Some(first))
+            .collect();
+        // A map with nothing to align (no walls) is no group, however many copies.
+        if copies.is_empty() || placement.maps[first].group.is_some() || !prepared[k].alignable() {
+            continue;
+        }
+        placement
+            .groups
+            .push(std::iter::once(first).chain(copies).collect());
+    }
+    placement.groups.sort_by_key(|members| members[0]);
+    for (g, members) in placement.groups.iter().enumerate() {
+        for &m in members {
+            let p = &mut placement.maps[m];
+            if p.group.is_none() {
+                p.pose = Rigid::IDENTITY;
+                p.reason = None;
+            }
+            p.group = Some(g);
+        }
+    }
     Ok(Run {
         pairwise,
         placement,

@@ -26,8 +26,9 @@ pub struct MapEntry {
     /// Its map frame's pose in the merged map's frame (metres, radians), when both have a yaml.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub world: Option<WorldRigid>,
-    /// Its pixels per group pixel, when its resolution differs from the group's (it was resampled
-    /// before aligning, and `transform` applies to the resampled pixels: its pixels divided by this).
+    /// Its resolution over the group's (the group's pixels a pixel of its own), when they differ: it was
+    /// resampled to the group's resolution before aligning, and `transform` applies to the resampled
+    /// pixels (its own pixel coordinates times about this).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub scale: Option<f64>,
     /// Why it is not placed.
@@ -187,6 +188,12 @@ pub fn write_text(out: &mut dyn Write, doc: &Poses) -> io::Result<()> {
                         w.y
                     )?;
                 }
+                if let Some(k) = m.scale {
+                    write!(
+                        out,
+                        " (resampled: {k} merged-map pixels a pixel of its own)"
+                    )?;
+                }
                 if let Some(c) = &m.copy_of {
                     write!(out, " (a copy of {c})")?;
                 }
@@ -215,18 +222,28 @@ pub fn write_text(out: &mut dyn Write, doc: &Poses) -> io::Result<()> {
 }
 
 /// The multirobot_map_merge parameters of the placed maps (`rosparam load` format): per robot (the map's
-/// file stem), `map_merge/init_pose_{x,y,z,yaw}`: the pose of its map frame in its group's merged frame.
-/// Maps without a yaml or not placed are listed as comments.
+/// file stem; a repeated stem gets its map's number), `map_merge/init_pose_{x,y,z,yaw}`: the pose of
+/// its map frame in its group's merged frame, after a comment naming the map. Maps without a yaml or not
+/// placed are listed as comments.
 pub fn init_poses_yaml(doc: &Poses) -> String {
     let mut s = String::from(
         "# multirobot_map_merge with known_init_poses: each robot's map frame in the merged frame of its\n\
          # group (the frame of the group's first map), as found by ogm-corners merge.\n",
     );
-    for m in &doc.maps {
-        let robot = std::path::Path::new(&m.map)
+    let mut seen = std::collections::BTreeSet::new();
+    for (k, m) in doc.maps.iter().enumerate() {
+        let stem = std::path::Path::new(&m.map)
             .file_stem()
             .map(|s| s.to_string_lossy().into_owned())
             .unwrap_or_else(|| m.map.clone());
+        // Two maps of one name (in two folders) get the second its number: keys must differ.
+        let robot = if seen.insert(stem.clone()) {
+            stem
+        } else {
+            format!("{stem}_{k}")
+        };
+        seen.insert(robot.clone());
+        s.push_str(&format!("# {}\n", m.map.replace('\n', " ")));
         let robot = serde_yaml::to_string(&robot).unwrap_or_default();
         let robot = robot.trim_end();
         match (m.world, m.group) {
