@@ -69,7 +69,7 @@ pub(super) fn run(a: MergeEvalArgs, budget: &Budget) -> Result<()> {
     }
     super::check_stdout()?;
     if a.global {
-        return run_global(&a);
+        return run_global(&a, budget);
     }
     if a.save_pairs.is_some() && a.synthetic.is_none() {
         return Err(Error::invalid(
@@ -193,7 +193,7 @@ fn library(set: &PairSet, maps: &std::path::Path) -> Result<global_eval::Library
 }
 
 /// `merge-eval --global`: the suite over a pair file's buildings, or the synthetic set alone.
-fn run_global(a: &MergeEvalArgs) -> Result<()> {
+fn run_global(a: &MergeEvalArgs, budget: &Budget) -> Result<()> {
     let bar = indicatif::ProgressBar::new(0);
     bar.set_style(
         indicatif::ProgressStyle::with_template("{msg}: {bar:30} {pos}/{len} pairs")
@@ -221,9 +221,23 @@ fn run_global(a: &MergeEvalArgs) -> Result<()> {
                     .join("maps")
             });
             let lib = library(&set, &maps)?;
+            // The largest set placed holds every map and its preparation at once, and the synthetic set.
+            let all: u64 = lib
+                .maps
+                .iter()
+                .map(|(_, _, m)| set_bytes(m.image.width(), m.image.height()))
+                .fold(0, u64::saturating_add);
+            budget.check(
+                format_args!("{} maps placed at once", lib.maps.len()),
+                all.max(synthetic_bytes(size)),
+            )?;
             global_eval::suite(&lib, &set.pairs, &options, size, a.seed, &progress)?
         }
         None => {
+            budget.check(
+                format_args!("a synthetic set of {size} maps"),
+                synthetic_bytes(size),
+            )?;
             let (names, maps, truths) = global_eval::synthetic_maps(size, a.seed)?;
             if let Some(dir) = &a.save_pairs {
                 save_set(dir, &names, &maps, &truths)?;
@@ -244,6 +258,17 @@ fn run_global(a: &MergeEvalArgs) -> Result<()> {
     })
 }
 
+/// A map of `w` x `h` in a set placed at once: its pixels and its preparation.
+fn set_bytes(w: u32, h: u32) -> u64 {
+    (u64::from(w) * u64::from(h)).saturating_add(ogm_corners::merge::align::prepared_bytes(w, h))
+}
+
+/// A synthetic set of `n` maps: each a square canvas of about 1500 px a side (a 1044 px window turned),
+/// and the office they are cut from (about 580 px a map).
+fn synthetic_bytes(n: usize) -> u64 {
+    (n as u64).saturating_mul(set_bytes(1500, 1500) + 580 * 580)
+}
+
 /// Writes a synthetic set into `dir`: `NAME.pgm` per map and `pairs.json` with every ordered pair's truth.
 fn save_set(
     dir: &std::path::Path,
@@ -253,12 +278,17 @@ fn save_set(
 ) -> Result<()> {
     std::fs::create_dir_all(dir)
         .map_err(|e| Error::input(dir, format!("cannot create the folder: {e}")))?;
+    // All or nothing: the maps and their truths renamed into place together.
+    let mut staged = ogm_corners::files::Staged::default();
     for (n, m) in names.iter().zip(maps) {
-        m.image.write_pgm(&dir.join(format!("{n}.pgm")))?;
+        staged.write(&dir.join(format!("{n}.pgm")), |out| {
+            m.image.write_pgm_to(out)
+        })?;
     }
     let doc = serde_json::json!({ "pairs": truths, "negatives": [] });
-    ogm_corners::files::write_atomic(&dir.join("pairs.json"), |out| {
+    staged.write(&dir.join("pairs.json"), |out| {
         serde_json::to_writer_pretty(&mut *out, &doc)?;
         writeln!(out)
-    })
+    })?;
+    staged.commit()
 }

@@ -545,7 +545,7 @@ pub(super) fn check(
 }
 
 /// Where `t` (B's pixels to A's) makes the maps overlap, in B's pixels: the mean of B's sampled wall
-/// pixels that land in A's known area's box (B's walls' centre when none do). Two estimates of a pair are
+/// pixels that land in A's crop (its known area's box and margin) (B's walls' centre when none do). Two estimates of a pair are
 /// compared there: maps bend, so estimates that agree where the maps overlap can differ far from it.
 pub(super) fn overlap_centre(a: &Prepared, b: &Prepared, t: &Rigid) -> (f64, f64) {
     let apply = map_to_crop(b, a, t).applier();

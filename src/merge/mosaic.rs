@@ -2,7 +2,7 @@
 //! every map in its own colour. The cell rule is the two-map one ([`super::compose::merge_cell`]):
 //! occupied where any map says occupied, else free where any says free.
 
-use super::compose::{merge_cell, MAX_CANVAS_FACTOR};
+use super::compose::merge_cell;
 use super::transform::Rigid;
 use crate::error::{Error, Result};
 use crate::map::{GeoRef, MapImage, OccupancyMap, Thresholds};
@@ -32,8 +32,20 @@ impl Frame {
     }
 }
 
+/// Largest merged canvas of many maps, pixels, relative to the maps together: a fleet's maps along a
+/// diagonal corridor leave most of their box unknown (ten maps sharing a fifth of their width in a
+/// diagonal line fill a sixth of it), but a placement that spreads maps further is not a merge of one
+/// place. (Two maps: [`super::compose::MAX_CANVAS_FACTOR`].)
+pub const MAX_MANY_CANVAS_FACTOR: u64 = 16;
+
+/// Coordinates further than this from a frame's origin, pixels, are no placement of a map.
+const MAX_COORDINATE: f64 = (1u64 << 40) as f64;
+
+/// A box of a map's pixels, inclusive: first column, first row, last column, last row.
+pub type PixelBox = (u32, u32, u32, u32);
+
 /// The bounding box of a map's known pixels (inclusive), if it has any.
-fn known_box(m: &OccupancyMap) -> Option<(u32, u32, u32, u32)> {
+fn known_box(m: &OccupancyMap) -> Option<PixelBox> {
     let classes = ClassTable::new(&m.thresholds);
     let w = m.image.width() as usize;
     let (mut x0, mut y0, mut x1, mut y1) = (u32::MAX, u32::MAX, 0, 0);
@@ -48,7 +60,7 @@ fn known_box(m: &OccupancyMap) -> Option<(u32, u32, u32, u32)> {
 }
 
 /// The bounding box (inclusive, rounded) of the map box `b` placed by `pose`.
-fn placed_box((bx0, by0, bx1, by1): (u32, u32, u32, u32), pose: &Rigid) -> (i64, i64, i64, i64) {
+fn placed_box((bx0, by0, bx1, by1): PixelBox, pose: &Rigid) -> (i64, i64, i64, i64) {
     let (mut x0, mut y0, mut x1, mut y1) = (f64::MAX, f64::MAX, f64::MIN, f64::MIN);
     let (bx0, by0, bx1, by1) = (
         f64::from(bx0),
@@ -67,25 +79,54 @@ fn placed_box((bx0, by0, bx1, by1): (u32, u32, u32, u32), pose: &Rigid) -> (i64,
 }
 
 /// The canvas of the known areas of `maps` placed by `poses` (unknown margins around them are left out);
-/// fails when none has a known cell or when it would exceed [`MAX_CANVAS_FACTOR`] times the
-/// maps together (a placement that spreads maps so far apart is not a merge of one place).
+/// fails when none has a known cell, a pose is not finite, or the canvas would exceed
+/// [`MAX_MANY_CANVAS_FACTOR`] times the maps together (a placement that spreads maps so far apart is not a
+/// merge of one place).
 pub fn frame(maps: &[&OccupancyMap], poses: &[Rigid]) -> Result<Frame> {
+    let placed: Vec<(PixelBox, Rigid)> = maps
+        .iter()
+        .zip(poses)
+        .filter_map(|(m, p)| known_box(m).map(|b| (b, *p)))
+        .collect();
+    let total = maps
+        .iter()
+        .map(|m| m.image.len() as u64)
+        .fold(0, u64::saturating_add);
+    frame_of(&placed, total)
+}
+
+/// Whether maps whose known areas lie within `boxes` (inclusive, their own pixels), placed by `poses`,
+/// fit one canvas by [`frame`]'s limit, relative to `total` pixels of maps: what a join of groups is
+/// checked against before it is made.
+pub fn fits(boxes: &[PixelBox], poses: &[Rigid], total: u64) -> bool {
+    let placed: Vec<(PixelBox, Rigid)> = boxes.iter().copied().zip(poses.iter().copied()).collect();
+    frame_of(&placed, total).is_ok()
+}
+
+/// The canvas of boxes placed by poses, limited relative to `total` pixels of maps.
+fn frame_of(placed: &[(PixelBox, Rigid)], total: u64) -> Result<Frame> {
     let (mut x0, mut y0, mut x1, mut y1) = (i64::MAX, i64::MAX, i64::MIN, i64::MIN);
-    let mut total: u64 = 0;
-    for (m, p) in maps.iter().zip(poses) {
-        total = total.saturating_add(m.image.len() as u64);
-        let Some(k) = known_box(m) else { continue };
-        let b = placed_box(k, p);
-        x0 = x0.min(b.0);
-        y0 = y0.min(b.1);
-        x1 = x1.max(b.2);
-        y1 = y1.max(b.3);
+    for (b, p) in placed {
+        let finite = [p.theta_deg, p.tx, p.ty]
+            .iter()
+            .all(|v| v.is_finite() && v.abs() < MAX_COORDINATE);
+        if !finite {
+            return Err(Error::invalid(format!(
+                "a map's pose ({}, {}, {}) is no placement",
+                p.theta_deg, p.tx, p.ty
+            )));
+        }
+        let q = placed_box(*b, p);
+        x0 = x0.min(q.0);
+        y0 = y0.min(q.1);
+        x1 = x1.max(q.2);
+        y1 = y1.max(q.3);
     }
     if x0 > x1 {
         return Err(Error::invalid("no map to merge has a known cell"));
     }
     let (w, h) = ((x1 - x0 + 1) as u64, (y1 - y0 + 1) as u64);
-    if w.saturating_mul(h) > total.saturating_mul(MAX_CANVAS_FACTOR)
+    if w.saturating_mul(h) > total.saturating_mul(MAX_MANY_CANVAS_FACTOR)
         || w > u64::from(u32::MAX)
         || h > u64::from(u32::MAX)
     {
@@ -277,5 +318,22 @@ mod tests {
             },
         ];
         assert!(compose_many(&[&a, &b], &far).is_err());
+        let nan = [
+            Rigid::IDENTITY,
+            Rigid {
+                theta_deg: f64::NAN,
+                ..Rigid::IDENTITY
+            },
+        ];
+        assert!(compose_many(&[&a, &b], &nan).is_err());
+        // A long line of maps fits while the canvas stays within the factor.
+        let line: Vec<Rigid> = (0..3)
+            .map(|k| Rigid {
+                tx: 8.0 * f64::from(k),
+                ty: 8.0 * f64::from(k),
+                ..Rigid::IDENTITY
+            })
+            .collect();
+        assert!(compose_many(&[&a, &a, &a], &line).is_ok());
     }
 }

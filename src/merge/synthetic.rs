@@ -227,8 +227,9 @@ pub struct SyntheticCrop {
 
 /// `n` overlapping maps cut from `source`, deterministic in `seed`: windows on a jittered grid over its
 /// known area (each about 1.8 grid steps across, so neighbours share about 45% of a window), each turned
-/// by a random angle into a square canvas with a random margin, with speckle at `noise`. `None` when the
-/// source's known area is under [`MIN_EXTENT`] across or a window would exceed [`MAX_PART_SIDE`].
+/// by a random angle into a square canvas with a random margin, with speckle at `noise`. `None` when `n`
+/// is 0, the source's known area is under [`MIN_EXTENT`] across, a window holds nothing known or would
+/// exceed [`MAX_PART_SIDE`].
 pub fn synthetic_set(
     source: &OccupancyMap,
     n: usize,

@@ -29,8 +29,8 @@ pub fn passes_vetoes(f: &Features) -> bool {
     f.conflict_fine <= MAX_FINE_CONFLICT && contradiction(f) <= MAX_CONTRADICTION
 }
 
-/// Two maps put together contradict each other densely when over [`DENSE_FREE_AGREE`] of the free space
-/// falling in the other's known area lands on its walls or unknown (with at least [`DENSE_FREE_INSIDE`] of
+/// Two maps put together contradict each other densely when less than [`DENSE_FREE_AGREE`] of the free
+/// space falling in the other's known area lands on its free space (with at least [`DENSE_FREE_INSIDE`] of
 /// it in there), or over [`DENSE_CONFLICT`] of their walls lie over 20 px deep in the other's free space.
 /// Looser than the pair vetoes: a placement through other maps is off by a few pixels more than a pair's
 /// own estimate, and bent maps drift apart by more than 3 px (of the real pairs' right candidates, free
@@ -60,8 +60,8 @@ pub struct EdgeEvidence {
     pub own: f64,
     /// Sum over third maps of the weaker of the two edges through it that compose to this one.
     pub support: f64,
-    /// For an accepted edge: sum over third maps of the weaker of two accepted edges through it that
-    /// compose to something else.
+    /// For an accepted edge: sum over third maps through which no two edges compose to it of the weaker
+    /// of two accepted edges through it that compose to something else.
     pub contradicted: f64,
 }
 
@@ -222,7 +222,18 @@ pub fn place(
         of: (0..n).collect(),
         pose: vec![Rigid::IDENTITY; n],
     };
-    let mut rejected: BTreeSet<(usize, usize, usize)> = BTreeSet::new();
+    // Joins refused, by the two groups (first map and size: a group that grew is tried again) and the
+    // cluster's first edge.
+    let mut rejected: BTreeSet<(usize, usize, usize, usize, usize)> = BTreeSet::new();
+    let key = |g: usize, h: usize, first: usize, groups: &Groups| {
+        (
+            g,
+            h,
+            groups.members(g).len(),
+            groups.members(h).len(),
+            first,
+        )
+    };
     let mut ambiguous = vec![false; n];
     let mut contradicted = vec![false; n];
     loop {
@@ -256,7 +267,7 @@ pub fn place(
                     }
                     continue;
                 }
-                if !rejected.contains(&(g, h, best.first)) {
+                if !rejected.contains(&key(g, h, best.first, &groups)) {
                     options_now.push((g, h, best.clone(), best.trusted));
                 }
             }
@@ -268,7 +279,8 @@ pub fn place(
         });
         let mut merged = false;
         for (g, h, c, trusted) in options_now {
-            let ok = densely_consistent(g, h, &c, &groups, maps, backend)?
+            let ok = fits_one_canvas(g, h, &c, &groups, maps, images)
+                && densely_consistent(g, h, &c, &groups, maps, backend)?
                 && (trusted || mosaics_agree(g, h, &c, &groups, images, options, backend)?);
             if ok {
                 for m in groups.members(h) {
@@ -281,7 +293,7 @@ pub fn place(
             for m in groups.members(h).into_iter().chain(groups.members(g)) {
                 contradicted[m] = true;
             }
-            rejected.insert((g, h, c.first));
+            rejected.insert(key(g, h, c.first, &groups));
         }
         if !merged {
             break;
@@ -485,6 +497,33 @@ fn densely_consistent(
         }
     }
     Ok(true)
+}
+
+/// Whether the two groups joined by the cluster's placement fit one merged map
+/// ([`crate::merge::mosaic::fits`], on the maps' prepared boxes, which hold their known areas).
+fn fits_one_canvas(
+    g: usize,
+    h: usize,
+    cluster: &Cluster,
+    groups: &Groups,
+    maps: &[Prepared],
+    images: &[&OccupancyMap],
+) -> bool {
+    let (mut boxes, mut poses, mut total) = (Vec::new(), Vec::new(), 0u64);
+    for (k, moved) in [(g, false), (h, true)] {
+        for m in groups.members(k) {
+            let b = maps[m].bounds_in_map();
+            let clamp = |v: f64| v.max(0.0) as u32;
+            boxes.push((clamp(b[0].0), clamp(b[0].1), clamp(b[3].0), clamp(b[3].1)));
+            poses.push(if moved {
+                cluster.placement.after(&groups.pose[m])
+            } else {
+                groups.pose[m]
+            });
+            total = total.saturating_add(images[m].image.len() as u64);
+        }
+    }
+    crate::merge::mosaic::fits(&boxes, &poses, total)
 }
 
 /// Whether the pair test, run on the two groups' merged maps, accepts a placement of H into G that agrees

@@ -1,8 +1,8 @@
 //! The pose graph of one group: every map's pose in the group's frame by weighted least squares over the
 //! pairwise transforms kept, the group's first map fixed. Residuals are point residuals (each edge's
-//! moved map's wall bounding box corners and centre, through the edge and through the poses), so a
-//! turn and a shift are weighed in the pixels they move walls by; Gauss-Newton from the agglomeration's
-//! poses, which are already close.
+//! points in the moved map, through the edge and through the poses), so a turn and a shift are weighed
+//! in the pixels they move walls by; Gauss-Newton from the agglomeration's poses, which are already
+//! close.
 
 use crate::merge::transform::Rigid;
 

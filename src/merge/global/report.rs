@@ -26,9 +26,9 @@ pub struct MapEntry {
     /// Its map frame's pose in the merged map's frame (metres, radians), when both have a yaml.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub world: Option<WorldRigid>,
-    /// Its resolution over the group's (the group's pixels a pixel of its own), when they differ: it was
-    /// resampled to the group's resolution before aligning, and `transform` applies to the resampled
-    /// pixels (its own pixel coordinates times about this).
+    /// Its resolution over the first georeferenced input map's (that map's pixels a pixel of its own),
+    /// when they differ: every map is resampled to that resolution before aligning, and `transform`
+    /// applies to the resampled pixels (its own pixel coordinates times about this).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub scale: Option<f64>,
     /// Why it is not placed.
@@ -237,12 +237,12 @@ pub fn init_poses_yaml(doc: &Poses) -> String {
             .map(|s| s.to_string_lossy().into_owned())
             .unwrap_or_else(|| m.map.clone());
         // Two maps of one name (in two folders) get the second its number: keys must differ.
-        let robot = if seen.insert(stem.clone()) {
-            stem
-        } else {
-            format!("{stem}_{k}")
-        };
-        seen.insert(robot.clone());
+        let mut robot = stem.clone();
+        let mut extra = k;
+        while !seen.insert(robot.clone()) {
+            robot = format!("{stem}_{extra}");
+            extra += 1;
+        }
         s.push_str(&format!("# {}\n", m.map.replace('\n', " ")));
         let robot = serde_yaml::to_string(&robot).unwrap_or_default();
         let robot = robot.trim_end();
