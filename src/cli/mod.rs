@@ -311,6 +311,8 @@ fn map_inputs(
         ogm_corners::say!("ogm-corners: note: {n}");
     }
     if let Some(first) = found.problems.first() {
+        // The search skips what it cannot read; this command stops at it instead.
+        let first = first.strip_prefix("skipped ").unwrap_or(first);
         return Err(Error::invalid(format!(
             "{first}{}",
             match found.problems.len() {

@@ -116,7 +116,9 @@ impl MapYaml {
         let resolution = number(get("resolution"), "resolution")?
             .ok_or("missing `resolution` (metres per pixel)")?;
         if !(resolution.is_finite() && resolution > 0.0) {
-            return Err(format!("`resolution` must be positive, got {resolution}"));
+            return Err(format!(
+                "`resolution` must be a finite positive number, got {resolution}"
+            ));
         }
         let origin = match get("origin") {
             Some(Value::Sequence(seq)) if seq.len() == 3 || seq.len() == 2 => {
