@@ -271,14 +271,7 @@ fn merge_command_verdicts_exit_codes_and_the_merged_yaml() {
         .unwrap()
         .write_pgm(&d.path().join("blank.pgm"))
         .unwrap();
-    let run = |args: &[&str]| {
-        std::process::Command::new(env!("CARGO_BIN_EXE_ogm-corners"))
-            .arg("merge")
-            .args(args)
-            .current_dir(d.path())
-            .output()
-            .unwrap()
-    };
+    let run = |args: &[&str]| common::tool_in(d.path(), "merge", args);
     // The map onto itself: merged, in place, exit 0; the merged yaml keeps A's world frame.
     let o = run(&[
         "a.yaml",

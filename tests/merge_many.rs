@@ -7,6 +7,7 @@ mod common;
 use ogm_corners::cpu::CpuBackend;
 use ogm_corners::merge::align::Prepared;
 use ogm_corners::merge::global::eval::{run_maps, synthetic_maps};
+use ogm_corners::merge::global::graph::Placement;
 use ogm_corners::merge::global::{align_all, place, GlobalOptions, Pairwise};
 use ogm_corners::merge::pairs::TruePair;
 use ogm_corners::merge::Rigid;
@@ -44,12 +45,7 @@ fn synthetic_sets_are_placed_within_a_pixel_and_half_a_degree() {
     for (n, seed) in [(3, 2), (6, 5), (10, 9)] {
         let (names, maps, truths) = synthetic_maps(n, seed).unwrap();
         let r = run_maps(names.clone(), &maps, &GlobalOptions::default(), &|_, _| {}).unwrap();
-        let poses: Vec<Option<Rigid>> = r
-            .placement
-            .maps
-            .iter()
-            .map(|m| m.group.map(|_| m.pose))
-            .collect();
+        let poses = placed_poses(&r.placement);
         // One group holding every map.
         assert_eq!(r.placement.groups.len(), 1, "{n} maps: {:?}", r.placement);
         assert!(
@@ -61,6 +57,11 @@ fn synthetic_sets_are_placed_within_a_pixel_and_half_a_degree() {
         assert_eq!(checked, n * (n - 1));
         assert_eq!(r.pairwise.pairs.len(), n * (n - 1) / 2);
     }
+}
+
+/// Each map's pose, when placed.
+fn placed_poses(p: &Placement) -> Vec<Option<Rigid>> {
+    p.maps.iter().map(|m| m.group.map(|_| m.pose)).collect()
 }
 
 fn prepare(maps: &[OccupancyMap]) -> Vec<Prepared> {
@@ -104,11 +105,7 @@ fn a_wrong_pairwise_accept_is_dropped_by_the_cycles_and_the_placement_is_repeata
     e.score = top + 20.0;
     let (wrong_a, wrong_b) = (e.a, e.b);
     let placed = place(&bad, &prepared, &refs, &options, &mut CpuBackend).unwrap();
-    let poses: Vec<Option<Rigid>> = placed
-        .maps
-        .iter()
-        .map(|m| m.group.map(|_| m.pose))
-        .collect();
+    let poses = placed_poses(&placed);
     assert!(poses.iter().all(Option::is_some), "{:?}", placed.maps);
     assert_placed_within(&names, &poses, &truths, 0.5, 1.0);
     assert!(
@@ -143,11 +140,7 @@ fn cycles_and_the_mosaic_place_a_map_whose_pairs_no_pair_test_accepted() {
         "the set should give the last map two accepted pairs"
     );
     let placed = place(&pairwise, &prepared, &refs, &options, &mut CpuBackend).unwrap();
-    let poses: Vec<Option<Rigid>> = placed
-        .maps
-        .iter()
-        .map(|m| m.group.map(|_| m.pose))
-        .collect();
+    let poses = placed_poses(&placed);
     assert!(poses[last].is_some(), "{:?}", placed.maps[last]);
     assert!(placed
         .kept
@@ -201,14 +194,7 @@ fn merge_command_places_many_maps_and_writes_every_output() {
         .unwrap()
         .write_pgm(&d.path().join("unknown.pgm"))
         .unwrap();
-    let run = |args: &[&str]| {
-        std::process::Command::new(env!("CARGO_BIN_EXE_ogm-corners"))
-            .arg("merge")
-            .args(args)
-            .current_dir(d.path())
-            .output()
-            .unwrap()
-    };
+    let run = |args: &[&str]| common::tool_in(d.path(), "merge", args);
     let o = run(&[
         "fleet",
         "unknown.pgm",
@@ -359,11 +345,7 @@ fn maps_of_different_resolutions_are_placed_at_the_first_maps_resolution() {
         .collect();
     let coarse = OccupancyMap::from_image(MapImage::new(w, h, px).unwrap());
     write_map(d.path(), &names[2], &coarse, 0.1);
-    let o = std::process::Command::new(env!("CARGO_BIN_EXE_ogm-corners"))
-        .args(["merge", ".", "--format", "json"])
-        .current_dir(d.path())
-        .output()
-        .unwrap();
+    let o = common::tool_in(d.path(), "merge", &[".", "--format", "json"]);
     assert_eq!(
         o.status.code(),
         Some(0),
@@ -430,12 +412,7 @@ fn the_real_buildings_are_placed_whole_and_never_into_each_other() {
     assert_eq!(r.placement.groups.len(), 2, "{groups:?}");
     assert!(groups[..4].iter().all(|g| g.is_some() && *g == groups[0]));
     assert!(groups[4..].iter().all(|g| g.is_some() && *g == groups[4]));
-    let poses: Vec<Option<Rigid>> = r
-        .placement
-        .maps
-        .iter()
-        .map(|m| m.group.map(|_| m.pose))
-        .collect();
+    let poses = placed_poses(&r.placement);
     for t in &set.pairs {
         let (Some(s), Some(d)) = (
             names.iter().position(|n| *n == t.src),

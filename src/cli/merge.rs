@@ -152,13 +152,7 @@ pub(super) fn run(a: MergeArgs, budget: &Budget) -> Result<()> {
                 t.ty
             )?;
             if let Some(w) = world {
-                write!(
-                    out,
-                    " = {:.2} deg, ({:.3}, {:.3}) m",
-                    w.yaw.to_degrees(),
-                    w.x,
-                    w.y
-                )?;
+                write!(out, " = {w}")?;
             }
             writeln!(out, "; {:.0} ms", seconds * 1e3)
         }

@@ -79,23 +79,12 @@ pub(super) fn run(a: MergeEvalArgs, budget: &Budget) -> Result<()> {
     let (rows, prep_ms) = match (&a.pairs, &a.synthetic) {
         (Some(pairs), _) => {
             let set = PairSet::load(pairs)?;
-            let maps = a.maps.clone().unwrap_or_else(|| {
-                pairs
-                    .parent()
-                    .unwrap_or(std::path::Path::new("."))
-                    .join("maps")
-            });
+            let maps = maps_folder(&a, pairs);
             if a.ablation {
                 let rows = eval::ablation(&set, &maps, &mut |h| {
                     ogm_corners::say!("ogm-corners: merge-eval: hypotheses {h}")
                 })?;
-                return write_stdout(|out| match a.format {
-                    super::TextOrJsonMd::Md => eval::write_ablation(out, &rows),
-                    super::TextOrJsonMd::Json => {
-                        serde_json::to_writer_pretty(&mut *out, &rows)?;
-                        writeln!(out)
-                    }
-                });
+                return write_table(a.format, &rows, |out| eval::write_ablation(out, &rows));
             }
             eval::run(&set, &maps, &MergeOptions::default())?
         }
@@ -135,12 +124,8 @@ pub(super) fn run(a: MergeEvalArgs, budget: &Budget) -> Result<()> {
             eval::run_synthetic(&sources, &run, &MergeOptions::default())?
         }
     };
-    write_stdout(|out| match a.format {
-        super::TextOrJsonMd::Md => eval::write_summary(out, &rows, prep_ms),
-        super::TextOrJsonMd::Json => {
-            serde_json::to_writer_pretty(&mut *out, &rows)?;
-            writeln!(out)
-        }
+    write_table(a.format, &rows, |out| {
+        eval::write_summary(out, &rows, prep_ms)
     })
 }
 
@@ -214,12 +199,7 @@ fn run_global(a: &MergeEvalArgs, budget: &Budget) -> Result<()> {
                 ));
             }
             let set = PairSet::load(pairs)?;
-            let maps = a.maps.clone().unwrap_or_else(|| {
-                pairs
-                    .parent()
-                    .unwrap_or(std::path::Path::new("."))
-                    .join("maps")
-            });
+            let maps = maps_folder(a, pairs);
             let lib = library(&set, &maps)?;
             // The largest set placed holds every map and its preparation at once, and the synthetic set.
             let all: u64 = lib
@@ -249,13 +229,7 @@ fn run_global(a: &MergeEvalArgs, budget: &Budget) -> Result<()> {
         }
     };
     bar.finish_and_clear();
-    write_stdout(|out| match a.format {
-        super::TextOrJsonMd::Md => global_eval::write_rows(out, &rows),
-        super::TextOrJsonMd::Json => {
-            serde_json::to_writer_pretty(&mut *out, &rows)?;
-            writeln!(out)
-        }
-    })
+    write_table(a.format, &rows, |out| global_eval::write_rows(out, &rows))
 }
 
 /// A map of `w` x `h` in a set placed at once: its pixels and its preparation.
@@ -291,4 +265,29 @@ fn save_set(
         writeln!(out)
     })?;
     staged.commit()
+}
+
+/// The maps of a pair file: `--maps`, else `maps` beside the file.
+fn maps_folder(a: &MergeEvalArgs, pairs: &std::path::Path) -> PathBuf {
+    a.maps.clone().unwrap_or_else(|| {
+        pairs
+            .parent()
+            .unwrap_or(std::path::Path::new("."))
+            .join("maps")
+    })
+}
+
+/// Rows on standard output: the markdown table `md` writes, or the rows as JSON.
+fn write_table<T: serde::Serialize>(
+    format: super::TextOrJsonMd,
+    rows: &T,
+    md: impl FnOnce(&mut dyn std::io::Write) -> std::io::Result<()>,
+) -> Result<()> {
+    write_stdout(|out| match format {
+        super::TextOrJsonMd::Md => md(out),
+        super::TextOrJsonMd::Json => {
+            serde_json::to_writer_pretty(&mut *out, rows)?;
+            writeln!(out)
+        }
+    })
 }

@@ -159,7 +159,7 @@ pub fn compose(a: &OccupancyMap, b: &OccupancyMap, t: &Rigid) -> Result<Occupanc
     let image = MapImage::new(w, h, out)?;
     let georef = a
         .georef
-        .map(|g| grown_georef(&g, a.image.height(), &canvas));
+        .map(|g| grown_georef(&g, a.image.height(), canvas.x0, canvas.y1));
     Ok(OccupancyMap {
         image,
         thresholds: Thresholds::default(),
@@ -260,15 +260,17 @@ pub fn resample(map: &OccupancyMap, resolution: f64) -> Result<OccupancyMap> {
     })
 }
 
-/// A's georeference for the grown canvas: the origin (the pose of the lower-left corner) moves to the
-/// canvas's lower-left corner, so A's cells keep their world coordinates.
-fn grown_georef(g: &GeoRef, ha: u32, canvas: &Canvas) -> GeoRef {
+/// A reference map's georeference for a grown canvas whose first column is `x0` and whose row after its
+/// last is `y1` (in the reference map's pixels; `h0` its height): the origin (the pose of the lower-left
+/// corner) moves to the canvas's lower-left corner, so the reference map's cells keep their world
+/// coordinates.
+pub(super) fn grown_georef(g: &GeoRef, h0: u32, x0: i64, y1: i64) -> GeoRef {
     let [ox, oy, yaw] = g.origin;
     let yaw_used = if yaw.is_finite() { yaw } else { 0.0 };
-    // In A's map frame (before yaw): the canvas's lower-left corner is x0 columns left and
-    // (y1 - ha) rows below A's lower-left corner.
-    let dx = canvas.x0 as f64 * g.resolution;
-    let dy = -((canvas.y1 - i64::from(ha)) as f64) * g.resolution;
+    // In the map frame (before yaw): the canvas's lower-left corner is x0 columns left and (y1 - h0)
+    // rows below the reference map's lower-left corner.
+    let dx = x0 as f64 * g.resolution;
+    let dy = -((y1 - i64::from(h0)) as f64) * g.resolution;
     let (s, c) = yaw_used.sin_cos();
     GeoRef {
         resolution: g.resolution,

@@ -2,10 +2,10 @@
 //! every map in its own colour. The cell rule is the two-map one ([`super::compose::merge_cell`]):
 //! occupied where any map says occupied, else free where any says free.
 
-use super::compose::merge_cell;
+use super::compose::{grown_georef, merge_cell};
 use super::transform::Rigid;
 use crate::error::{Error, Result};
-use crate::map::{GeoRef, MapImage, OccupancyMap, Thresholds};
+use crate::map::{MapImage, OccupancyMap, Thresholds};
 use crate::states::{CellState, ClassTable};
 
 /// The canvas holding every map's known area placed by its pose, in the frame's pixels: `[x0, x1) x [y0, y1)`.
@@ -191,7 +191,7 @@ pub fn compose_many(maps: &[&OccupancyMap], poses: &[Rigid]) -> Result<(Occupanc
     )?;
     let georef = maps[0]
         .georef
-        .map(|g| grown(&g, maps[0].image.height(), &f));
+        .map(|g| grown_georef(&g, maps[0].image.height(), f.x0, f.y0 + i64::from(f.height)));
     Ok((
         OccupancyMap {
             image,
@@ -203,21 +203,6 @@ pub fn compose_many(maps: &[&OccupancyMap], poses: &[Rigid]) -> Result<(Occupanc
         },
         f,
     ))
-}
-
-/// The first map's georeference for the grown canvas: its origin (the lower-left corner's pose) moved to
-/// the canvas's lower-left corner.
-fn grown(g: &GeoRef, h0: u32, f: &Frame) -> GeoRef {
-    let [ox, oy, yaw] = g.origin;
-    let yaw_used = if yaw.is_finite() { yaw } else { 0.0 };
-    let dx = f.x0 as f64 * g.resolution;
-    let y1 = f.y0 + i64::from(f.height);
-    let dy = -((y1 - i64::from(h0)) as f64) * g.resolution;
-    let (s, c) = yaw_used.sin_cos();
-    GeoRef {
-        resolution: g.resolution,
-        origin: [ox + c * dx - s * dy, oy + s * dx + c * dy, yaw],
-    }
 }
 
 /// Wall colours of the maps, in turn (distinct on white and grey; the 13th map takes the first again).
@@ -262,6 +247,7 @@ pub fn overlay_many(maps: &[&OccupancyMap], poses: &[Rigid]) -> Result<image::Rg
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::map::GeoRef;
     use crate::states::{FREE, OCCUPIED, UNKNOWN};
 
     #[test]

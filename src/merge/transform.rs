@@ -108,6 +108,19 @@ pub struct WorldRigid {
     pub y: f64,
 }
 
+impl std::fmt::Display for WorldRigid {
+    /// `yaw deg, (x, y) m`, as the verdicts print it.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{:.2} deg, ({:.3}, {:.3}) m",
+            self.yaw.to_degrees(),
+            self.x,
+            self.y
+        )
+    }
+}
+
 /// The world form of a pixel transform between two georeferenced maps of heights `ha` and `hb`: maps a
 /// world point of B's frame to A's frame. Pixel rows count down and world y up, so the pixel angle flips
 /// sign; both maps' yaws are taken into account through their pixel-to-world functions.

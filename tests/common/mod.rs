@@ -6,6 +6,16 @@ use std::path::PathBuf;
 use ogm_corners::synth::{FREE, OCCUPIED, UNKNOWN};
 use ogm_corners::{DetectOptions, Detector, Keypoint, MapImage, OccupancyMap, RuleSet};
 
+/// Runs the tool's `command` with `args` in `dir`.
+pub fn tool_in(dir: &std::path::Path, command: &str, args: &[&str]) -> std::process::Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_ogm-corners"))
+        .arg(command)
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .unwrap()
+}
+
 /// A map from ASCII art: `#` occupied, `.` free, `?` unknown; rows top to bottom.
 pub fn art(rows: &[&str]) -> MapImage {
     let h = rows.len() as u32;

@@ -358,27 +358,28 @@ pub fn run(
             .expect("a first copy is unique");
         by_map.push(placement.maps[k].clone());
     }
+    // Each distinct map with its copies, first copy first.
+    let with_copies: Vec<Vec<usize>> = unique
+        .iter()
+        .map(|&first| {
+            std::iter::once(first)
+                .chain((0..maps.len()).filter(|&i| duplicate_of[i] == Some(first)))
+                .collect()
+        })
+        .collect();
     for members in &mut placement.groups {
-        let mut all: Vec<usize> = Vec::new();
-        for &k in members.iter() {
-            all.push(unique[k]);
-            all.extend((0..maps.len()).filter(|&i| duplicate_of[i] == Some(unique[k])));
-        }
-        *members = all;
+        *members = members
+            .iter()
+            .flat_map(|&k| with_copies[k].iter().copied())
+            .collect();
     }
     placement.maps = by_map;
-    // Copies of a map that joined nothing still lie together: a group of their own, in place.
-    for (k, &first) in unique.iter().enumerate() {
-        let copies: Vec<usize> = (0..maps.len())
-            .filter(|&i| duplicate_of[i] == Some(first))
-            .collect();
-        // A map with nothing to align (no walls) is no group, however many copies.
-        if copies.is_empty() || placement.maps[first].group.is_some() || !prepared[k].alignable() {
-            continue;
+    // Copies of a map that joined nothing still lie together: a group of their own, in place. A map
+    // with nothing to align (no walls) is no group, however many copies.
+    for (k, all) in with_copies.into_iter().enumerate() {
+        if all.len() > 1 && placement.maps[all[0]].group.is_none() && prepared[k].alignable() {
+            placement.groups.push(all);
         }
-        placement
-            .groups
-            .push(std::iter::once(first).chain(copies).collect());
     }
     placement.groups.sort_by_key(|members| members[0]);
     for (g, members) in placement.groups.iter().enumerate() {

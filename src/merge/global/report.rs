@@ -180,13 +180,7 @@ pub fn write_text(out: &mut dyn Write, doc: &Poses) -> io::Result<()> {
                     m.map, t.theta_deg, t.tx, t.ty
                 )?;
                 if let Some(w) = m.world {
-                    write!(
-                        out,
-                        " = {:.2} deg, ({:.3}, {:.3}) m",
-                        w.yaw.to_degrees(),
-                        w.x,
-                        w.y
-                    )?;
+                    write!(out, " = {w}")?;
                 }
                 if let Some(k) = m.scale {
                     write!(
