@@ -30,10 +30,13 @@ pub fn contradiction(features: &Features) -> f64 {
 /// Whether an alignment with these features and rule value is accepted: the rule, the two contradiction
 /// vetoes and the self-symmetry test.
 pub fn accepts(features: &Features, rule_value: f64) -> bool {
-    rule_value >= 0.0
-        && features.conflict_fine <= MAX_FINE_CONFLICT
-        && contradiction(features) <= MAX_CONTRADICTION
-        && features.self_match <= MAX_SELF_SYMMETRY
+    rule_value >= 0.0 && not_contradicted(features) && features.self_match <= MAX_SELF_SYMMETRY
+}
+
+/// Whether an alignment passes the two contradiction vetoes ([`MAX_FINE_CONFLICT`],
+/// [`MAX_CONTRADICTION`]).
+pub fn not_contradicted(features: &Features) -> bool {
+    features.conflict_fine <= MAX_FINE_CONFLICT && contradiction(features) <= MAX_CONTRADICTION
 }
 
 /// The acceptance rule: `w_choice * ln(choice ratio) + w_coarse * ln(coarse ratio) + w_free_inside *

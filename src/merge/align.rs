@@ -20,8 +20,8 @@
 use serde::Serialize;
 
 pub use super::accept::{
-    accepts, contradiction, Acceptance, Features, MAX_CONTRADICTION, MAX_FINE_CONFLICT,
-    MAX_SELF_SYMMETRY,
+    accepts, contradiction, not_contradicted, Acceptance, Features, MAX_CONTRADICTION,
+    MAX_FINE_CONFLICT, MAX_SELF_SYMMETRY,
 };
 pub use super::coarse::FINE_FFT;
 use super::coarse::{coarse_hypotheses, cs, screen, CoarseSet, Crop};
@@ -233,26 +233,11 @@ pub fn align_prepared_with(
         coarse_norm: refined[0].2.coarse_norm,
         ..again
     };
-    let (best_score, best, mut features) = refined[0];
+    let (_, best, mut features) = refined[0];
     // How far it stands out, by the choice's key and by the coarse score: over the best distinct
     // alternative's (both before the polish, as the alternatives are).
-    let distinct: Vec<usize> = (1..refined.len())
-        .filter(|&i| transform_distance(&refined[i].1, &best) > DISTINCT_PX)
-        .collect();
-    let ratio = |mine: f64, of: &dyn Fn(usize) -> f64| {
-        let other = distinct
-            .iter()
-            .map(|&i| of(i))
-            .fold(f64::NEG_INFINITY, f64::max);
-        if other > 0.0 {
-            (mine / other).min(MAX_RATIO)
-        } else {
-            MAX_RATIO
-        }
-    };
-    features.coarse_ratio = ratio(best_score, &|i| refined[i].0);
+    (features.coarse_ratio, features.choice_ratio) = distinct_ratios(&refined, &keys, 0);
     features.choice = keys[0];
-    features.choice_ratio = ratio(keys[0], &|i| keys[i]);
     let score = options.accept.margin(&features);
     // Only for what could be merged (down to the operating curve's lowest offset): each map's
     // self-match costs an alignment (cached in the map).
@@ -294,27 +279,12 @@ pub fn align_prepared_with(
     });
     // Each other candidate's ratios over the best candidate distinct from it, and its rule value.
     let mut candidates: Vec<Candidate> = Vec::with_capacity(refined.len());
-    for (i, &(coarse, transform, mut f)) in refined.iter().enumerate() {
+    for (i, &(_, transform, mut f)) in refined.iter().enumerate() {
         if i == 0 {
             f = features;
         } else {
-            let (mut other_coarse, mut other_key) = (f64::NEG_INFINITY, f64::NEG_INFINITY);
-            for (j, r) in refined.iter().enumerate() {
-                if j != i && transform_distance(&r.1, &transform) > DISTINCT_PX {
-                    other_coarse = other_coarse.max(r.0);
-                    other_key = other_key.max(keys[j]);
-                }
-            }
-            let ratio = |mine: f64, other: f64| {
-                if other > 0.0 {
-                    (mine / other).min(MAX_RATIO)
-                } else {
-                    MAX_RATIO
-                }
-            };
-            f.coarse_ratio = ratio(coarse, other_coarse);
+            (f.coarse_ratio, f.choice_ratio) = distinct_ratios(&refined, &keys, i);
             f.choice = keys[i];
-            f.choice_ratio = ratio(keys[i], other_key);
         }
         let score = if i == 0 {
             score
@@ -335,6 +305,26 @@ pub fn align_prepared_with(
         reason,
         candidates,
     })
+}
+
+/// Candidate `i`'s coarse score and choice key (`keys`) over the best of the candidates distinct from it
+/// (more than [`DISTINCT_PX`] apart), each at most [`MAX_RATIO`] (also when there is none).
+fn distinct_ratios(refined: &[(f64, Rigid, Features)], keys: &[f64], i: usize) -> (f64, f64) {
+    let (mut other_coarse, mut other_key) = (f64::NEG_INFINITY, f64::NEG_INFINITY);
+    for (j, r) in refined.iter().enumerate() {
+        if j != i && transform_distance(&r.1, &refined[i].1) > DISTINCT_PX {
+            other_coarse = other_coarse.max(r.0);
+            other_key = other_key.max(keys[j]);
+        }
+    }
+    let ratio = |mine: f64, other: f64| {
+        if other > 0.0 {
+            (mine / other).min(MAX_RATIO)
+        } else {
+            MAX_RATIO
+        }
+    };
+    (ratio(refined[i].0, other_coarse), ratio(keys[i], other_key))
 }
 
 /// A declined alignment with no candidate.

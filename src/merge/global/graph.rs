@@ -9,7 +9,7 @@ use super::{Edge, GlobalOptions, Pairwise};
 use crate::backend::Backend;
 use crate::error::Result;
 use crate::map::OccupancyMap;
-use crate::merge::accept::{contradiction, Features, MAX_CONTRADICTION, MAX_FINE_CONFLICT};
+use crate::merge::accept::Features;
 use crate::merge::align::{align_prepared_with, check, Prepared};
 use crate::merge::mosaic::compose_many;
 use crate::merge::transform::Rigid;
@@ -22,12 +22,6 @@ pub const LOOP_DEG: f64 = 5.0;
 pub const LOOP_PX: f64 = 60.0;
 /// A group's placement into another is ambiguous when a distinct one has this share of its support.
 pub const AMBIGUITY: f64 = 0.5;
-
-/// Whether a candidate passes the pair test's contradiction vetoes (the self-symmetry aside: cycles are
-/// what settle a symmetric map's placement).
-pub fn passes_vetoes(f: &Features) -> bool {
-    f.conflict_fine <= MAX_FINE_CONFLICT && contradiction(f) <= MAX_CONTRADICTION
-}
 
 /// Two maps put together contradict each other densely when less than [`DENSE_FREE_AGREE`] of the free
 /// space falling in the other's known area lands on its free space (with at least [`DENSE_FREE_INSIDE`] of

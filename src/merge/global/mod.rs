@@ -25,7 +25,9 @@ pub mod report;
 
 use serde::Serialize;
 
-use super::align::{align_prepared, overlap_centre, Candidate, MergeOptions, Prepared};
+use super::align::{
+    align_prepared, not_contradicted, overlap_centre, Candidate, MergeOptions, Prepared,
+};
 use super::transform::Rigid;
 use crate::error::Result;
 
@@ -181,7 +183,8 @@ pub fn align_all(
 }
 
 /// A pair's usable candidates as edges: the accepted choice, and every candidate from the weak rule
-/// value on that no veto declines.
+/// value on that no contradiction veto declines (the self-symmetry aside: cycles are what settle a
+/// symmetric map's placement).
 fn edges_of(
     (a, pa): (usize, &Prepared),
     (b, pb): (usize, &Prepared),
@@ -194,7 +197,7 @@ fn edges_of(
         .enumerate()
         .filter(|(rank, c)| {
             (*rank == 0 && accepted)
-                || (c.score >= options.weak_from && graph::passes_vetoes(&c.features))
+                || (c.score >= options.weak_from && not_contradicted(&c.features))
         })
         .map(|(rank, c)| Edge {
             a,
