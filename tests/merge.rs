@@ -311,6 +311,13 @@ fn merge_command_verdicts_exit_codes_and_the_merged_yaml() {
         String::from_utf8_lossy(&o.stderr)
     );
     assert!(!d.path().join("n.pgm").exists());
+    // A picture that cannot be written leaves no merged map either.
+    #[cfg(target_os = "linux")]
+    {
+        let o = run(&["a.yaml", "a.yaml", "-o", "f.yaml", "--overlay", "/dev/full"]);
+        assert_eq!(o.status.code(), Some(1));
+        assert!(!d.path().join("f.yaml").exists() && !d.path().join("f.pgm").exists());
+    }
     // The scoring on the reference backend gives the same verdict as on the default one.
     let o = run(&[
         "a.yaml",

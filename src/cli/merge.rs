@@ -162,18 +162,26 @@ pub(super) fn run(a: MergeArgs, budget: &Budget) -> Result<()> {
             al.reason.unwrap_or_else(|| "not confident".to_string()),
         ));
     }
+    // The merged map, its yaml and the picture renamed into place together: a failure leaves none.
+    let mut staged = files::Staged::default();
+    let mut wrote = Vec::new();
     if let Some(pgm) = &pgm_out {
         let merged = compose::compose(&map_a, &map_b, &al.transform)?;
-        merged.image.write_pgm(pgm)?;
+        staged.write(pgm, |out| merged.image.write_pgm_to(out))?;
         if let Some(yaml) = &yaml_out {
-            write_yaml(yaml, pgm, &merged)?;
+            let text = yaml_text(pgm, &merged, "A");
+            staged.write(yaml, |out| out.write_all(text.as_bytes()))?;
         }
-        ogm_corners::say!("ogm-corners: wrote {}", pgm.display());
+        wrote.push(pgm);
     }
     if let Some(png) = &a.overlay {
         let picture = compose::overlay(&map_a, &map_b, &al.transform)?;
-        files::write_png(png, &picture)?;
-        ogm_corners::say!("ogm-corners: wrote {}", png.display());
+        staged.write(png, |out| files::encode_png(out, &picture))?;
+        wrote.push(png);
+    }
+    staged.commit()?;
+    for p in wrote {
+        ogm_corners::say!("ogm-corners: wrote {}", p.display());
     }
     Ok(())
 }
@@ -197,12 +205,6 @@ pub(super) fn output_names(o: Option<&Path>) -> Result<(Option<PathBuf>, Option<
         ))),
         None => Ok((None, None)),
     }
-}
-
-/// The merged map's yaml: its image beside it, A's resolution, the origin that keeps A's cells in place.
-pub(super) fn write_yaml(yaml: &Path, pgm: &Path, merged: &OccupancyMap) -> Result<()> {
-    let text = yaml_text(pgm, merged, "A");
-    files::write_atomic(yaml, |out| out.write_all(text.as_bytes()))
 }
 
 /// The merged map's yaml text (its image `pgm` beside it); `reference` names the map whose frame it keeps,
