@@ -8,8 +8,8 @@ use ogm_corners::cpu::CpuBackend;
 use ogm_corners::gpu::{GpuBackend, GpuOptions};
 use ogm_corners::synth::{office_map, Rng};
 use ogm_corners::{
-    Backend, Baseline, BaselineParams, ClassTable, MapImage, OccupancyMap, RuleSet, RuleTable,
-    Thresholds,
+    Backend, Baseline, BaselineParams, CellState, ClassTable, MapImage, OccupancyMap, RuleSet,
+    RuleTable, Thresholds,
 };
 
 const VARIANTS: [(RuleSet, bool); 4] = [
@@ -109,6 +109,90 @@ fn odd_thresholds_and_negate() {
     ] {
         assert_same(&mut gpu, &img, &t, "grey map");
     }
+}
+
+#[test]
+fn class_tables_that_are_not_intervals() {
+    // The kernel classifies by interval compares when each state's values are an interval (the ROS
+    // thresholds always give that) and falls back to the table otherwise: exercise the fallback, and the
+    // empty sets.
+    let Some(mut gpu) = common::gpu_backend(GpuOptions::default()) else {
+        return;
+    };
+    let img = common::random_map(300, 77, 5);
+    let mut rng = Rng::new(3);
+    let states = [CellState::Free, CellState::Unknown, CellState::Occupied];
+    let scattered: [CellState; 256] = std::array::from_fn(|_| states[rng.range(0, 3) as usize]);
+    let grey = grey_map(190, 130, 9);
+    for table in [
+        scattered,
+        [CellState::Unknown; 256],
+        [CellState::Free; 256],
+        std::array::from_fn(|v| {
+            if v % 2 == 0 {
+                CellState::Free
+            } else {
+                CellState::Occupied
+            }
+        }),
+    ] {
+        let classes = ClassTable::from_states(table);
+        for map in [&img, &grey] {
+            for (set, uao) in VARIANTS {
+                let rules = RuleTable::new(set);
+                let want = CpuBackend.detect(map, &classes, &rules, uao).unwrap();
+                assert_eq!(gpu.detect(map, &classes, &rules, uao).unwrap(), want);
+            }
+        }
+    }
+}
+
+#[test]
+fn the_device_scan_matches_the_reference() {
+    let Some(mut gpu) = common::gpu_backend(GpuOptions::default()) else {
+        return;
+    };
+    let mut rng = Rng::new(8);
+    // One block, exactly one, one more, and three levels.
+    for n in [0usize, 1, 7, 1023, 1024, 1025, 5000, (1 << 20) + 3] {
+        let counts: Vec<u32> = (0..n).map(|_| rng.range(0, 40)).collect();
+        assert_eq!(
+            gpu.scan(&counts).unwrap(),
+            ogm_corners::cpu::scan::exclusive_scan(&counts),
+            "{n} counts"
+        );
+    }
+}
+
+#[test]
+fn a_workgroup_scratch_overflow_reruns_with_more_room() {
+    let img = common::random_map(500, 90, 12);
+    let Some(mut gpu) = common::gpu_backend(GpuOptions {
+        initial_workgroup_scratch: 1,
+        ..GpuOptions::default()
+    }) else {
+        return;
+    };
+    let n = assert_same(
+        &mut gpu,
+        &img,
+        &Thresholds::default(),
+        "one-keypoint scratch",
+    );
+    assert!(n > 1000, "{n}");
+    // The first call overflowed and ran again with room; the grown scratch is kept for the next.
+    let classes = ClassTable::default();
+    let rules = RuleTable::new(RuleSet::Paper);
+    let mut fresh = common::gpu_backend(GpuOptions {
+        initial_workgroup_scratch: 1,
+        ..GpuOptions::default()
+    })
+    .unwrap();
+    let want = CpuBackend.detect(&img, &classes, &rules, false).unwrap();
+    assert_eq!(fresh.detect(&img, &classes, &rules, false).unwrap(), want);
+    assert!(fresh.stats().scratch_reruns > 0, "{:?}", fresh.stats());
+    assert_eq!(fresh.detect(&img, &classes, &rules, false).unwrap(), want);
+    assert_eq!(fresh.stats().scratch_reruns, 0, "{:?}", fresh.stats());
 }
 
 #[test]

@@ -34,13 +34,15 @@ fn entries(m: &naga::Module) -> Vec<String> {
 }
 
 #[test]
-fn ogm_kernels_validate_and_share_the_parameter_layout() {
-    let classify = validate_kernel("classify", false);
+fn ogm_kernels_validate_and_their_parameters_match_the_host() {
     let corners = validate_kernel("ogm_corners", false);
-    assert_eq!(struct_size(&classify, "Params"), 64);
-    assert_eq!(struct_size(&corners, "Params"), 64);
-    assert_eq!(entries(&classify), ["classify"]);
-    assert_eq!(entries(&corners), ["count", "write"]);
+    // src/gpu/ogm.rs OgmParams: 24 four-byte fields.
+    assert_eq!(struct_size(&corners, "Params"), 96);
+    assert_eq!(entries(&corners), ["detect", "scatter", "finish"]);
+    let scan = validate_kernel("scan", false);
+    // src/gpu/scan.rs ScanParams: 4 four-byte fields.
+    assert_eq!(struct_size(&scan, "Params"), 16);
+    assert_eq!(entries(&scan), ["scan_blocks", "scan_add"]);
 }
 
 #[test]

@@ -8,6 +8,7 @@ pub mod gaussian_blur;
 pub mod harris;
 pub mod merge_score;
 pub mod ogm_corners;
+pub mod scan;
 pub mod shi_tomasi;
 pub mod structure_tensor;
 pub mod trajkovic;

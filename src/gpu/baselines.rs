@@ -77,6 +77,34 @@ impl GpuBackend {
         Ok(p)
     }
 
+    /// Uploads the tile's rectangle, rows padded to whole words, through the staging ring; the copy is
+    /// submitted at once and runs before the passes submitted after it.
+    fn upload_band(&mut self, image: &MapImage, t: &tiles::Tile) -> Result<wgpu::Buffer> {
+        let pitch = t.stride() as usize * 4;
+        let iw = image.width() as usize;
+        let rows: Vec<buffers::RowCopy> = (0..t.buf_h() as usize)
+            .map(|r| buffers::RowCopy {
+                src: (t.buf[1] as usize + r) * iw + t.buf[0] as usize,
+                dst: r * pitch,
+                len: t.buf_w() as usize,
+                pitch,
+            })
+            .collect();
+        let (i, staging) =
+            self.ring
+                .stage(&self.device, t.bytes(), &[], image.pixels(), 0, &rows)?;
+        let buf = self
+            .base_pixels
+            .get(&self.device, t.bytes(), self.max_binding)
+            .clone();
+        let mut encoder = self.device.create_command_encoder(&Default::default());
+        encoder.copy_buffer_to_buffer(&staging, 0, &buf, 0, t.bytes());
+        self.ring.recycle(i, &encoder);
+        let index = self.queue.submit([encoder.finish()]);
+        self.ring.submitted(i, index);
+        Ok(buf)
+    }
+
     /// Runs one baseline tile and writes its core's scores into `out` (the whole map's score map).
     pub(super) fn run_baseline_tile(
         &mut self,
@@ -131,7 +159,7 @@ impl GpuBackend {
             .write_buffer(&self.bp_buf, 0, bytemuck::bytes_of(&on_buf));
         self.queue
             .write_buffer(&self.bp_core, 0, bytemuck::bytes_of(&on_core));
-        let raw = self.upload(image, t, 0);
+        let raw = self.upload_band(image, t)?;
         let scores = self
             .scores
             .get(&self.device, core_px * 8, self.max_binding)

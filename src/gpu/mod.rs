@@ -6,16 +6,20 @@
 
 mod adapter;
 mod baselines;
+mod buffers;
 mod coarsen;
 mod merge_score;
 mod ogm;
+mod scan;
 pub mod tiles;
 
 use adapter::{choose, looked_for, report};
 pub use adapter::{list_adapters, AdapterReport};
 use baselines::{BParams, BASELINE_BYTES_PER_PX, BASELINE_HALO};
+use buffers::{Ring, Slot};
+use ogm::{OgmBuffers, OgmPipelines};
 
-use std::sync::{mpsc, Arc, Mutex};
+use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use wgpu::util::DeviceExt;
@@ -28,42 +32,18 @@ use crate::map::MapImage;
 use crate::rules::RuleTable;
 use crate::states::ClassTable;
 
-/// Workgroup size of every kernel; each invocation handles one word of four pixels.
+/// Workgroup size of the baseline, coarsening and scoring kernels.
 const WORKGROUP: u32 = 256;
-/// Bytes of one keypoint in the output buffer: x, y, rule, code as u32.
-const KEYPOINT_BYTES: u64 = 16;
-
-/// The kernel parameters, laid out as `struct Params` in both shaders.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Default, bytemuck::Pod, bytemuck::Zeroable)]
-struct Params {
-    buf_w: u32,
-    buf_h: u32,
-    stride: u32,
-    words: u32,
-    core_x0: u32,
-    core_y0: u32,
-    core_x1: u32,
-    core_y1: u32,
-    origin_x: u32,
-    origin_y: u32,
-    unknown_as_occupied: u32,
-    groups_x: u32,
-    out_start: u32,
-    out_end: u32,
-    active_len: u32,
-    _pad: u32,
-}
 
 /// The WGSL source of a kernel as the GPU receives it: the baseline kernels get the shared header and the
 /// 64-bit integer library (native with SHADER_INT64, emulated otherwise) prepended. `None` for an unknown
 /// name.
 pub fn shader_source(kernel: &str, native_int64: bool) -> Option<String> {
     let body = match kernel {
-        "classify" => return Some(include_str!("../../shaders/classify.wgsl").to_string()),
         "coarsen" => return Some(include_str!("../../shaders/coarsen.wgsl").to_string()),
         "merge_score" => return Some(include_str!("../../shaders/merge_score.wgsl").to_string()),
         "ogm_corners" => return Some(include_str!("../../shaders/ogm_corners.wgsl").to_string()),
+        "scan" => return Some(include_str!("../../shaders/scan.wgsl").to_string()),
         "gaussian_blur" => include_str!("../../shaders/gaussian_blur.wgsl"),
         "structure_tensor" => include_str!("../../shaders/structure_tensor.wgsl"),
         "harris" => include_str!("../../shaders/harris.wgsl"),
@@ -92,6 +72,9 @@ pub struct GpuOptions {
     pub initial_keypoint_capacity: u32,
     /// Cap on keypoints written per pass; `None` uses the device's binding limit.
     pub max_keypoints_per_pass: Option<u32>,
+    /// Keypoints each OGM workgroup's scratch holds before it first grows (a workgroup that finds more
+    /// makes the call rerun with room for them).
+    pub initial_workgroup_scratch: u32,
     /// Use the exact 64-bit emulation even where the adapter has SHADER_INT64 (to test it).
     pub emulate_int64: bool,
     /// Upload budget of one OGM tile, bytes: a large map streams through the GPU in bands of about this
@@ -107,44 +90,10 @@ impl Default for GpuOptions {
             tile: None,
             initial_keypoint_capacity: 1 << 16,
             max_keypoints_per_pass: None,
+            initial_workgroup_scratch: 512,
             emulate_int64: false,
             max_tile_bytes: 64 << 20,
         }
-    }
-}
-
-/// A reusable buffer that grows (to the next power of two) when a call needs more.
-struct Slot {
-    buffer: Option<wgpu::Buffer>,
-    size: u64,
-    usage: wgpu::BufferUsages,
-    label: &'static str,
-}
-
-impl Slot {
-    fn new(label: &'static str, usage: wgpu::BufferUsages) -> Self {
-        Slot {
-            buffer: None,
-            size: 0,
-            usage,
-            label,
-        }
-    }
-
-    /// A buffer of at least `size` bytes (rounded up to 16); `cap` bounds the growth.
-    fn get(&mut self, device: &wgpu::Device, size: u64, cap: u64) -> &wgpu::Buffer {
-        let size = size.max(16).next_multiple_of(16);
-        if self.buffer.is_none() || self.size < size {
-            let grown = size.next_power_of_two().min(cap.max(size));
-            self.buffer = Some(device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some(self.label),
-                size: grown,
-                usage: self.usage,
-                mapped_at_creation: false,
-            }));
-            self.size = grown;
-        }
-        self.buffer.as_ref().expect("buffer was just created")
     }
 }
 
@@ -155,6 +104,8 @@ pub struct GpuStats {
     pub tiles: usize,
     /// Write passes run (more than the tiles with keypoints when the output exceeded one pass).
     pub write_passes: usize,
+    /// OGM runs repeated because a workgroup found more keypoints than its scratch held.
+    pub scratch_reruns: usize,
     /// Keypoint buffer capacity after the call, in keypoints.
     pub keypoint_capacity: u64,
     /// Kernel time measured on the GPU (timestamp queries), when the adapter supports it.
@@ -167,29 +118,25 @@ pub struct GpuBackend {
     device: wgpu::Device,
     queue: wgpu::Queue,
     options: GpuOptions,
-    classify: wgpu::ComputePipeline,
-    count: wgpu::ComputePipeline,
-    write: wgpu::ComputePipeline,
-    params: wgpu::Buffer,
-    class_table: wgpu::Buffer,
-    rule_table: wgpu::Buffer,
-    /// Two pixel buffers: one tile is classified from one while the next uploads into the other.
-    pixels: [Slot; 2],
-    states: Slot,
-    counts: Slot,
-    offsets: Slot,
-    keypoints: Slot,
+    /// The OGM detector's pipelines and buffers (ogm.rs, scan.rs).
+    ogm: OgmPipelines,
+    ogm_bufs: OgmBuffers,
+    /// Staging buffers for the map's bands, recycled (buffers.rs).
+    ring: Ring,
     readback: Slot,
+    /// Start and end timestamps of the baseline, coarsening and scoring passes.
     timestamps: Option<(wgpu::QuerySet, wgpu::Buffer, wgpu::Buffer)>,
     max_binding: u64,
     max_groups: u32,
     error: Arc<Mutex<Option<String>>>,
     stats: GpuStats,
+    /// Host copy of a padded band for the coarsening and scoring kernels.
     staging: Vec<u8>,
     native_int64: bool,
     kernel_pipelines: std::collections::HashMap<&'static str, wgpu::ComputePipeline>,
     bp_buf: wgpu::Buffer,
     bp_core: wgpu::Buffer,
+    base_pixels: Slot,
     blurred: Slot,
     tensor: Slot,
     scores: Slot,
@@ -244,46 +191,6 @@ impl GpuBackend {
             let mut s = slot.lock().unwrap_or_else(|p| p.into_inner());
             s.get_or_insert_with(|| e.to_string().replace('\n', " "));
         }));
-        let module = |label, src: &str| {
-            device.create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some(label),
-                source: wgpu::ShaderSource::Wgsl(src.into()),
-            })
-        };
-        let classify_mod = module("classify.wgsl", include_str!("../../shaders/classify.wgsl"));
-        let corners_mod = module(
-            "ogm_corners.wgsl",
-            include_str!("../../shaders/ogm_corners.wgsl"),
-        );
-        let pipeline = |m: &wgpu::ShaderModule, entry: &str| {
-            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                label: Some(entry),
-                layout: None,
-                module: m,
-                entry_point: Some(entry),
-                compilation_options: Default::default(),
-                cache: None,
-            })
-        };
-        let classify = pipeline(&classify_mod, "classify");
-        let count = pipeline(&corners_mod, "count");
-        let write = pipeline(&corners_mod, "write");
-        let storage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST;
-        let table = |label| {
-            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some(label),
-                contents: &[0u8; 1024],
-                usage: storage,
-            })
-        };
-        let class_table = table("class_table");
-        let rule_table = table("rule_table");
-        let params = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("params"),
-            size: std::mem::size_of::<Params>() as u64,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
         let timestamps = report.timestamp_query.then(|| {
             let set = device.create_query_set(&wgpu::QuerySetDescriptor {
                 label: Some("kernel timestamps"),
@@ -304,7 +211,6 @@ impl GpuBackend {
             });
             (set, resolve, read)
         });
-        let copy_src = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC;
         let uniform = |label| {
             device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some(label),
@@ -313,35 +219,30 @@ impl GpuBackend {
                 mapped_at_creation: false,
             })
         };
-        let bp_buf = uniform("baseline params (buffer pixels)");
-        let bp_core = uniform("baseline params (core pixels)");
+        let storage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST;
         let backend = GpuBackend {
             native_int64,
             kernel_pipelines: Default::default(),
-            bp_buf,
-            bp_core,
+            bp_buf: uniform("baseline params (buffer pixels)"),
+            bp_core: uniform("baseline params (core pixels)"),
+            base_pixels: Slot::new("baseline pixels", storage),
             blurred: Slot::new("blurred", wgpu::BufferUsages::STORAGE),
             tensor: Slot::new("tensor", wgpu::BufferUsages::STORAGE),
-            scores: Slot::new("scores", copy_src),
+            scores: Slot::new(
+                "scores",
+                wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            ),
             max_binding: limits
                 .max_storage_buffer_binding_size
                 .min(limits.max_buffer_size),
             max_groups: limits.max_compute_workgroups_per_dimension,
+            ogm: OgmPipelines::new(&device),
+            ogm_bufs: OgmBuffers::new(&device, options.initial_workgroup_scratch),
+            ring: Ring::new(2),
             adapter: report,
             device,
             queue,
             options,
-            classify,
-            count,
-            write,
-            params,
-            class_table,
-            rule_table,
-            pixels: [Slot::new("pixels", storage), Slot::new("pixels", storage)],
-            states: Slot::new("states", wgpu::BufferUsages::STORAGE),
-            counts: Slot::new("counts", copy_src),
-            offsets: Slot::new("offsets", storage),
-            keypoints: Slot::new("keypoints", copy_src),
             readback: Slot::new(
                 "readback",
                 wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
@@ -358,24 +259,6 @@ impl GpuBackend {
     /// The adapter in use.
     pub fn adapter(&self) -> &AdapterReport {
         &self.adapter
-    }
-
-    /// The time to upload `image` alone, tile by tile as [`Backend::detect`] does, and wait for it: the floor
-    /// that end-to-end times are compared with.
-    pub fn upload_time(&mut self, image: &MapImage) -> Result<Duration> {
-        self.check()?;
-        let (w, h) = (image.width(), image.height());
-        let plan = self.ogm_plan(w, h)?;
-        let start = std::time::Instant::now();
-        for (i, t) in plan.iter().enumerate() {
-            self.upload(image, t, i % 2);
-            self.queue.submit([]);
-        }
-        self.device
-            .poll(wgpu::PollType::wait_indefinitely())
-            .map_err(|e| Error::Internal(format!("GPU poll failed: {e}")))?;
-        self.check()?;
-        Ok(start.elapsed())
     }
 
     /// Statistics of the last call.
@@ -428,71 +311,9 @@ impl GpuBackend {
     }
 
     fn map_read(&self, buf: &wgpu::Buffer, size: u64) -> Result<Vec<u8>> {
-        let slice = buf.slice(0..size);
-        let (tx, rx) = mpsc::channel();
-        slice.map_async(wgpu::MapMode::Read, move |r| {
-            let _ = tx.send(r);
-        });
-        self.device
-            .poll(wgpu::PollType::wait_indefinitely())
-            .map_err(|e| Error::Internal(format!("GPU poll failed: {e}")))?;
+        let data = buffers::map_read(&self.device, buf, size)?;
         self.check()?;
-        rx.recv()
-            .map_err(|_| Error::Internal("GPU buffer map was dropped".into()))?
-            .map_err(|e| Error::Internal(format!("GPU buffer map failed: {e}")))?;
-        let data = slice
-            .get_mapped_range()
-            .map_err(|e| Error::Internal(format!("GPU buffer map failed: {e}")))?
-            .to_vec();
-        buf.unmap();
         Ok(data)
-    }
-
-    /// The OGM tiles of a `w` x `h` map: bands within the device's binding limit and the tile budget.
-    fn ogm_plan(&self, w: u32, h: u32) -> Result<Vec<tiles::Tile>> {
-        let budget = self.max_binding.min(self.options.max_tile_bytes.max(1));
-        let (tw, th) = tiles::tile_size(w, h, budget, self.options.tile).ok_or_else(|| {
-            Error::Unavailable(format!(
-                "{}'s buffer limit ({} bytes) is too small for any tile",
-                self.adapter.name, budget
-            ))
-        })?;
-        Ok(tiles::plan(w, h, tw, th, 1))
-    }
-
-    /// Queues the upload of the tile's pixels into pixel buffer `slot` (it reaches the GPU with the next
-    /// submission) and returns that buffer. Full-width tiles of a width divisible by four are the image's
-    /// own rows, so they go without a staging copy.
-    fn upload(&mut self, image: &MapImage, t: &tiles::Tile, slot: usize) -> wgpu::Buffer {
-        let buf = self.pixels[slot]
-            .get(&self.device, t.bytes(), self.max_binding)
-            .clone();
-        let iw = image.width() as usize;
-        if t.buf[0] == 0 && t.buf_w() as usize == iw && iw % 4 == 0 {
-            let rows = &image.pixels()[t.buf[1] as usize * iw..t.buf[3] as usize * iw];
-            self.queue.write_buffer(&buf, 0, rows);
-        } else {
-            self.stage(image, t);
-            self.queue.write_buffer(&buf, 0, &self.staging);
-        }
-        buf
-    }
-
-    /// Copies the tile's rectangle into the word-padded staging buffer.
-    fn stage(&mut self, image: &MapImage, t: &tiles::Tile) {
-        let (w, stride_bytes) = (t.buf_w() as usize, t.stride() as usize * 4);
-        self.staging.clear();
-        self.staging.resize(stride_bytes * t.buf_h() as usize, 0);
-        let iw = image.width() as usize;
-        for (r, y) in (t.buf[1]..t.buf[3]).enumerate() {
-            let src = y as usize * iw + t.buf[0] as usize;
-            self.staging[r * stride_bytes..r * stride_bytes + w]
-                .copy_from_slice(&image.pixels()[src..src + w]);
-        }
-    }
-
-    fn dispatch_shape(&self, words: u32) -> (u32, u32) {
-        self.dispatch_shape_groups(words.div_ceil(WORKGROUP))
     }
 
     /// A 2D dispatch of at least `groups` workgroups within the per-dimension limit.
@@ -655,33 +476,7 @@ impl Backend for GpuBackend {
             kernel_time: self.timestamps.as_ref().map(|_| Duration::ZERO),
             ..GpuStats::default()
         };
-        let class_words: Vec<u32> = classes.states().iter().map(|&s| s as u32).collect();
-        let rule_words: Vec<u32> = rules.as_bytes().iter().map(|&r| u32::from(r)).collect();
-        self.queue
-            .write_buffer(&self.class_table, 0, bytemuck::cast_slice(&class_words));
-        self.queue
-            .write_buffer(&self.rule_table, 0, bytemuck::cast_slice(&rule_words));
-        let (w, h) = (image.width(), image.height());
-        let plan = self.ogm_plan(w, h)?;
-        self.stats.tiles = plan.len();
-        let mut out = Vec::new();
-        if let Some(first) = plan.first() {
-            self.upload(image, first, 0);
-        }
-        for (i, t) in plan.iter().enumerate() {
-            self.run_tile(
-                image,
-                t,
-                i % 2,
-                plan.get(i + 1),
-                unknown_as_occupied,
-                &mut out,
-            )?;
-        }
-        if plan.iter().any(|t| t.core[2] - t.core[0] < w) {
-            // Tiles side by side interleave rows; restore (y, x) order.
-            out.sort_unstable();
-        }
+        let out = self.ogm_detect(image, classes, rules, unknown_as_occupied)?;
         self.check()?;
         Ok(out)
     }

@@ -32,9 +32,12 @@ impl Tile {
     }
 }
 
-/// Bytes one tile's padded upload needs for a core of `w` x `h` (halo included, worst case).
+/// Pixels the OGM kernel's rows are padded to: one invocation's run.
+pub const ROW_ALIGN: u32 = 32;
+
+/// Bytes one OGM tile's padded upload needs for a core of `w` x `h` (halo included, worst case).
 pub fn tile_bytes(w: u32, h: u32) -> u64 {
-    u64::from((w + 2).div_ceil(4)) * 4 * u64::from(h + 2)
+    u64::from((w + 2).div_ceil(ROW_ALIGN)) * u64::from(ROW_ALIGN) * u64::from(h + 2)
 }
 
 /// The core size to use for a `width` x `height` map when one tile's upload may take `max_bytes`:
@@ -53,7 +56,7 @@ pub fn tile_size(
         return Some((tw, th));
     }
     // Full-width bands of as many rows as fit, if at least a few rows fit.
-    let row = u64::from((tw + 2).div_ceil(4)) * 4;
+    let row = u64::from((tw + 2).div_ceil(ROW_ALIGN)) * u64::from(ROW_ALIGN);
     let rows = (max_bytes / row).saturating_sub(2);
     if rows >= 16 {
         return Some((tw, rows.min(u64::from(th)) as u32));
@@ -110,18 +113,31 @@ pub fn tile_size_halo(
 /// The tiles covering a `width` x `height` map with cores of `tw` x `th`, row by row, each buffer holding
 /// `halo` more pixels on every side where the map extends.
 pub fn plan(width: u32, height: u32, tw: u32, th: u32, halo: u32) -> Vec<Tile> {
+    plan_rows(width, height, 0, height, tw, th, halo)
+}
+
+/// [`plan`] for the cores of rows `row0..row1` only (halos still reach into the rows around them).
+pub fn plan_rows(
+    width: u32,
+    height: u32,
+    row0: u32,
+    row1: u32,
+    tw: u32,
+    th: u32,
+    halo: u32,
+) -> Vec<Tile> {
     let mut tiles = Vec::new();
-    for y0 in (0..height).step_by(th as usize) {
-        let y1 = (y0 + th).min(height);
+    for y0 in (row0..row1).step_by(th as usize) {
+        let y1 = y0.saturating_add(th).min(row1);
         for x0 in (0..width).step_by(tw as usize) {
-            let x1 = (x0 + tw).min(width);
+            let x1 = x0.saturating_add(tw).min(width);
             tiles.push(Tile {
                 core: [x0, y0, x1, y1],
                 buf: [
                     x0.saturating_sub(halo),
                     y0.saturating_sub(halo),
-                    (x1 + halo).min(width),
-                    (y1 + halo).min(height),
+                    x1.saturating_add(halo).min(width),
+                    y1.saturating_add(halo).min(height),
                 ],
             });
         }
