@@ -80,11 +80,21 @@ pub struct BenchRecord {
     pub adapter: String,
     pub width: u32,
     pub height: u32,
-    /// `end_to_end` (image in memory to keypoints in memory), `kernel` (GPU timestamp queries; the
-    /// reference's work before keypoint selection) or `upload` (the GPU upload alone).
+    /// `end_to_end` (image in memory to keypoints in memory); `kernel` (the reference's work before
+    /// keypoint selection); on a GPU `kernel_resident` (timestamp queries around the kernels alone, the
+    /// map's band already on the device), `upload` (the bands through the staging ring as the backend
+    /// uploads them, alone) and `upload_ref` (the same bands copied from staging buffers filled
+    /// beforehand: the transfer floor).
     pub stage: &'static str,
     pub median_ms: f64,
     pub mpx_per_s: f64,
+    /// GPU stages: the map's bytes (one a pixel) over the median time, GB/s.
+    pub gb_per_s: Option<f64>,
+    /// `gb_per_s` as a percentage of the device's peak memory bandwidth (`--peak-bandwidth`, or the
+    /// known figure for the adapter), for `kernel_resident`.
+    pub peak_percent: Option<f64>,
+    /// GPU `end_to_end` over `upload_ref`: how far end to end is from the transfer floor.
+    pub vs_upload_ref: Option<f64>,
     pub keypoints: usize,
     /// Peak resident memory of the process while this stage ran (CPU backends, Linux), map included.
     pub peak_rss_mb: Option<f64>,
@@ -237,6 +247,8 @@ pub struct Runner {
     reference: Want,
     gpu_want: Want,
     gpu_info: Option<GpuInfo>,
+    /// The GPU's peak memory bandwidth, GB/s, when known: `kernel_resident` is reported against it.
+    peak_gbs: Option<f64>,
     gpu: Option<GpuBackend>,
     repeat: u32,
     rule_set: RuleSet,
@@ -275,6 +287,9 @@ impl Runner {
                 .map_err(|e| crate::say!("ogm-corners: {cmd}: no GPU rows: {e}"))
                 .ok(),
         };
+        let peak_gbs = gpu
+            .as_ref()
+            .and_then(|g| known_peak_bandwidth(&g.adapter().name));
         let gpu_info = gpu.as_ref().map(|g| {
             let a = g.adapter();
             GpuInfo {
@@ -288,12 +303,21 @@ impl Runner {
             reference,
             gpu_want,
             gpu_info,
+            peak_gbs,
             gpu,
             repeat,
             rule_set,
             params,
             progress: std::io::stderr().is_terminal(),
         })
+    }
+
+    /// Sets the GPU's peak memory bandwidth (GB/s) that `kernel_resident` is reported against, in place of
+    /// the known figure for the adapter.
+    pub fn set_peak_bandwidth(&mut self, gbs: Option<f64>) {
+        if gbs.is_some() {
+            self.peak_gbs = gbs;
+        }
     }
 
     /// The GPU adapter the run found ("name (backend, type)"), if it opened one.
@@ -443,6 +467,9 @@ impl Runner {
             stage,
             median_ms: ms,
             mpx_per_s: mpx / (ms / 1e3),
+            gb_per_s: (engine == Engine::Gpu).then(|| mpx / 1e3 / (ms / 1e3)),
+            peak_percent: None,
+            vs_upload_ref: None,
             keypoints: n,
             peak_rss_mb: mem.map(|m| m.peak_mb),
             peak_rss_ratio: mem.map(|m| m.peak_mb * 1e6 / (f64::from(w) * f64::from(h))),
@@ -494,17 +521,23 @@ impl Runner {
                     Ok(kps)
                 })?;
                 records.push(record("end_to_end", ms, None, kps.len()));
+                let e2e = records.len() - 1;
                 // The warm-up's kernel time is the first entry; the median uses the timed runs only.
                 if kernel.len() > 1 {
-                    records.push(record(
-                        "kernel",
+                    let mut r = record(
+                        "kernel_resident",
                         median(kernel[1..].to_vec()),
                         None,
                         kps.len(),
-                    ));
+                    );
+                    r.peak_percent = self
+                        .peak_gbs
+                        .zip(r.gb_per_s)
+                        .map(|(peak, got)| 100.0 * got / peak);
+                    records.push(r);
                 } else {
                     crate::say!(
-                        "ogm-corners: {}: {} has no timestamp queries; no kernel-only row",
+                        "ogm-corners: {}: {} has no timestamp queries; no kernel_resident row",
                         self.cmd,
                         g.adapter().name
                     );
@@ -514,7 +547,15 @@ impl Runner {
                 for _ in 0..repeat {
                     up.push(g.upload_time(image)?.as_secs_f64() * 1e3);
                 }
+                g.upload_ref_time(image)?;
+                let mut floor = Vec::with_capacity(repeat as usize);
+                for _ in 0..repeat {
+                    floor.push(g.upload_ref_time(image)?.as_secs_f64() * 1e3);
+                }
+                let floor = median(floor);
+                records[e2e].vs_upload_ref = Some(records[e2e].median_ms / floor);
                 records.push(record("upload", median(up), None, kps.len()));
+                records.push(record("upload_ref", floor, None, kps.len()));
                 kps
             }
         };
@@ -546,6 +587,26 @@ impl Runner {
             b.push(format!("gpu = {}", g.label));
         }
         lines.push(format!("# backends: {}", b.join("; ")));
+        if let Some(g) = &self.gpu {
+            let a = g.adapter();
+            lines.push(format!(
+                "# gpu: driver {}; subgroup size {}-{}; timestamp period {} ns; largest binding {} MiB; \
+                 memory heaps not exposed by wgpu (scripts/gpu-bench.sh records vulkaninfo); peak bandwidth {}",
+                a.driver,
+                a.subgroup_sizes.0,
+                a.subgroup_sizes.1,
+                g.timestamp_period(),
+                a.max_storage_buffer_binding_size.min(a.max_buffer_size) >> 20,
+                self.peak_gbs
+                    .map_or("unknown (--peak-bandwidth)".to_string(), |p| format!("{p} GB/s"))
+            ));
+            lines.push(
+                "# gpu stages: kernel_resident = timestamp queries around the kernels alone; upload = the \
+                 bands through the staging ring; upload_ref = the same bands from staging filled beforehand \
+                 (the transfer floor); x ref = end_to_end / upload_ref"
+                    .to_string(),
+            );
+        }
         if let Some(seed) = seed {
             lines.push(format!(
                 "# synthetic: the office map of ogm_corners::synth, seed {seed}"
@@ -560,6 +621,22 @@ impl Runner {
         }
         lines
     }
+}
+
+/// The peak memory bandwidth of GPUs we know by name, GB/s (vendor data sheets).
+fn known_peak_bandwidth(adapter: &str) -> Option<f64> {
+    const KNOWN: [(&str, f64); 6] = [
+        ("H200", 4800.0),
+        ("H100 80GB HBM3", 3350.0),
+        ("H100 PCIe", 2000.0),
+        ("A100-SXM4-80GB", 2039.0),
+        ("L40S", 864.0),
+        ("RTX 4090", 1008.0),
+    ];
+    KNOWN
+        .iter()
+        .find(|(name, _)| adapter.contains(name))
+        .map(|&(_, gbs)| gbs)
 }
 
 #[cfg(test)]
@@ -577,6 +654,7 @@ mod tests {
                 label: "test".into(),
                 software,
             }),
+            peak_gbs: None,
             gpu: None,
             repeat: 1,
             rule_set: RuleSet::Paper,

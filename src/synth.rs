@@ -95,6 +95,64 @@ pub fn check_office_size(width: u32, height: u32) -> Result<()> {
     Ok(())
 }
 
+/// Maps above this many pixels are made by [`office_map_parallel`] in the tools that time them.
+pub const PARALLEL_PIXELS: u64 = 1 << 28;
+/// Side of the offices [`office_map_parallel`] tiles a large map with.
+const PARALLEL_TILE: u32 = 8192;
+
+/// A large synthetic map made on all threads: a grid of independent offices of about 8192 x 8192 (the
+/// last row and column absorb the remainder), each [`office_map`] with its own seed derived from `seed`
+/// and its place. Deterministic; for maps whose single-threaded drawing would dominate a benchmark
+/// (65536 x 65536 is 4 GiB).
+pub fn office_map_parallel(width: u32, height: u32, seed: u64) -> Result<MapImage> {
+    use rayon::prelude::*;
+    check_office_size(width, height)?;
+    let cuts = |n: u32| -> Vec<(u32, u32)> {
+        let k = (n / PARALLEL_TILE).max(1);
+        (0..k)
+            .map(|i| {
+                (
+                    i * PARALLEL_TILE,
+                    if i + 1 == k {
+                        n
+                    } else {
+                        (i + 1) * PARALLEL_TILE
+                    },
+                )
+            })
+            .collect()
+    };
+    let (xs, ys) = (cuts(width), cuts(height));
+    let w = width as usize;
+    let mut px = vec![UNKNOWN; w * height as usize];
+    // Each band of tiles is drawn and copied by one task, a tile at a time; the bands are disjoint slices of
+    // the map, so the extra memory is one tile per thread.
+    let mut bands: Vec<(&mut [u8], u32, u32)> = Vec::with_capacity(ys.len());
+    let mut rest = px.as_mut_slice();
+    for &(y0, y1) in &ys {
+        let (band, tail) = rest.split_at_mut((y1 - y0) as usize * w);
+        bands.push((band, y0, y1));
+        rest = tail;
+    }
+    bands
+        .into_par_iter()
+        .enumerate()
+        .try_for_each(|(ty, (band, y0, y1))| -> Result<()> {
+            for (tx, &(x0, x1)) in xs.iter().enumerate() {
+                let s =
+                    seed ^ (((ty as u64) << 32) | tx as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15);
+                let t = office_map(x1 - x0, y1 - y0, s)?;
+                let tw = t.width() as usize;
+                for (r, row) in t.pixels().chunks_exact(tw).enumerate() {
+                    let at = r * w + x0 as usize;
+                    band[at..at + tw].copy_from_slice(row);
+                }
+            }
+            Ok(())
+        })?;
+    MapImage::new(width, height, px)
+}
+
 /// A synthetic office floor as a SLAM map would show it: rooms from recursive splits, corridors, doors,
 /// walls 1-3 px thick, furniture, a few unexplored rooms, sensor speckle and ragged walls, and unknown space
 /// outside the building. The same (size, seed) always gives the same map.

@@ -479,7 +479,9 @@ fn bench_sizes_and_maps_in_one_run_and_the_gpu_rows() {
                 ("cpu", "end_to_end"),
                 ("reference", "end_to_end"),
                 ("gpu", "end_to_end"),
+                ("gpu", "kernel_resident"),
                 ("gpu", "upload"),
+                ("gpu", "upload_ref"),
             ] {
                 assert!(
                     recs.iter()
@@ -491,7 +493,12 @@ fn bench_sizes_and_maps_in_one_run_and_the_gpu_rows() {
         assert!(recs
             .iter()
             .filter(|r| r["backend"] == "gpu")
-            .all(|r| r["peak_rss_mb"].is_null()));
+            .all(|r| r["peak_rss_mb"].is_null() && r["gb_per_s"].as_f64().unwrap() > 0.0));
+        // End to end is reported against the transfer floor.
+        assert!(recs
+            .iter()
+            .filter(|r| r["backend"] == "gpu" && r["stage"] == "end_to_end")
+            .all(|r| r["vs_upload_ref"].as_f64().unwrap() > 0.0));
     }
 }
 

@@ -69,3 +69,29 @@ fn the_generator_is_stable_across_versions() {
         );
     }
 }
+
+#[test]
+fn large_maps_are_tiled_with_offices_drawn_in_parallel() {
+    use ogm_corners::synth::{office_map, office_map_parallel};
+    // Under two tiles a side it is the plain office map; above, the first tile is an office of its own.
+    assert_eq!(
+        office_map_parallel(300, 200, 5).unwrap(),
+        office_map(300, 200, 5).unwrap()
+    );
+    let big = office_map_parallel(16_400, 40, 5).unwrap();
+    assert_eq!(big, office_map_parallel(16_400, 40, 5).unwrap());
+    let first = office_map(8192, 40, 5).unwrap();
+    for y in 0..40usize {
+        assert_eq!(
+            &big.pixels()[y * 16_400..y * 16_400 + 8192],
+            &first.pixels()[y * 8192..(y + 1) * 8192],
+            "row {y}"
+        );
+    }
+    // The second tile is a different office, not a copy.
+    let differs = (0..40usize).any(|y| {
+        big.pixels()[y * 16_400 + 8192..y * 16_400 + 16_384]
+            != first.pixels()[y * 8192..(y + 1) * 8192]
+    });
+    assert!(differs, "the second tile repeats the first");
+}

@@ -61,6 +61,10 @@ pub(super) struct BenchArgs {
     /// Rule reading (OGM detector).
     #[arg(long, value_enum, default_value = "paper")]
     rules: RulesArg,
+    /// The GPU's peak memory bandwidth in GB/s, which kernel_resident is reported against (known GPUs,
+    /// such as the H200's 4800, need none).
+    #[arg(long, value_name = "GB/s", value_parser = parse_bandwidth)]
+    peak_bandwidth: Option<f64>,
     #[command(flatten)]
     baseline: BaselineArgs,
     /// Output format.
@@ -168,6 +172,14 @@ fn bench_bytes(kinds: &[DetectorKind], w: u32, h: u32) -> u64 {
         .unwrap_or(0)
 }
 
+/// A bandwidth in GB/s: a positive finite number.
+fn parse_bandwidth(s: &str) -> std::result::Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
+        _ => Err(format!("expected a positive number of GB/s, got {s:?}")),
+    }
+}
+
 pub(super) fn bench(a: BenchArgs, budget: &Budget) -> Result<()> {
     let kinds = detector_list(&a.detector);
     let sizes = if a.maps.is_empty() && a.size.is_empty() {
@@ -239,6 +251,7 @@ pub(super) fn bench(a: BenchArgs, budget: &Budget) -> Result<()> {
         a.rules.into(),
         a.baseline.params(),
     )?;
+    runner.set_peak_bandwidth(a.peak_bandwidth);
     let label_w = sources
         .iter()
         .map(|s| match s {
@@ -252,7 +265,7 @@ pub(super) fn bench(a: BenchArgs, budget: &Budget) -> Result<()> {
     if text {
         let mut lines = runner.header((!sizes.is_empty()).then_some(a.seed));
         lines.push(format!(
-            "{:<label_w$}  {:<11}  {:<10}  {:<9}  {:<10}  {:>10}  {:>9}  {:>9}  {:>9}  {:>6}  {:>8}",
+            "{:<label_w$}  {:<11}  {:<10}  {:<9}  {:<15}  {:>10}  {:>9}  {:>9}  {:>9}  {:>6}  {:>8}  {:>8}  {:>6}  {:>6}",
             "map",
             "size",
             "detector",
@@ -263,7 +276,10 @@ pub(super) fn bench(a: BenchArgs, budget: &Budget) -> Result<()> {
             "keypoints",
             "peak MB",
             "x map",
-            "start MB"
+            "start MB",
+            "GB/s",
+            "% peak",
+            "x ref"
         ));
         write_stdout(|out| {
             for l in &lines {
@@ -277,7 +293,12 @@ pub(super) fn bench(a: BenchArgs, budget: &Budget) -> Result<()> {
     for src in sources {
         let bm = match src {
             Source::Synthetic(w, h) => {
-                let image = synth::office_map(w, h, a.seed)?;
+                // Large maps are drawn on all threads so that making them does not dominate the run.
+                let image = if u64::from(w) * u64::from(h) > synth::PARALLEL_PIXELS {
+                    synth::office_map_parallel(w, h, a.seed)?
+                } else {
+                    synth::office_map(w, h, a.seed)?
+                };
                 let saved = saves[synthetic].clone();
                 synthetic += 1;
                 if let Some(p) = &saved {
@@ -317,7 +338,7 @@ pub(super) fn bench(a: BenchArgs, budget: &Budget) -> Result<()> {
                     };
                     writeln!(
                         out,
-                        "{:<label_w$}  {:<11}  {:<10}  {:<9}  {:<10}  {:>10.3}  {:>9.1}  {:>9}  {:>9}  {:>6}  {:>8}",
+                        "{:<label_w$}  {:<11}  {:<10}  {:<9}  {:<15}  {:>10.3}  {:>9.1}  {:>9}  {:>9}  {:>6}  {:>8}  {:>8}  {:>6}  {:>6}",
                         r.map,
                         format!("{}x{}", r.width, r.height),
                         r.detector,
@@ -328,7 +349,10 @@ pub(super) fn bench(a: BenchArgs, budget: &Budget) -> Result<()> {
                         r.keypoints,
                         f(r.peak_rss_mb, 1),
                         f(r.peak_rss_ratio, 2),
-                        f(r.rss_before_mb, 1)
+                        f(r.rss_before_mb, 1),
+                        f(r.gb_per_s, 2),
+                        f(r.peak_percent, 1),
+                        f(r.vs_upload_ref, 2)
                     )?;
                 }
                 out.flush()

@@ -94,7 +94,7 @@ pub(super) fn run(a: CompareArgs, budget: &Budget) -> Result<()> {
                 cpu_end_to_end_ms: pick("cpu", "end_to_end"),
                 reference_kernel_ms: pick("reference", "kernel"),
                 reference_end_to_end_ms: pick("reference", "end_to_end"),
-                gpu_kernel_ms: pick("gpu", "kernel"),
+                gpu_kernel_ms: pick("gpu", "kernel_resident"),
                 gpu_end_to_end_ms: pick("gpu", "end_to_end"),
             });
             found.push((m.kind, m.keypoints));

@@ -23,6 +23,8 @@ pub struct AdapterReport {
     pub timestamp_query: bool,
     /// Whether 64-bit integers are available in shaders.
     pub shader_int64: bool,
+    /// Smallest and largest subgroup the adapter may run (the kernels assume neither).
+    pub subgroup_sizes: (u32, u32),
 }
 
 pub(super) fn report(a: &wgpu::Adapter) -> AdapterReport {
@@ -30,7 +32,7 @@ pub(super) fn report(a: &wgpu::Adapter) -> AdapterReport {
     let limits = a.limits();
     let features = a.features();
     AdapterReport {
-        name: info.name,
+        name: info.name.clone(),
         backend: format!("{:?}", info.backend),
         device_type: format!("{:?}", info.device_type),
         driver: format!("{} {}", info.driver, info.driver_info)
@@ -41,6 +43,7 @@ pub(super) fn report(a: &wgpu::Adapter) -> AdapterReport {
         max_compute_workgroups_per_dimension: limits.max_compute_workgroups_per_dimension,
         timestamp_query: features.contains(wgpu::Features::TIMESTAMP_QUERY),
         shader_int64: features.contains(wgpu::Features::SHADER_INT64),
+        subgroup_sizes: (info.subgroup_min_size, info.subgroup_max_size),
     }
 }
 

@@ -261,6 +261,11 @@ impl GpuBackend {
         &self.adapter
     }
 
+    /// Nanoseconds per timestamp tick.
+    pub fn timestamp_period(&self) -> f32 {
+        self.queue.get_timestamp_period()
+    }
+
     /// Statistics of the last call.
     pub fn stats(&self) -> GpuStats {
         self.stats
