@@ -139,17 +139,45 @@ pub fn cpu_scores(kind: Baseline, image: &crate::MapImage, p: &ExactParams) -> V
     }
 }
 
-/// Whether scores[i] is at least every in-map 8-neighbour's score (OpenCV's `val == dilate(val)`).
-fn local_max(scores: &[i64], w: usize, h: usize, x: usize, y: usize) -> bool {
-    let v = scores[y * w + x];
-    for ny in y.saturating_sub(1)..(y + 2).min(h) {
-        for nx in x.saturating_sub(1)..(x + 2).min(w) {
-            if scores[ny * w + nx] > v {
-                return false;
-            }
+use crate::cpu::select_maxima::local_max;
+
+/// The selection of [`select`] from the candidates of [`crate::cpu::select_maxima::select_maxima`] (every
+/// positive 3x3 local maximum, in (y, x) order) and the map's largest score, which is all a backend has to
+/// hand over. Identical to [`select`]: Harris keeps the candidates above quality x max, Trajkovic all of
+/// them; for Shi-Tomasi a pixel above the threshold t >= 0 is a local maximum of the thresholded map
+/// exactly when it is one of the raw map (a neighbour above it is above t too, and one at or below t
+/// becomes 0 <= it), and when t < 0 (max < 0) no pixel passes the threshold at all.
+pub fn select_candidates(
+    kind: Baseline,
+    candidates: &[(u32, u32, i64)],
+    max: i64,
+    width: u32,
+    height: u32,
+    params: &BaselineParams,
+) -> Vec<(u32, u32, i64)> {
+    let q = params.quality_ppm();
+    let above = |v: i64| i128::from(v) * 1_000_000 > q * i128::from(max);
+    match kind {
+        Baseline::Harris => candidates
+            .iter()
+            .copied()
+            .filter(|&(_, _, v)| above(v))
+            .collect(),
+        Baseline::Trajkovic => candidates.to_vec(),
+        Baseline::ShiTomasi => {
+            let (w, h) = (width as usize, height as usize);
+            let cand = candidates
+                .iter()
+                .filter(|&&(x, y, v)| {
+                    above(v)
+                        && (1..w.saturating_sub(1)).contains(&(x as usize))
+                        && (1..h.saturating_sub(1)).contains(&(y as usize))
+                })
+                .map(|&(x, y, v)| (v, y as usize * w + x as usize))
+                .collect();
+            min_distance_greedy(cand, w, h, params)
         }
     }
-    true
 }
 
 /// Keypoints (x, y, score) from a score map, in (y, x) order.
@@ -226,6 +254,17 @@ fn select_shi_tomasi(
             }
         }
     }
+    min_distance_greedy(cand, w, h, params)
+}
+
+/// goodFeaturesToTrack's last step: candidates (score, pixel index) strongest first (ties: the later pixel
+/// first), each kept unless within `min_distance` of one kept before, at most `max_corners`; (y, x) order.
+fn min_distance_greedy(
+    mut cand: Vec<(i64, usize)>,
+    w: usize,
+    h: usize,
+    params: &BaselineParams,
+) -> Vec<(u32, u32, i64)> {
     cand.sort_unstable_by(|a, b| b.cmp(a));
     let min_d2 = params.min_distance * params.min_distance;
     let cell = params.min_distance.max(1.0).ceil() as usize;

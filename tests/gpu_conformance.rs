@@ -389,6 +389,71 @@ fn baselines_on_random_maps_of_many_sizes() {
     assert_same_scores(&mut gpu, &office_map(300, 200, 5).unwrap(), "office map");
 }
 
+/// The GPU's baseline keypoints (selected from the device's candidates) equal the CPU reference's.
+fn assert_same_keypoints(
+    gpu: &mut GpuBackend,
+    img: &MapImage,
+    params: &BaselineParams,
+    what: &str,
+) {
+    for kind in BASELINES {
+        let want = CpuBackend.baseline_keypoints(kind, img, params).unwrap();
+        let got = gpu.baseline_keypoints(kind, img, params).unwrap();
+        assert!(
+            got == want,
+            "{what} {kind:?} {params:?}: GPU {} keypoints, CPU {}",
+            got.len(),
+            want.len()
+        );
+    }
+}
+
+#[test]
+fn baseline_keypoints_are_selected_on_the_device_exactly() {
+    let Some(mut gpu) = common::gpu_backend(GpuOptions::default()) else {
+        return;
+    };
+    let mut tiled = common::gpu_backend(GpuOptions {
+        tile: Some((40, 30)),
+        ..GpuOptions::default()
+    })
+    .unwrap();
+    let settings = [
+        BaselineParams::default(),
+        BaselineParams {
+            quality: 0.001,
+            min_distance: 0.0,
+            ..BaselineParams::default()
+        },
+        BaselineParams {
+            quality: 0.5,
+            min_distance: 7.5,
+            max_corners: Some(5),
+            ..BaselineParams::default()
+        },
+    ];
+    for (w, h, seed) in [(1, 1, 1), (2, 3, 2), (37, 5, 3), (150, 97, 4)] {
+        let grey = grey_map(w, h, seed);
+        let office = office_map(w.max(32), h.max(32), seed).unwrap();
+        for p in &settings {
+            assert_same_keypoints(&mut gpu, &grey, p, "grey");
+            assert_same_keypoints(&mut gpu, &office, p, "office");
+            assert_same_keypoints(&mut tiled, &grey, p, "grey, tiled");
+            assert_same_keypoints(&mut tiled, &office, p, "office, tiled");
+        }
+    }
+    // The candidates and the maximum are the twin's, on the score map the reference computes.
+    let img = grey_map(120, 90, 7);
+    let exact = BaselineParams::default().exact().unwrap();
+    for kind in BASELINES {
+        let scores = baselines::cpu_scores(kind, &img, &exact);
+        assert_eq!(
+            tiled.baseline_candidates(kind, &img, &exact).unwrap(),
+            ogm_corners::cpu::select_maxima::select_maxima(&scores, 120, 90)
+        );
+    }
+}
+
 #[test]
 fn baselines_tiled_match_untiled() {
     let img = office_map(120, 80, 6).unwrap();

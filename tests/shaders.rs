@@ -46,6 +46,14 @@ fn ogm_kernels_validate_and_their_parameters_match_the_host() {
 }
 
 #[test]
+fn the_selection_kernel_validates_and_its_parameters_match_the_host() {
+    let m = validate_kernel("select_maxima", false);
+    assert_eq!(entries(&m), ["count", "reduce_max", "scatter"]);
+    // src/gpu/select.rs SelParams: 16 four-byte fields.
+    assert_eq!(struct_size(&m, "Params"), 64);
+}
+
+#[test]
 fn the_coarsening_kernel_validates_and_its_parameters_match_the_host() {
     let m = validate_kernel("coarsen", false);
     assert_eq!(entries(&m), ["coarsen"]);
@@ -102,5 +110,5 @@ fn every_kernel_has_a_cpu_twin_of_the_same_name() {
         );
         kernels += 1;
     }
-    assert_eq!(kernels, 9);
+    assert_eq!(kernels, 10);
 }

@@ -9,6 +9,7 @@ pub mod harris;
 pub mod merge_score;
 pub mod ogm_corners;
 pub mod scan;
+pub mod select_maxima;
 pub mod shi_tomasi;
 pub mod structure_tensor;
 pub mod trajkovic;

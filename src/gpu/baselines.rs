@@ -38,9 +38,10 @@ pub(super) struct BaselinePass(
     (u32, u32),
 );
 
-/// Halo of the baseline tiles: blur, Sobel and the 3x3 window reach 3 pixels; Trajkovic's low-resolution
-/// neighbours reach 4. Even, so tile origins stay on the low-resolution grid.
-pub(super) const BASELINE_HALO: u32 = 4;
+/// Halo of the baseline tiles: scores are computed over the core grown by one pixel (the selection's 3x3
+/// window needs them), and from there blur, Sobel and the 3x3 window reach 3 pixels, Trajkovic's
+/// low-resolution neighbours 4. Even, so tile origins stay on the low-resolution grid.
+pub(super) const BASELINE_HALO: u32 = 6;
 /// Bytes per buffer pixel of the largest baseline buffer (the structure tensor, 4 x i32).
 pub(super) const BASELINE_BYTES_PER_PX: u64 = 16;
 
@@ -105,17 +106,28 @@ impl GpuBackend {
         Ok(buf)
     }
 
-    /// Runs one baseline tile and writes its core's scores into `out` (the whole map's score map).
-    pub(super) fn run_baseline_tile(
+    /// The score region of tile `t`: its core grown by one pixel within the map, map coordinates.
+    pub(super) fn score_region(image: &MapImage, t: &tiles::Tile) -> [u32; 4] {
+        [
+            t.core[0].saturating_sub(1),
+            t.core[1].saturating_sub(1),
+            (t.core[2] + 1).min(image.width()),
+            (t.core[3] + 1).min(image.height()),
+        ]
+    }
+
+    /// Uploads tile `t` and records its score passes; the scores of [`Self::score_region`] end up in the
+    /// returned buffer, row-major, 8 bytes each.
+    pub(super) fn encode_scores(
         &mut self,
         kind: Baseline,
         image: &MapImage,
         p: &ExactParams,
         t: &tiles::Tile,
-        out: &mut [i64],
-    ) -> Result<()> {
+    ) -> Result<(wgpu::CommandEncoder, wgpu::Buffer)> {
+        let region = Self::score_region(image, t);
         let (bw, bh) = (t.buf_w(), t.buf_h());
-        let (cw, ch) = (t.core[2] - t.core[0], t.core[3] - t.core[1]);
+        let (cw, ch) = (region[2] - region[0], region[3] - region[1]);
         let buf_px = u64::from(bw) * u64::from(bh);
         let core_px = u64::from(cw) * u64::from(ch);
         let (bgx, bgy) = self.dispatch_shape_groups(buf_px.div_ceil(u64::from(WORKGROUP)) as u32);
@@ -133,8 +145,8 @@ impl GpuBackend {
             buf_w: bw,
             buf_h: bh,
             stride: t.stride(),
-            core_x0: t.core[0],
-            core_y0: t.core[1],
+            core_x0: region[0],
+            core_y0: region[1],
             core_w: cw,
             core_h: ch,
             k_side: p.blur[0],
@@ -220,16 +232,29 @@ impl GpuBackend {
             .zip(&groups)
             .map(|(BaselinePass(pl, _, _, _, shape), bg)| (pl, bg, *shape))
             .collect();
-        let encoder = self.encode(&dispatches);
-        let raw_scores = self.submit_and_read(encoder, &scores, core_px * 8, true, |_| ())?;
+        Ok((self.encode(&dispatches), scores))
+    }
+
+    /// Runs one baseline tile and writes its core's scores into `out` (the whole map's score map).
+    pub(super) fn run_baseline_tile(
+        &mut self,
+        kind: Baseline,
+        image: &MapImage,
+        p: &ExactParams,
+        t: &tiles::Tile,
+        out: &mut [i64],
+    ) -> Result<()> {
+        let region = Self::score_region(image, t);
+        let rw = (region[2] - region[0]) as usize;
+        let rh = (region[3] - region[1]) as usize;
+        let (encoder, scores) = self.encode_scores(kind, image, p, t)?;
+        let raw_scores = self.submit_and_read(encoder, &scores, (rw * rh) as u64 * 8, true)?;
         let w = image.width() as usize;
-        for (r, row) in raw_scores
-            .chunks_exact(8 * cw as usize)
-            .take(ch as usize)
-            .enumerate()
-        {
-            let start = (t.core[1] as usize + r) * w + t.core[0] as usize;
-            for (dst, b) in out[start..start + cw as usize]
+        let (cx0, cw) = (t.core[0] as usize, (t.core[2] - t.core[0]) as usize);
+        for y in t.core[1] as usize..t.core[3] as usize {
+            let src = ((y - region[1] as usize) * rw + (cx0 - region[0] as usize)) * 8;
+            let row = &raw_scores[src..src + cw * 8];
+            for (dst, b) in out[y * w + cx0..y * w + cx0 + cw]
                 .iter_mut()
                 .zip(row.chunks_exact(8))
             {

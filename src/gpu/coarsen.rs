@@ -200,6 +200,6 @@ impl GpuBackend {
             &[(0, &uniform), (1, class_buf), (2, &pixels), (3, &cells)],
         );
         let encoder = self.encode(&[(pipeline, &group, shape)]);
-        self.submit_and_read(encoder, &cells, out_bytes, false, |_| ())
+        self.submit_and_read(encoder, &cells, out_bytes, false)
     }
 }

@@ -143,7 +143,7 @@ impl GpuBackend {
                     self.queue.submit([encoder.finish()]);
                     continue;
                 }
-                let bytes = self.submit_and_read(encoder, &counts, count_bytes, false, |_| ())?;
+                let bytes = self.submit_and_read(encoder, &counts, count_bytes, false)?;
                 out.extend(bytes.chunks_exact(COUNT_BYTES as usize).map(|c| {
                     let word = |k: usize| {
                         u32::from_le_bytes(c[4 * k..4 * k + 4].try_into().expect("4 bytes"))

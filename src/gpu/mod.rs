@@ -11,6 +11,7 @@ mod coarsen;
 mod merge_score;
 mod ogm;
 mod scan;
+mod select;
 pub mod tiles;
 
 use adapter::{choose, looked_for, report};
@@ -44,6 +45,9 @@ pub fn shader_source(kernel: &str, native_int64: bool) -> Option<String> {
         "merge_score" => return Some(include_str!("../../shaders/merge_score.wgsl").to_string()),
         "ogm_corners" => return Some(include_str!("../../shaders/ogm_corners.wgsl").to_string()),
         "scan" => return Some(include_str!("../../shaders/scan.wgsl").to_string()),
+        "select_maxima" => {
+            return Some(include_str!("../../shaders/select_maxima.wgsl").to_string())
+        }
         "gaussian_blur" => include_str!("../../shaders/gaussian_blur.wgsl"),
         "structure_tensor" => include_str!("../../shaders/structure_tensor.wgsl"),
         "harris" => include_str!("../../shaders/harris.wgsl"),
@@ -137,6 +141,8 @@ pub struct GpuBackend {
     bp_buf: wgpu::Buffer,
     bp_core: wgpu::Buffer,
     base_pixels: Slot,
+    /// The baselines' selection on the device (select.rs), made on first use.
+    select: Option<select::Select>,
     blurred: Slot,
     tensor: Slot,
     scores: Slot,
@@ -226,6 +232,7 @@ impl GpuBackend {
             bp_buf: uniform("baseline params (buffer pixels)"),
             bp_core: uniform("baseline params (core pixels)"),
             base_pixels: Slot::new("baseline pixels", storage),
+            select: None,
             blurred: Slot::new("blurred", wgpu::BufferUsages::STORAGE),
             tensor: Slot::new("tensor", wgpu::BufferUsages::STORAGE),
             scores: Slot::new(
@@ -261,6 +268,23 @@ impl GpuBackend {
         &self.adapter
     }
 
+    /// The baseline tiles of `image`: within the binding limit at the largest buffer's bytes per pixel.
+    fn baseline_plan(&self, image: &MapImage) -> Result<Vec<tiles::Tile>> {
+        let (w, h) = (image.width(), image.height());
+        // Within one binding at the largest buffer's bytes per pixel, and a band of raw pixels within the
+        // staging budget.
+        let max_px =
+            (self.max_binding / BASELINE_BYTES_PER_PX).min(self.options.max_tile_bytes.max(1));
+        let (tw, th) = tiles::tile_size_halo(w, h, max_px, BASELINE_HALO, self.options.tile)
+            .ok_or_else(|| {
+                Error::Unavailable(format!(
+                    "{}'s buffer limit ({} bytes) is too small for any tile",
+                    self.adapter.name, self.max_binding
+                ))
+            })?;
+        Ok(tiles::plan(w, h, tw, th, BASELINE_HALO))
+    }
+
     /// Nanoseconds per timestamp tick.
     pub fn timestamp_period(&self) -> f32 {
         self.queue.get_timestamp_period()
@@ -283,27 +307,40 @@ impl GpuBackend {
         }
     }
 
-    /// Submits `encoder`, runs `meanwhile` (host work that overlaps the GPU's), then copies the first
-    /// `size` bytes of `src` back to the host.
+    /// Submits `encoder`, then copies the first `size` bytes of `src` back to the host; with `timed`, adds
+    /// the passes' time (their first and last timestamps) to the call's kernel time.
     fn submit_and_read(
         &mut self,
         mut encoder: wgpu::CommandEncoder,
         src: &wgpu::Buffer,
         size: u64,
         timed: bool,
-        meanwhile: impl FnOnce(&mut Self),
     ) -> Result<Vec<u8>> {
         let size = size.next_multiple_of(4);
         let read = self.readback.get(&self.device, size, u64::MAX).clone();
         encoder.copy_buffer_to_buffer(src, 0, &read, 0, size);
-        if let (true, Some((set, resolve, ts_read))) = (timed, &self.timestamps) {
+        if timed {
+            self.resolve_timestamps(&mut encoder);
+        }
+        self.queue.submit([encoder.finish()]);
+        let data = self.map_read(&read, size)?;
+        if timed {
+            self.add_kernel_time()?;
+        }
+        Ok(data)
+    }
+
+    /// Records the copy of the passes' two timestamps to the host into `encoder`.
+    fn resolve_timestamps(&self, encoder: &mut wgpu::CommandEncoder) {
+        if let Some((set, resolve, ts_read)) = &self.timestamps {
             encoder.resolve_query_set(set, 0..2, resolve, 0);
             encoder.copy_buffer_to_buffer(resolve, 0, ts_read, 0, 16);
         }
-        self.queue.submit([encoder.finish()]);
-        meanwhile(self);
-        let data = self.map_read(&read, size)?;
-        if let (true, Some((_, _, ts_read))) = (timed, &self.timestamps) {
+    }
+
+    /// Adds the time between the timestamps [`Self::resolve_timestamps`] copied to the call's kernel time.
+    fn add_kernel_time(&mut self) -> Result<()> {
+        if let Some((_, _, ts_read)) = &self.timestamps {
             let ts_read = ts_read.clone();
             let ts = self.map_read(&ts_read, 16)?;
             let t0 = u64::from_le_bytes(ts[0..8].try_into().expect("8 bytes"));
@@ -312,7 +349,7 @@ impl GpuBackend {
             let prev = self.stats.kernel_time.unwrap_or_default();
             self.stats.kernel_time = Some(prev + Duration::from_nanos(ns as u64));
         }
-        Ok(data)
+        Ok(())
     }
 
     fn map_read(&self, buf: &wgpu::Buffer, size: u64) -> Result<Vec<u8>> {
@@ -384,28 +421,31 @@ impl GpuBackend {
     }
 }
 
-/// [`Backend::working_bytes`] of a GPU backend opened with `gpu`, known before opening it: two tiles'
-/// staging and readback, and for the baselines the score map read back for selection (8 bytes a pixel),
-/// with Shi-Tomasi's selection buffers.
+/// [`Backend::working_bytes`] of a GPU backend opened with `gpu`, known before opening it: the staging
+/// ring's two bands (each at most [`GpuOptions::max_tile_bytes`]), and for Shi-Tomasi the minimum-distance
+/// grid. The baselines' scores stay on the device; their candidates (positive local maxima, 16 bytes each)
+/// come back like keypoints, data-dependent.
 pub fn gpu_working_bytes(
     gpu: &GpuOptions,
     options: &DetectOptions,
     width: u32,
     height: u32,
 ) -> u64 {
-    let tiles = gpu.max_tile_bytes.saturating_mul(2);
-    let scores = (u64::from(width) * u64::from(height)).saturating_mul(8);
+    let ring = gpu
+        .max_tile_bytes
+        .saturating_add(ogm::PARAMS_BYTES)
+        .saturating_mul(2);
+    let px = u64::from(width) * u64::from(height);
     match options.detector {
-        DetectorKind::Ogm => tiles,
         DetectorKind::OgmRobust => {
-            crate::robust::robust_working_bytes(width, height).saturating_add(tiles)
+            crate::robust::robust_working_bytes(width, height).saturating_add(ring)
         }
-        DetectorKind::Baseline(crate::baselines::Baseline::ShiTomasi) => scores
-            .saturating_add(crate::backend::shi_tomasi_selection_bytes(
-                options, width, height,
-            ))
-            .saturating_add(tiles),
-        DetectorKind::Baseline(_) => scores.saturating_add(tiles),
+        DetectorKind::Baseline(Baseline::ShiTomasi) => {
+            crate::backend::shi_tomasi_selection_bytes(options, width, height)
+                .saturating_sub(px.saturating_mul(8))
+                .saturating_add(ring)
+        }
+        DetectorKind::Ogm | DetectorKind::Baseline(_) => ring,
     }
 }
 
@@ -421,16 +461,7 @@ impl Backend for GpuBackend {
             kernel_time: self.timestamps.as_ref().map(|_| Duration::ZERO),
             ..GpuStats::default()
         };
-        let (w, h) = (image.width(), image.height());
-        let max_px = self.max_binding / BASELINE_BYTES_PER_PX;
-        let (tw, th) = tiles::tile_size_halo(w, h, max_px, BASELINE_HALO, self.options.tile)
-            .ok_or_else(|| {
-                Error::Unavailable(format!(
-                    "{}'s buffer limit ({} bytes) is too small for any tile",
-                    self.adapter.name, self.max_binding
-                ))
-            })?;
-        let plan = tiles::plan(w, h, tw, th, BASELINE_HALO);
+        let plan = self.baseline_plan(image)?;
         self.stats.tiles = plan.len();
         let mut out = vec![0i64; image.len()];
         for t in &plan {
@@ -438,6 +469,29 @@ impl Backend for GpuBackend {
         }
         self.check()?;
         Ok(out)
+    }
+
+    /// The baselines selected from the device's candidates ([`GpuBackend::baseline_candidates`]): only
+    /// the candidates cross to the host, not the score map.
+    fn baseline_keypoints(
+        &mut self,
+        kind: Baseline,
+        image: &MapImage,
+        params: &crate::baselines::BaselineParams,
+    ) -> Result<Vec<Keypoint>> {
+        let exact = params.exact()?;
+        let (candidates, max) = self.baseline_candidates(kind, image, &exact)?;
+        Ok(crate::baselines::select_candidates(
+            kind,
+            &candidates,
+            max,
+            image.width(),
+            image.height(),
+            params,
+        )
+        .into_iter()
+        .map(|(x, y, score)| Keypoint::scored(x, y, score))
+        .collect())
     }
 
     fn name(&self) -> String {
@@ -463,8 +517,7 @@ impl Backend for GpuBackend {
         self.score_transforms_gpu(target, points, transforms)
     }
 
-    /// The host side: two tiles' staging and readback (bounded by [`GpuOptions::max_tile_bytes`]), and for
-    /// the baselines the score map read back for selection (8 bytes a pixel).
+    /// The host side: see [`gpu_working_bytes`].
     fn working_bytes(&self, options: &DetectOptions, width: u32, height: u32) -> u64 {
         gpu_working_bytes(&self.options, options, width, height)
     }
