@@ -35,8 +35,10 @@ struct Params {
 @group(0) @binding(4) var<storage, read_write> out: array<vec4<u32>>;
 
 var<workgroup> wg_count: atomic<u32>;
+var<workgroup> wg_hi: atomic<i32>;
+var<workgroup> wg_lo: atomic<u32>;
 var<workgroup> wg_max: array<vec2<u32>, 256>;
-var<workgroup> wg_scan: array<u32, 256>;
+var<workgroup> wg_bits: array<atomic<u32>, 8>;
 var<workgroup> wg_n: u32;
 
 const I64_MIN: vec2<u32> = vec2<u32>(0u, 0x80000000u);
@@ -79,6 +81,8 @@ fn count(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) 
     let i = group * 256u + li;
     if li == 0u {
         atomicStore(&wg_count, 0u);
+        atomicStore(&wg_hi, i32(I64_MIN.y));
+        atomicStore(&wg_lo, 0u);
     }
     var m = I64_MIN;
     workgroupBarrier();
@@ -89,17 +93,17 @@ fn count(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) 
             atomicAdd(&wg_count, 1u);
         }
     }
-    wg_max[li] = m;
+    // The workgroup's largest score by two 32-bit atomics: the high word first, then the low word among
+    // the scores with that high word (two barriers, where a tree takes eight).
+    atomicMax(&wg_hi, i32(m.y));
     workgroupBarrier();
-    for (var d = 128u; d > 0u; d >>= 1u) {
-        if li < d && gt(wg_max[li + d], wg_max[li]) {
-            wg_max[li] = wg_max[li + d];
-        }
-        workgroupBarrier();
+    if i32(m.y) == atomicLoad(&wg_hi) {
+        atomicMax(&wg_lo, m.x);
     }
+    workgroupBarrier();
     if li == 0u && group < params.n_groups {
         counts[group] = atomicLoad(&wg_count);
-        maxes[group] = wg_max[0];
+        maxes[group] = vec2<u32>(atomicLoad(&wg_lo), u32(atomicLoad(&wg_hi)));
     }
 }
 
@@ -143,20 +147,22 @@ fn scatter(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index
     if i < params.n_items {
         c = candidate(i);
     }
-    // Inclusive prefix of the candidates over the workgroup (Hillis-Steele), for (y, x) order inside it.
-    wg_scan[li] = c.z;
-    workgroupBarrier();
-    for (var d = 1u; d < 256u; d <<= 1u) {
-        var add = 0u;
-        if li >= d {
-            add = wg_scan[li - d];
-        }
-        workgroupBarrier();
-        wg_scan[li] += add;
-        workgroupBarrier();
+    // A candidate's rank inside the workgroup, for (y, x) order: the candidates before it, from one bit per
+    // invocation (two barriers, no scan).
+    if li < 8u {
+        atomicStore(&wg_bits[li], 0u);
     }
+    workgroupBarrier();
     if c.z != 0u {
-        let p = counts[group] + wg_scan[li] - 1u;
+        atomicOr(&wg_bits[li / 32u], 1u << (li % 32u));
+    }
+    workgroupBarrier();
+    if c.z != 0u {
+        var rank = countOneBits(atomicLoad(&wg_bits[li / 32u]) & ((1u << (li % 32u)) - 1u));
+        for (var k = 0u; k < li / 32u; k++) {
+            rank += countOneBits(atomicLoad(&wg_bits[k]));
+        }
+        let p = counts[group] + rank;
         if p >= params.out_start && p < params.out_end {
             let v = score_at(c.x, c.y);
             out[p - params.out_start] = vec4<u32>(c.x, c.y, v.x, v.y);

@@ -10,6 +10,7 @@ mod buffers;
 mod coarsen;
 mod merge_score;
 mod ogm;
+mod profile;
 mod scan;
 mod select;
 pub mod tiles;
