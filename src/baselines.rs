@@ -190,37 +190,15 @@ pub fn select(
 ) -> Vec<(u32, u32, i64)> {
     let (w, h) = (width as usize, height as usize);
     match kind {
-        Baseline::Harris => {
-            // Keep R > quality * max(R) (and R > 0), 3x3 local maxima.
-            let max = scores.iter().copied().max().unwrap_or(0);
-            let q = params.quality_ppm();
-            let mut out = Vec::new();
-            for y in 0..h {
-                for x in 0..w {
-                    let v = scores[y * w + x];
-                    if v > 0
-                        && i128::from(v) * 1_000_000 > q * i128::from(max)
-                        && local_max(scores, w, h, x, y)
-                    {
-                        out.push((x as u32, y as u32, v));
-                    }
-                }
-            }
-            out
+        // Harris keeps the positive local maxima with R > quality * max(R); Trajkovic every positive local
+        // maximum.
+        Baseline::Harris | Baseline::Trajkovic => {
+            let (candidates, max) = crate::cpu::select_maxima::select_maxima(scores, w, h);
+            select_candidates(kind, &candidates, max, width, height, params)
         }
+        // Shi-Tomasi the way goodFeaturesToTrack states it, on the thresholded map: the reference for the
+        // candidates route the GPU takes.
         Baseline::ShiTomasi => select_shi_tomasi(scores, w, h, params),
-        Baseline::Trajkovic => {
-            let mut out = Vec::new();
-            for y in 0..h {
-                for x in 0..w {
-                    let v = scores[y * w + x];
-                    if v > 0 && local_max(scores, w, h, x, y) {
-                        out.push((x as u32, y as u32, v));
-                    }
-                }
-            }
-            out
-        }
     }
 }
 

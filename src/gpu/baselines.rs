@@ -82,15 +82,7 @@ impl GpuBackend {
     /// submitted at once and runs before the passes submitted after it.
     fn upload_band(&mut self, image: &MapImage, t: &tiles::Tile) -> Result<wgpu::Buffer> {
         let pitch = t.stride() as usize * 4;
-        let iw = image.width() as usize;
-        let rows: Vec<buffers::RowCopy> = (0..t.buf_h() as usize)
-            .map(|r| buffers::RowCopy {
-                src: (t.buf[1] as usize + r) * iw + t.buf[0] as usize,
-                dst: r * pitch,
-                len: t.buf_w() as usize,
-                pitch,
-            })
-            .collect();
+        let rows = buffers::band_rows(image.width(), t, pitch);
         let (i, staging) =
             self.ring
                 .stage(&self.device, t.bytes(), &[], image.pixels(), 0, &rows)?;

@@ -80,6 +80,19 @@ pub(super) struct RowCopy {
     pub pitch: usize,
 }
 
+/// The rows of tile `t` of a map `map_width` pixels wide, each padded to `pitch` bytes in the staging buffer.
+pub(super) fn band_rows(map_width: u32, t: &super::tiles::Tile, pitch: usize) -> Vec<RowCopy> {
+    let iw = map_width as usize;
+    (0..t.buf_h() as usize)
+        .map(|r| RowCopy {
+            src: (t.buf[1] as usize + r) * iw + t.buf[0] as usize,
+            dst: r * pitch,
+            len: t.buf_w() as usize,
+            pitch,
+        })
+        .collect()
+}
+
 impl Ring {
     pub fn new(len: usize) -> Self {
         Ring {

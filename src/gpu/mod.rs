@@ -1,8 +1,10 @@
 //! The GPU backend: the WGSL kernels in `shaders/` run through wgpu, headless.
 //!
-//! The device, pipelines and buffers live in [`GpuBackend`] and are reused across calls. Maps larger than
-//! the device's buffer limits are processed in tiles with a one-pixel halo (see [`tiles`]); the output is
-//! counted before it is written, so it is sized exactly and never truncated.
+//! The device, pipelines and buffers live in [`GpuBackend`] and are reused across calls. A map streams
+//! through the device in bands (tiles with a halo, see [`tiles`]) staged in a ring of persistent buffers;
+//! the OGM detector is one fused pass per band whose counts are scanned and scattered on the device in the
+//! same submission, so the list is ordered, exactly sized and never truncated, and the host waits only at
+//! the end of the call. The baselines' scores stay on the device and only their candidates come back.
 
 mod adapter;
 mod baselines;
@@ -82,10 +84,10 @@ pub struct GpuOptions {
     pub initial_workgroup_scratch: u32,
     /// Use the exact 64-bit emulation even where the adapter has SHADER_INT64 (to test it).
     pub emulate_int64: bool,
-    /// Upload budget of one OGM tile, bytes: a large map streams through the GPU in bands of about this
-    /// size, the next band uploading while the current one is classified, instead of the whole map
-    /// sitting on the device (and in a host staging copy) at once. It also bounds the coarsening kernel's
-    /// tiles and the scoring kernel's bands of target rows and chunks of points.
+    /// Upload budget of one band, bytes: a large map streams through the GPU in bands of about this size,
+    /// the host staging the next band while the GPU runs the current one, instead of the whole map sitting
+    /// on the device (and in host staging memory) at once. It also bounds the baselines' bands, the
+    /// coarsening kernel's tiles and the scoring kernel's bands of target rows and chunks of points.
     pub max_tile_bytes: u64,
 }
 
@@ -286,6 +288,16 @@ impl GpuBackend {
         Ok(tiles::plan(w, h, tw, th, BASELINE_HALO))
     }
 
+    /// Begins a detection call: fails with a device error left from before, and clears the statistics.
+    fn start_call(&mut self) -> Result<()> {
+        self.check()?;
+        self.stats = GpuStats {
+            kernel_time: self.timestamps.as_ref().map(|_| Duration::ZERO),
+            ..GpuStats::default()
+        };
+        Ok(())
+    }
+
     /// Nanoseconds per timestamp tick.
     pub fn timestamp_period(&self) -> f32 {
         self.queue.get_timestamp_period()
@@ -457,11 +469,7 @@ impl Backend for GpuBackend {
         image: &MapImage,
         params: &ExactParams,
     ) -> Result<Vec<i64>> {
-        self.check()?;
-        self.stats = GpuStats {
-            kernel_time: self.timestamps.as_ref().map(|_| Duration::ZERO),
-            ..GpuStats::default()
-        };
+        self.start_call()?;
         let plan = self.baseline_plan(image)?;
         self.stats.tiles = plan.len();
         let mut out = vec![0i64; image.len()];
@@ -530,11 +538,7 @@ impl Backend for GpuBackend {
         rules: &RuleTable,
         unknown_as_occupied: bool,
     ) -> Result<Vec<Keypoint>> {
-        self.check()?;
-        self.stats = GpuStats {
-            kernel_time: self.timestamps.as_ref().map(|_| Duration::ZERO),
-            ..GpuStats::default()
-        };
+        self.start_call()?;
         let out = self.ogm_detect(image, classes, rules, unknown_as_occupied)?;
         self.check()?;
         Ok(out)

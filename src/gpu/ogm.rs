@@ -3,7 +3,6 @@
 //! `shaders/scan.wgsl`). The host reads back twice per call, whatever the number of tiles: the total, then
 //! exactly that many 8-byte keypoints.
 
-use super::buffers::RowCopy;
 use super::scan::{scan_binds, ScanPlan, MAX_LEVELS, PARAM_ALIGN};
 use super::*;
 use crate::fast::bitplanes::ValueSet;
@@ -336,15 +335,7 @@ impl GpuBackend {
             head[at..at + 16].copy_from_slice(bytemuck::bytes_of(sp));
         }
         let pitch = p.stride as usize * 4;
-        let iw = image.width() as usize;
-        let rows: Vec<RowCopy> = (0..t.buf_h() as usize)
-            .map(|r| RowCopy {
-                src: (t.buf[1] as usize + r) * iw + t.buf[0] as usize,
-                dst: r * pitch,
-                len: t.buf_w() as usize,
-                pitch,
-            })
-            .collect();
+        let rows = buffers::band_rows(image.width(), t, pitch);
         let bytes = pitch as u64 * u64::from(t.buf_h());
         let (ring_i, staging) = self.ring.stage(
             &self.device,

@@ -1,7 +1,6 @@
 //! What `bench` measures on the GPU beside end-to-end detection: the upload as the OGM path does it, and
 //! the transfer floor it is compared with.
 
-use super::buffers::RowCopy;
 use super::ogm::{PARAMS_BYTES, RUN, SLAB_ROWS};
 use super::*;
 
@@ -15,15 +14,7 @@ impl GpuBackend {
         let start = std::time::Instant::now();
         for (i, t) in plan.iter().enumerate() {
             let pitch = t.buf_w().div_ceil(RUN) as usize * RUN as usize;
-            let iw = w as usize;
-            let rows: Vec<RowCopy> = (0..t.buf_h() as usize)
-                .map(|r| RowCopy {
-                    src: (t.buf[1] as usize + r) * iw + t.buf[0] as usize,
-                    dst: r * pitch,
-                    len: t.buf_w() as usize,
-                    pitch,
-                })
-                .collect();
+            let rows = buffers::band_rows(image.width(), t, pitch);
             let bytes = pitch as u64 * u64::from(t.buf_h());
             let (ring_i, staging) = self.ring.stage(
                 &self.device,

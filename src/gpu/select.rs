@@ -103,11 +103,7 @@ impl GpuBackend {
         image: &MapImage,
         p: &ExactParams,
     ) -> Result<(Candidates, i64)> {
-        self.check()?;
-        self.stats = GpuStats {
-            kernel_time: self.timestamps.as_ref().map(|_| Duration::ZERO),
-            ..GpuStats::default()
-        };
+        self.start_call()?;
         let plan = self.baseline_plan(image)?;
         self.stats.tiles = plan.len();
         let mut all = Vec::new();
