@@ -148,6 +148,24 @@ fn class_tables_that_are_not_intervals() {
 }
 
 #[test]
+fn maps_taller_than_a_slab_run_slab_by_slab() {
+    // The keypoint's row field holds 24 bits, so maps taller than 2^24 rows run in slabs; small slabs
+    // (with tiles and windows inside them) exercise the same path.
+    let img = common::random_map(70, 301, 21);
+    for (slab, tile) in [(1u32, None), (7, None), (100, Some((30, 9))), (301, None)] {
+        let Some(mut gpu) = common::gpu_backend(GpuOptions {
+            slab_rows: slab,
+            tile,
+            max_keypoints_per_pass: Some(50),
+            ..GpuOptions::default()
+        }) else {
+            return;
+        };
+        assert_same(&mut gpu, &img, &Thresholds::default(), "slabs");
+    }
+}
+
+#[test]
 fn the_device_scan_matches_the_reference() {
     let Some(mut gpu) = common::gpu_backend(GpuOptions::default()) else {
         return;

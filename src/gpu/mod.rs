@@ -82,6 +82,8 @@ pub struct GpuOptions {
     /// Keypoints each OGM workgroup's scratch holds before it first grows (a workgroup that finds more
     /// makes the call rerun with room for them).
     pub initial_workgroup_scratch: u32,
+    /// Rows of one OGM slab (at most 2^24, the keypoint's row field); tests shrink it to run the slab path.
+    pub slab_rows: u32,
     /// Use the exact 64-bit emulation even where the adapter has SHADER_INT64 (to test it).
     pub emulate_int64: bool,
     /// Upload budget of one band, bytes: a large map streams through the GPU in bands of about this size,
@@ -98,6 +100,7 @@ impl Default for GpuOptions {
             initial_keypoint_capacity: 1 << 16,
             max_keypoints_per_pass: None,
             initial_workgroup_scratch: 512,
+            slab_rows: 1 << 24,
             emulate_int64: false,
             max_tile_bytes: 64 << 20,
         }

@@ -18,7 +18,7 @@ pub(super) const RUN: u32 = 32;
 const MAX_SCRATCH: u32 = LANES * RUN * STRIP;
 /// Bytes of a keypoint in the device list: x, then y << 8 | code.
 const KEYPOINT_BYTES: u64 = 8;
-/// Rows of one slab: keypoint rows are stored in 24 bits, so taller maps run slab by slab.
+/// Rows of one slab at most: keypoint rows are stored in 24 bits, so taller maps run slab by slab.
 pub(super) const SLAB_ROWS: u32 = 1 << 24;
 /// Bytes of the parameter blocks at the head of each staged band: the detector's, then one per scan level.
 pub(super) const PARAMS_BYTES: u64 = PARAM_ALIGN * (MAX_LEVELS as u64 + 1);
@@ -537,8 +537,9 @@ impl GpuBackend {
             )
             .clamp(1, u64::from(u32::MAX)) as u32;
         let mut out = Vec::new();
-        for slab_y0 in (0..h).step_by(SLAB_ROWS as usize) {
-            let slab_y1 = slab_y0.saturating_add(SLAB_ROWS).min(h);
+        let slab = self.options.slab_rows.clamp(1, SLAB_ROWS);
+        for slab_y0 in (0..h).step_by(slab as usize) {
+            let slab_y1 = slab_y0.saturating_add(slab).min(h);
             let mut start = 0u32;
             loop {
                 let plan = self.ogm_plan(w, h, slab_y0, slab_y1)?;
@@ -575,7 +576,7 @@ impl GpuBackend {
         }
         self.stats.keypoint_capacity = self.ogm_bufs.keypoints.size / KEYPOINT_BYTES;
         if self
-            .ogm_plan(w, h, 0, h.min(SLAB_ROWS))?
+            .ogm_plan(w, h, 0, h.min(slab))?
             .iter()
             .any(|t| t.core[2] - t.core[0] < w)
         {
