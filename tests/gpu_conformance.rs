@@ -798,3 +798,75 @@ fn merging_with_gpu_scoring_equals_the_cpu() {
         assert_eq!(got, want, "seed {seed}");
     }
 }
+
+#[test]
+fn maps_wider_than_one_workgroup_and_tiles_at_its_edges() {
+    // A workgroup spans 2048 pixels of a row: maps and tiles around that width, several columns of
+    // workgroups, a one-keypoint scratch and windowed output.
+    let Some(mut gpu) = common::gpu_backend(GpuOptions::default()) else {
+        return;
+    };
+    for (w, h) in [
+        (2049u32, 20u32),
+        (2048, 3),
+        (4200, 37),
+        (6001, 5),
+        (2080, 17),
+        (4097, 1),
+    ] {
+        let img = common::random_map(w, h, u64::from(w + h));
+        assert_same(&mut gpu, &img, &Thresholds::default(), "wide");
+    }
+    let img = common::random_map(5000, 45, 3);
+    for tile in [(2048u32, 40u32), (2047, 40), (2046, 17), (2100, 15)] {
+        let mut tiled = common::gpu_backend(GpuOptions {
+            tile: Some(tile),
+            initial_workgroup_scratch: 1,
+            ..GpuOptions::default()
+        })
+        .unwrap();
+        assert_same(&mut tiled, &img, &Thresholds::default(), "wide tiled");
+    }
+    let mut windowed = common::gpu_backend(GpuOptions {
+        initial_keypoint_capacity: 3,
+        max_keypoints_per_pass: Some(1001),
+        initial_workgroup_scratch: 2,
+        tile: Some((3000, 23)),
+        ..GpuOptions::default()
+    })
+    .unwrap();
+    let img = common::random_map(4500, 60, 7);
+    assert_same(&mut windowed, &img, &Thresholds::default(), "wide windowed");
+}
+
+#[test]
+fn more_candidates_than_the_first_list_buffer_holds() {
+    // The candidate buffer starts at 4096 entries; a grey map has more, so the list grows and the scatter
+    // runs again over the scores still on the device.
+    let Some(mut gpu) = common::gpu_backend(GpuOptions::default()) else {
+        return;
+    };
+    let img = grey_map(400, 300, 5);
+    let exact = BaselineParams::default().exact().unwrap();
+    for kind in BASELINES {
+        let scores = baselines::cpu_scores(kind, &img, &exact);
+        let got = gpu.baseline_candidates(kind, &img, &exact).unwrap();
+        if kind != Baseline::Trajkovic {
+            assert!(got.0.len() > 4096, "{kind:?}: {} candidates", got.0.len());
+        }
+        assert_eq!(
+            got,
+            ogm_corners::cpu::select_maxima::select_maxima(&scores, 400, 300)
+        );
+    }
+    for p in [
+        BaselineParams::default(),
+        BaselineParams {
+            quality: 0.000_000_4, // rounds to 0 ppm
+            min_distance: 0.0,
+            ..BaselineParams::default()
+        },
+    ] {
+        assert_same_keypoints(&mut gpu, &img, &p, "big grey");
+    }
+}

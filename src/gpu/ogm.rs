@@ -298,11 +298,13 @@ impl GpuBackend {
         let (tw, th) =
             tiles::tile_size(w, y1 - y0, budget, Some((forced.0, forced.1.min(max_rows))))
                 .ok_or_else(too_small)?;
-        if tw.div_ceil(RUN * LANES) > self.max_groups {
+        // Workgroup columns cover the tile's buffer, its halo columns included.
+        let groups_x = tw.saturating_add(2).min(w).div_ceil(RUN * LANES);
+        if groups_x > self.max_groups {
             return Err(too_small());
         }
         // Scratch: two regions of `scratch` keypoints per workgroup, each within one binding.
-        let groups_x = u64::from(tw.div_ceil(RUN * LANES));
+        let groups_x = u64::from(groups_x);
         let per_strip = groups_x * u64::from(self.ogm_bufs.scratch) * KEYPOINT_BYTES;
         let strips = (self.max_binding / per_strip.max(1)).min(u64::from(self.max_groups));
         let th = th.min((strips * u64::from(STRIP)).min(u64::from(u32::MAX)) as u32);
@@ -402,6 +404,10 @@ impl GpuBackend {
         window: (u32, u32),
     ) -> Result<(u32, u32)> {
         let timed = self.timestamps.is_some() && plan.len() <= MAX_TIMED_TILES;
+        if !timed {
+            // A partial sum would read as a kernel time; report none.
+            self.stats.kernel_time = None;
+        }
         let queries = timed.then(|| {
             self.device.create_query_set(&wgpu::QuerySetDescriptor {
                 label: Some("ogm tile timestamps"),
@@ -481,8 +487,9 @@ impl GpuBackend {
                 .map(|t| t[1].saturating_sub(t[0]))
                 .sum();
             let ns = total as f64 * f64::from(self.queue.get_timestamp_period());
-            let prev = self.stats.kernel_time.unwrap_or_default();
-            self.stats.kernel_time = Some(prev + Duration::from_nanos(ns as u64));
+            if let Some(prev) = self.stats.kernel_time {
+                self.stats.kernel_time = Some(prev + Duration::from_nanos(ns as u64));
+            }
         }
         let word =
             |i: usize| u32::from_le_bytes(status[4 * i..4 * i + 4].try_into().expect("4 bytes"));
@@ -537,7 +544,12 @@ impl GpuBackend {
             )
             .clamp(1, u64::from(u32::MAX)) as u32;
         let mut out = Vec::new();
-        let slab = self.options.slab_rows.clamp(1, SLAB_ROWS);
+        // List positions are 32-bit: a slab holds fewer pixels than that.
+        let slab = self
+            .options
+            .slab_rows
+            .clamp(1, SLAB_ROWS)
+            .min((u32::MAX / w).max(1));
         for slab_y0 in (0..h).step_by(slab as usize) {
             let slab_y1 = slab_y0.saturating_add(slab).min(h);
             let mut start = 0u32;
