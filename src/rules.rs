@@ -136,6 +136,12 @@ impl RuleTable {
         (0..=255u8).filter_map(|c| self.rule(c).map(|r| (c, r)))
     }
 
+    /// Fewest blocking neighbours among the accepted codes (set bits), or `None` when no code is accepted:
+    /// a pixel with fewer cannot be a keypoint, which lets the bit-plane paths skip almost every word.
+    pub fn min_accepted_bits(&self) -> Option<u32> {
+        self.accepted().map(|(c, _)| c.count_ones()).min()
+    }
+
     /// One accepted code per rotation class (the smallest code of the class), with its rule.
     pub fn canonical(&self) -> Vec<(u8, u8)> {
         self.accepted()

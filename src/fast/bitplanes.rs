@@ -62,6 +62,21 @@ impl ValueSet {
     }
 }
 
+/// The OGM detector's two planes' value sets: free pixels, and pixels that set their bit in a neighbour
+/// code (occupied, and unknown too with `unknown_as_occupied`). Shared by the fast CPU path and the GPU
+/// kernel's parameters.
+pub fn ogm_sets(classes: &ClassTable, unknown_as_occupied: bool) -> (ValueSet, ValueSet) {
+    let blocking: &[CellState] = if unknown_as_occupied {
+        &[CellState::Occupied, CellState::Unknown]
+    } else {
+        &[CellState::Occupied]
+    };
+    (
+        ValueSet::of(classes, &[CellState::Free]),
+        ValueSet::of(classes, blocking),
+    )
+}
+
 /// Words needed for a row of `width` pixels.
 #[inline]
 pub fn words(width: usize) -> usize {

@@ -10,11 +10,11 @@
 
 use rayon::prelude::*;
 
-use super::bitplanes::{plane_row, words, ValueSet};
+use super::bitplanes::{ogm_sets, plane_row, words, ValueSet};
 use crate::backend::Keypoint;
 use crate::map::MapImage;
 use crate::rules::RuleTable;
-use crate::states::{CellState, ClassTable};
+use crate::states::ClassTable;
 
 /// Rows per band at least: the rows above and below a band are classified twice, so bands are long.
 const MIN_BAND_ROWS: usize = 64;
@@ -37,17 +37,13 @@ pub fn ogm_corners(
     unknown_as_occupied: bool,
 ) -> Vec<Keypoint> {
     let (w, h) = (image.width() as usize, image.height() as usize);
-    let Some(min_bits) = rules.accepted().map(|(c, _)| c.count_ones()).min() else {
+    let Some(min_bits) = rules.min_accepted_bits() else {
         return Vec::new();
     };
-    let blocking: &[CellState] = if unknown_as_occupied {
-        &[CellState::Occupied, CellState::Unknown]
-    } else {
-        &[CellState::Occupied]
-    };
+    let (free, blocking) = ogm_sets(classes, unknown_as_occupied);
     let plan = Plan {
-        free: ValueSet::of(classes, &[CellState::Free]),
-        blocking: ValueSet::of(classes, blocking),
+        free,
+        blocking,
         table: rules.as_bytes(),
         min_bits,
     };

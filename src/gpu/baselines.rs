@@ -81,11 +81,9 @@ impl GpuBackend {
     /// Uploads the tile's rectangle, rows padded to whole words, through the staging ring; the copy is
     /// submitted at once and runs before the passes submitted after it.
     fn upload_band(&mut self, image: &MapImage, t: &tiles::Tile) -> Result<wgpu::Buffer> {
-        let pitch = t.stride() as usize * 4;
-        let rows = buffers::band_rows(image.width(), t, pitch);
-        let (i, staging) =
+        let (i, staging, _) =
             self.ring
-                .stage(&self.device, t.bytes(), &[], image.pixels(), 0, &rows)?;
+                .stage_band(&self.device, image, t, t.stride() as usize * 4, &[], 0)?;
         let buf = self
             .base_pixels
             .get(&self.device, t.bytes(), self.max_binding)

@@ -11,7 +11,9 @@ use std::sync::{mpsc, Arc};
 
 use rayon::prelude::*;
 
+use super::tiles::Tile;
 use crate::error::{Error, Result};
+use crate::map::MapImage;
 
 /// A reusable buffer that grows (to the next power of two, within `cap`) when a call needs more.
 pub(super) struct Slot {
@@ -73,24 +75,11 @@ pub(super) struct Ring {
 
 /// What one row of a staged band is: `len` bytes from `src` written at `dst`, zeros up to `dst + pitch`.
 #[derive(Clone, Copy)]
-pub(super) struct RowCopy {
-    pub src: usize,
-    pub dst: usize,
-    pub len: usize,
-    pub pitch: usize,
-}
-
-/// The rows of tile `t` of a map `map_width` pixels wide, each padded to `pitch` bytes in the staging buffer.
-pub(super) fn band_rows(map_width: u32, t: &super::tiles::Tile, pitch: usize) -> Vec<RowCopy> {
-    let iw = map_width as usize;
-    (0..t.buf_h() as usize)
-        .map(|r| RowCopy {
-            src: (t.buf[1] as usize + r) * iw + t.buf[0] as usize,
-            dst: r * pitch,
-            len: t.buf_w() as usize,
-            pitch,
-        })
-        .collect()
+struct RowCopy {
+    src: usize,
+    dst: usize,
+    len: usize,
+    pitch: usize,
 }
 
 impl Ring {
@@ -101,19 +90,31 @@ impl Ring {
         }
     }
 
-    /// The next staging buffer, mapped and at least `size` bytes, once the GPU is done with it: `head`
-    /// (small parameter data) is written at offset 0 and the `rows` of `pixels` from `rows_at`, in parallel.
-    /// Returns the buffer, unmapped and ready to be copied from; call [`Ring::recycle`] on the encoder
-    /// that copies it.
-    pub fn stage(
+    /// The next staging buffer, once the GPU is done with it, holding `head` (small parameter data) at
+    /// offset 0 and then, from offset `rows_at`, the rows of tile `t` of `image`, each padded with zeros to
+    /// `pitch` bytes and copied in parallel. Returns its index and the buffer, unmapped and ready to be
+    /// copied from, and the band's bytes; call [`Ring::recycle`] on the encoder that copies it.
+    pub fn stage_band(
         &mut self,
         device: &wgpu::Device,
-        size: u64,
+        image: &MapImage,
+        t: &Tile,
+        pitch: usize,
         head: &[u8],
-        pixels: &[u8],
         rows_at: usize,
-        rows: &[RowCopy],
-    ) -> Result<(usize, wgpu::Buffer)> {
+    ) -> Result<(usize, wgpu::Buffer, u64)> {
+        let iw = image.width() as usize;
+        let rows: Vec<RowCopy> = (0..t.buf_h() as usize)
+            .map(|r| RowCopy {
+                src: (t.buf[1] as usize + r) * iw + t.buf[0] as usize,
+                dst: r * pitch,
+                len: t.buf_w() as usize,
+                pitch,
+            })
+            .collect();
+        let bytes = pitch as u64 * u64::from(t.buf_h());
+        let pixels = image.pixels();
+        let size = rows_at as u64 + bytes;
         let i = self.next;
         self.next = (self.next + 1) % self.bufs.len();
         let size = size
@@ -130,9 +131,7 @@ impl Ring {
                                 timeout: None,
                             }
                         });
-                device
-                    .poll(wait)
-                    .map_err(|e| Error::Internal(format!("GPU poll failed: {e}")))?;
+                poll(device, wait)?;
             }
         }
         let reuse = self.bufs[i]
@@ -165,7 +164,7 @@ impl Ring {
             for r in rows {
                 let (_, tail) = rest.split_at(r.dst - at);
                 let (row, tail) = tail.split_at(r.pitch);
-                parts.push((RowView(row), *r));
+                parts.push((RowView(row), r));
                 rest = tail;
                 at = r.dst + r.pitch;
             }
@@ -179,7 +178,7 @@ impl Ring {
         }
         s.buffer.unmap();
         s.state.store(IN_FLIGHT, Ordering::Release);
-        Ok((i, s.buffer.clone()))
+        Ok((i, s.buffer.clone(), bytes))
     }
 
     /// Maps staging buffer `i` again when `encoder`'s submission completes.
@@ -200,6 +199,40 @@ impl Ring {
     }
 }
 
+/// A bind group of group 0 of `pipeline` binding whole buffers (a uniform's buffer may be longer than its
+/// struct: the OGM and selection parameters are followed by the scan's levels).
+pub(super) fn bind_group(
+    device: &wgpu::Device,
+    pipeline: &wgpu::ComputePipeline,
+    entries: &[(u32, &wgpu::Buffer)],
+) -> wgpu::BindGroup {
+    let entries: Vec<wgpu::BindGroupEntry> = entries
+        .iter()
+        .map(|&(binding, b)| wgpu::BindGroupEntry {
+            binding,
+            resource: b.as_entire_binding(),
+        })
+        .collect();
+    device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: None,
+        layout: &pipeline.get_bind_group_layout(0),
+        entries: &entries,
+    })
+}
+
+/// Waits as `wait` says for the device's work, driving map callbacks.
+fn poll(device: &wgpu::Device, wait: wgpu::PollType) -> Result<()> {
+    device
+        .poll(wait)
+        .map(|_| ())
+        .map_err(|e| Error::Internal(format!("GPU poll failed: {e}")))
+}
+
+/// Waits until the device has finished all the work submitted so far.
+pub(super) fn wait_idle(device: &wgpu::Device) -> Result<()> {
+    poll(device, wgpu::PollType::wait_indefinitely())
+}
+
 /// One row's part of a mapped staging buffer, handed to a worker thread.
 struct RowView<'a>(wgpu::WriteOnly<'a, [u8]>);
 
@@ -216,9 +249,7 @@ pub(super) fn map_read(device: &wgpu::Device, buf: &wgpu::Buffer, size: u64) -> 
     slice.map_async(wgpu::MapMode::Read, move |r| {
         let _ = tx.send(r);
     });
-    device
-        .poll(wgpu::PollType::wait_indefinitely())
-        .map_err(|e| Error::Internal(format!("GPU poll failed: {e}")))?;
+    wait_idle(device)?;
     rx.recv()
         .map_err(|_| Error::Internal("GPU buffer map was dropped".into()))?
         .map_err(|e| Error::Internal(format!("GPU buffer map failed: {e}")))?;

@@ -5,15 +5,14 @@
 
 use super::scan::{scan_binds, ScanPlan, MAX_LEVELS, PARAM_ALIGN};
 use super::*;
-use crate::fast::bitplanes::ValueSet;
-use crate::states::CellState;
+use crate::fast::bitplanes::{ogm_sets, ValueSet};
 
 /// Invocations of a `detect` workgroup side by side, each owning 32 pixels of a row.
 const LANES: u32 = 64;
 /// Rows a `detect` invocation walks down.
 const STRIP: u32 = 16;
 /// Pixels of one invocation's run.
-pub(super) const RUN: u32 = 32;
+pub(super) const RUN: u32 = tiles::ROW_ALIGN;
 /// The most keypoints a workgroup can find (every pixel of its strip).
 const MAX_SCRATCH: u32 = LANES * RUN * STRIP;
 /// Bytes of a keypoint in the device list: x, then y << 8 | code.
@@ -194,63 +193,42 @@ impl OgmBuffers {
             self.keypoints.generation,
         ];
         if self.binds.as_ref().is_none_or(|(k, _)| *k != key) {
-            let bind = |pl: &wgpu::ComputePipeline,
-                        entries: &[(u32, &wgpu::Buffer, Option<u64>)]| {
-                let entries: Vec<wgpu::BindGroupEntry> = entries
-                    .iter()
-                    .map(|&(binding, b, size)| wgpu::BindGroupEntry {
-                        binding,
-                        resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
-                            buffer: b,
-                            offset: 0,
-                            size: size.and_then(wgpu::BufferSize::new),
-                        }),
-                    })
-                    .collect();
-                device.create_bind_group(&wgpu::BindGroupDescriptor {
-                    label: None,
-                    layout: &pl.get_bind_group_layout(0),
-                    entries: &entries,
-                })
-            };
             let mut make = |s: usize| {
                 let params = &self.params[s];
-                let head = Some(std::mem::size_of::<OgmParams>() as u64);
                 let pixels = self.pixels[s].get(device, 16, u64::MAX).clone();
                 let counts = self.counts.get(device, 16, u64::MAX).clone();
                 let found = self.found.get(device, 16, u64::MAX).clone();
                 let ordered = self.ordered.get(device, 16, u64::MAX).clone();
                 let keypoints = self.keypoints.get(device, 16, u64::MAX).clone();
                 SlotBinds {
-                    detect: bind(
+                    detect: buffers::bind_group(
+                        device,
                         &p.detect,
                         &[
-                            (0, params, head),
-                            (1, &self.tables, None),
-                            (2, &pixels, None),
-                            (3, &counts, None),
-                            (4, &found, None),
-                            (5, &ordered, None),
-                            (6, &self.status, None),
+                            (0, params),
+                            (1, &self.tables),
+                            (2, &pixels),
+                            (3, &counts),
+                            (4, &found),
+                            (5, &ordered),
+                            (6, &self.status),
                         ],
                     ),
-                    scatter: bind(
+                    scatter: buffers::bind_group(
+                        device,
                         &p.scatter,
                         &[
-                            (0, params, head),
-                            (3, &counts, None),
-                            (5, &ordered, None),
-                            (6, &self.status, None),
-                            (7, &keypoints, None),
+                            (0, params),
+                            (3, &counts),
+                            (5, &ordered),
+                            (6, &self.status),
+                            (7, &keypoints),
                         ],
                     ),
-                    finish: bind(
+                    finish: buffers::bind_group(
+                        device,
                         &p.finish,
-                        &[
-                            (0, params, head),
-                            (3, &counts, None),
-                            (6, &self.status, None),
-                        ],
+                        &[(0, params), (3, &counts), (6, &self.status)],
                     ),
                     scan: scan_binds(device, &p.scan_blocks, params, &counts),
                 }
@@ -314,6 +292,15 @@ impl GpuBackend {
         Ok(tiles::plan_rows(w, h, y0, y1, tw, th, 1))
     }
 
+    /// Rows of one slab of a map `w` pixels wide: at most [`SLAB_ROWS`] (the keypoint's row field) and
+    /// fewer than 2^32 pixels (list positions are 32-bit).
+    pub(super) fn ogm_slab(&self, w: u32) -> u32 {
+        self.options
+            .slab_rows
+            .clamp(1, SLAB_ROWS)
+            .min((u32::MAX / w.max(1)).max(1))
+    }
+
     /// Stages tile `t` (its parameter blocks, then its rows padded to whole 32-pixel runs) into the ring and
     /// records its copy, kernels, scan and scatter into a new encoder; returns the encoder and the staging
     /// buffer's index.
@@ -336,16 +323,13 @@ impl GpuBackend {
             let at = (k + 1) * PARAM_ALIGN as usize;
             head[at..at + 16].copy_from_slice(bytemuck::bytes_of(sp));
         }
-        let pitch = p.stride as usize * 4;
-        let rows = buffers::band_rows(image.width(), t, pitch);
-        let bytes = pitch as u64 * u64::from(t.buf_h());
-        let (ring_i, staging) = self.ring.stage(
+        let (ring_i, staging, bytes) = self.ring.stage_band(
             &self.device,
-            PARAMS_BYTES + bytes,
+            image,
+            t,
+            t.ogm_pitch() as usize,
             &head,
-            image.pixels(),
             PARAMS_BYTES as usize,
-            &rows,
         )?;
         let strips = core_rows.div_ceil(STRIP);
         let b = &mut self.ogm_bufs;
@@ -423,7 +407,7 @@ impl GpuBackend {
         first.clear_buffer(&self.ogm_bufs.status, 0, None);
         self.queue.submit([first.finish()]);
         for (i, t) in plan.iter().enumerate() {
-            let stride = t.buf_w().div_ceil(RUN) * (RUN / 4);
+            let stride = t.ogm_pitch() / 4;
             let lanes_x = stride / 8;
             let groups_x = lanes_x.div_ceil(LANES);
             let p = OgmParams {
@@ -507,19 +491,13 @@ impl GpuBackend {
         unknown_as_occupied: bool,
     ) -> Result<Vec<Keypoint>> {
         let (w, h) = (image.width(), image.height());
-        let Some(min_bits) = rules.accepted().map(|(c, _)| c.count_ones()).min() else {
+        let Some(min_bits) = rules.min_accepted_bits() else {
             return Ok(Vec::new());
         };
         if w == 0 || h == 0 {
             return Ok(Vec::new());
         }
-        let blocking: &[CellState] = if unknown_as_occupied {
-            &[CellState::Occupied, CellState::Unknown]
-        } else {
-            &[CellState::Occupied]
-        };
-        let free_set = ValueSet::of(classes, &[CellState::Free]);
-        let blk_set = ValueSet::of(classes, blocking);
+        let (free_set, blk_set) = ogm_sets(classes, unknown_as_occupied);
         // The table the kernel falls back to: bit 0 free, bit 1 blocking.
         let mut tables = [0u32; 512];
         for v in 0..=255u8 {
@@ -544,18 +522,15 @@ impl GpuBackend {
             )
             .clamp(1, u64::from(u32::MAX)) as u32;
         let mut out = Vec::new();
-        // List positions are 32-bit: a slab holds fewer pixels than that.
-        let slab = self
-            .options
-            .slab_rows
-            .clamp(1, SLAB_ROWS)
-            .min((u32::MAX / w).max(1));
+        let mut side_by_side = false;
+        let slab = self.ogm_slab(w);
         for slab_y0 in (0..h).step_by(slab as usize) {
             let slab_y1 = slab_y0.saturating_add(slab).min(h);
             let mut start = 0u32;
             loop {
                 let plan = self.ogm_plan(w, h, slab_y0, slab_y1)?;
                 self.stats.tiles = self.stats.tiles.max(plan.len());
+                side_by_side |= plan.iter().any(|t| t.core[2] - t.core[0] < w);
                 let have = (self.ogm_bufs.keypoints.size / KEYPOINT_BYTES) as u32;
                 let want = have
                     .max(self.options.initial_keypoint_capacity)
@@ -587,11 +562,7 @@ impl GpuBackend {
             }
         }
         self.stats.keypoint_capacity = self.ogm_bufs.keypoints.size / KEYPOINT_BYTES;
-        if self
-            .ogm_plan(w, h, 0, h.min(slab))?
-            .iter()
-            .any(|t| t.core[2] - t.core[0] < w)
-        {
+        if side_by_side {
             // Tiles side by side interleave rows; restore (y, x) order.
             out.sort_unstable();
         }

@@ -1,28 +1,25 @@
 //! What `bench` measures on the GPU beside end-to-end detection: the upload as the OGM path does it, and
 //! the transfer floor it is compared with.
 
-use super::ogm::{PARAMS_BYTES, RUN, SLAB_ROWS};
+use super::ogm::PARAMS_BYTES;
 use super::*;
 
 impl GpuBackend {
     /// The time to upload `image` alone, band by band as [`Backend::detect`] does (through the staging
-    /// ring, one submission per band), and wait for it.
+    /// ring, one submission per band), and wait for it; the first slab only, on maps taller than one.
     pub fn upload_time(&mut self, image: &MapImage) -> Result<Duration> {
         self.check()?;
         let (w, h) = (image.width(), image.height());
-        let plan = self.ogm_plan(w, h, 0, h.min(SLAB_ROWS))?;
+        let plan = self.ogm_plan(w, h, 0, h.min(self.ogm_slab(w)))?;
         let start = std::time::Instant::now();
         for (i, t) in plan.iter().enumerate() {
-            let pitch = t.buf_w().div_ceil(RUN) as usize * RUN as usize;
-            let rows = buffers::band_rows(image.width(), t, pitch);
-            let bytes = pitch as u64 * u64::from(t.buf_h());
-            let (ring_i, staging) = self.ring.stage(
+            let (ring_i, staging, bytes) = self.ring.stage_band(
                 &self.device,
-                PARAMS_BYTES + bytes,
+                image,
+                t,
+                t.ogm_pitch() as usize,
                 &[],
-                image.pixels(),
                 PARAMS_BYTES as usize,
-                &rows,
             )?;
             let pixels = self.ogm_bufs.pixels[i % 2]
                 .get(&self.device, bytes, self.max_binding)
@@ -33,9 +30,7 @@ impl GpuBackend {
             let index = self.queue.submit([encoder.finish()]);
             self.ring.submitted(ring_i, index);
         }
-        self.device
-            .poll(wgpu::PollType::wait_indefinitely())
-            .map_err(|e| Error::Internal(format!("GPU poll failed: {e}")))?;
+        buffers::wait_idle(&self.device)?;
         self.check()?;
         Ok(start.elapsed())
     }
@@ -45,10 +40,10 @@ impl GpuBackend {
     pub fn upload_ref_time(&mut self, image: &MapImage) -> Result<Duration> {
         self.check()?;
         let (w, h) = (image.width(), image.height());
-        let plan = self.ogm_plan(w, h, 0, h.min(SLAB_ROWS))?;
+        let plan = self.ogm_plan(w, h, 0, h.min(self.ogm_slab(w)))?;
         let largest = plan
             .iter()
-            .map(|t| u64::from(t.buf_w().div_ceil(RUN) * RUN) * u64::from(t.buf_h()))
+            .map(|t| u64::from(t.ogm_pitch()) * u64::from(t.buf_h()))
             .max()
             .unwrap_or(16);
         let staging: Vec<wgpu::Buffer> = (0..2)
@@ -65,7 +60,7 @@ impl GpuBackend {
             .collect();
         let start = std::time::Instant::now();
         for (i, t) in plan.iter().enumerate() {
-            let bytes = u64::from(t.buf_w().div_ceil(RUN) * RUN) * u64::from(t.buf_h());
+            let bytes = u64::from(t.ogm_pitch()) * u64::from(t.buf_h());
             let pixels = self.ogm_bufs.pixels[i % 2]
                 .get(&self.device, bytes, self.max_binding)
                 .clone();
@@ -73,9 +68,7 @@ impl GpuBackend {
             encoder.copy_buffer_to_buffer(&staging[i % 2], 0, &pixels, 0, bytes);
             self.queue.submit([encoder.finish()]);
         }
-        self.device
-            .poll(wgpu::PollType::wait_indefinitely())
-            .map_err(|e| Error::Internal(format!("GPU poll failed: {e}")))?;
+        buffers::wait_idle(&self.device)?;
         self.check()?;
         Ok(start.elapsed())
     }

@@ -171,35 +171,14 @@ impl GpuBackend {
                 bytemuck::bytes_of(sp),
             );
         }
-        let head = wgpu::BufferSize::new(std::mem::size_of::<SelParams>() as u64);
-        let bind = |pl: &wgpu::ComputePipeline, entries: &[(u32, &wgpu::Buffer)]| {
-            let entries: Vec<wgpu::BindGroupEntry> = entries
-                .iter()
-                .map(|&(binding, b)| wgpu::BindGroupEntry {
-                    binding,
-                    resource: if binding == 0 {
-                        wgpu::BindingResource::Buffer(wgpu::BufferBinding {
-                            buffer: b,
-                            offset: 0,
-                            size: head,
-                        })
-                    } else {
-                        b.as_entire_binding()
-                    },
-                })
-                .collect();
-            device.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: None,
-                layout: &pl.get_bind_group_layout(0),
-                entries: &entries,
-            })
-        };
-        let bg_count = bind(
+        let bg_count = buffers::bind_group(
+            &device,
             &st.count,
             &[(0, &st.params), (1, &scores), (2, &counts), (3, &maxes)],
         );
-        let bg_max = bind(&st.reduce_max, &[(0, &st.params), (3, &maxes)]);
-        let bg_scatter = bind(
+        let bg_max = buffers::bind_group(&device, &st.reduce_max, &[(0, &st.params), (3, &maxes)]);
+        let bg_scatter = buffers::bind_group(
+            &device,
             &st.scatter,
             &[(0, &st.params), (1, &scores), (2, &counts), (4, &out)],
         );
@@ -251,7 +230,8 @@ impl GpuBackend {
                     start.saturating_add(((st.out.size / CANDIDATE_BYTES) as u32).min(per_pass));
                 self.queue
                     .write_buffer(&st.params, 0, bytemuck::bytes_of(&params));
-                let bg = bind(
+                let bg = buffers::bind_group(
+                    &device,
                     &st.scatter,
                     &[(0, &st.params), (1, &scores), (2, &counts), (4, &out)],
                 );

@@ -26,13 +26,18 @@ impl Tile {
         self.buf_w().div_ceil(4)
     }
 
+    /// Bytes of an uploaded row for the OGM kernel: the row padded to whole runs of [`ROW_ALIGN`] pixels.
+    pub fn ogm_pitch(&self) -> u32 {
+        self.buf_w().div_ceil(ROW_ALIGN) * ROW_ALIGN
+    }
+
     /// Bytes of the uploaded, word-padded rectangle.
     pub fn bytes(&self) -> u64 {
         u64::from(self.stride()) * 4 * u64::from(self.buf_h())
     }
 }
 
-/// Pixels the OGM kernel's rows are padded to: one invocation's run.
+/// Pixels the OGM kernel's rows are padded to: one invocation's run (`RUN` in src/gpu/ogm.rs).
 pub const ROW_ALIGN: u32 = 32;
 
 /// Bytes one OGM tile's padded upload needs for a core of `w` x `h` (halo included, worst case).
