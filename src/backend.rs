@@ -109,8 +109,9 @@ pub struct DetectOptions {
 
 /// Something that runs the classification and corner kernels: the CPU reference, or a GPU.
 ///
-/// Implementations keep whatever set-up they need (devices, pipelines, buffers) between calls.
-pub trait Backend {
+/// Implementations keep whatever set-up they need (devices, pipelines, buffers) between calls; they are
+/// `Send`, so a detector can move to the thread that runs it (Python releases its lock around a call).
+pub trait Backend: Send {
     /// A short name for messages and benchmark records.
     fn name(&self) -> String;
 

@@ -84,28 +84,51 @@ impl Detector {
 
     /// Detects corners in an image, reading its pixels with `thresholds`.
     pub fn detect_image(&mut self, image: &MapImage, thresholds: &Thresholds) -> Result<Detection> {
+        self.detect_as(image, &ClassTable::new(thresholds), false)
+    }
+
+    /// Detects corners in an image whose values `classes` reads, such as `nav_msgs/OccupancyGrid` cells
+    /// in place ([`crate::map::GridThresholds::class_table`]). The baselines, which read grey levels,
+    /// see the three states drawn as `map_server` draws them (a copy of the image).
+    pub fn detect_classified(&mut self, image: &MapImage, classes: &ClassTable) -> Result<Detection> {
+        self.detect_as(image, classes, true)
+    }
+
+    /// The detection; `redraw`: the baselines read the states' grey levels, not the image's values.
+    fn detect_as(
+        &mut self,
+        image: &MapImage,
+        classes: &ClassTable,
+        redraw: bool,
+    ) -> Result<Detection> {
         let mut robust = None;
         let mut keypoints = match self.options.detector {
             DetectorKind::OgmRobust => {
-                let classes = ClassTable::new(thresholds);
                 let (k, info) = crate::robust::detect(
                     &mut *self.backend,
                     image,
-                    &classes,
+                    classes,
                     &self.rules,
                     &self.options.robust,
                 )?;
                 robust = Some(info);
                 k
             }
-            DetectorKind::Ogm => {
-                let classes = ClassTable::new(thresholds);
-                self.backend.detect(
-                    image,
-                    &classes,
-                    &self.rules,
-                    self.options.unknown_as_occupied,
-                )?
+            DetectorKind::Ogm => self.backend.detect(
+                image,
+                classes,
+                &self.rules,
+                self.options.unknown_as_occupied,
+            )?,
+            DetectorKind::Baseline(kind) if redraw => {
+                let grey = image
+                    .pixels()
+                    .iter()
+                    .map(|&v| classes.state(v).map_server_value())
+                    .collect();
+                let grey = MapImage::new(image.width(), image.height(), grey)?;
+                self.backend
+                    .baseline_keypoints(kind, &grey, &self.options.baseline)?
             }
             DetectorKind::Baseline(kind) => {
                 self.backend
@@ -120,6 +143,70 @@ impl Detector {
             height: image.height(),
             keypoints,
             robust,
+        })
+    }
+}
+
+/// Where to detect: the backends a user chooses among by name.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum BackendChoice {
+    /// A hardware GPU adapter when there is one, else the fast CPU path (software adapters such as
+    /// lavapipe are slower than the CPU, so not picked).
+    #[default]
+    Auto,
+    /// The fast CPU path: all cores, bit-planes and SIMD.
+    Cpu,
+    /// The plain single-threaded CPU reference, the oracle the other backends are tested against.
+    Reference,
+    /// A GPU adapter through wgpu (software adapters included); an error without one.
+    Gpu,
+}
+
+impl BackendChoice {
+    /// The names users write: `auto`, `cpu`, `reference`, `gpu`.
+    pub const NAMES: [&'static str; 4] = ["auto", "cpu", "reference", "gpu"];
+
+    /// The choice a name gives (as [`BackendChoice::NAMES`]), or a one-line error listing them.
+    pub fn parse(name: &str) -> Result<Self> {
+        match name {
+            "auto" => Ok(BackendChoice::Auto),
+            "cpu" => Ok(BackendChoice::Cpu),
+            "reference" => Ok(BackendChoice::Reference),
+            "gpu" => Ok(BackendChoice::Gpu),
+            other => Err(Error::invalid(format!(
+                "unknown backend `{other}`: expected one of {}",
+                Self::NAMES.join(", ")
+            ))),
+        }
+    }
+
+    /// Opens the backend. With `Auto` the second value says which it picked and why, for the caller to
+    /// tell its user (the command line prints it on standard error).
+    pub fn open(self) -> Result<(Box<dyn Backend>, Option<String>)> {
+        use crate::cpu::CpuBackend;
+        use crate::gpu::{GpuBackend, GpuOptions};
+        Ok(match self {
+            BackendChoice::Cpu => (Box::new(FastCpuBackend), None),
+            BackendChoice::Reference => (Box::new(CpuBackend), None),
+            BackendChoice::Gpu => (Box::new(GpuBackend::new(GpuOptions::default())?), None),
+            BackendChoice::Auto => match GpuBackend::open(true, GpuOptions::default()) {
+                Ok(Some(g)) => {
+                    let note = format!("backend: gpu ({}, {})", g.adapter().name, g.adapter().backend);
+                    (Box::new(g), Some(note))
+                }
+                Ok(None) => (
+                    Box::new(FastCpuBackend),
+                    Some(
+                        "backend: cpu (no hardware GPU adapter found; --backend gpu accepts software ones)"
+                            .to_string(),
+                    ),
+                ),
+                Err(e @ Error::Input { .. }) => return Err(e),
+                Err(e) => (
+                    Box::new(FastCpuBackend),
+                    Some(format!("backend: cpu (the GPU could not be opened: {e})")),
+                ),
+            },
         })
     }
 }

@@ -9,10 +9,12 @@ use clap::Args;
 use serde::Serialize;
 
 use ogm_corners::files;
+use ogm_corners::map::{save_names, yaml_text};
 use ogm_corners::memory::Budget;
-use ogm_corners::merge::align::{align_with, prepared_bytes, Features};
-use ogm_corners::merge::transform::{to_world, WorldRigid};
-use ogm_corners::merge::{compose, MergeOptions, Rigid};
+use ogm_corners::merge::align::{prepared_bytes, Features};
+use ogm_corners::merge::pair::{self, PairMerge};
+use ogm_corners::merge::transform::WorldRigid;
+use ogm_corners::merge::{MergeOptions, Rigid};
 use ogm_corners::{Error, OccupancyMap, Result};
 
 use super::write_stdout;
@@ -81,7 +83,7 @@ pub(super) fn run(a: MergeArgs, budget: &Budget) -> Result<()> {
     for p in &a.maps {
         super::claim_input(p, budget, &prepared_bytes, &mut inputs)?;
     }
-    let (yaml_out, pgm_out) = output_names(a.output.as_deref())?;
+    let (yaml_out, pgm_out) = save_names(a.output.as_deref())?;
     for (p, what) in [
         (&yaml_out, "-o"),
         (&pgm_out, "-o"),
@@ -92,28 +94,15 @@ pub(super) fn run(a: MergeArgs, budget: &Budget) -> Result<()> {
         }
     }
     let map_a = OccupancyMap::load(&a.maps[0])?;
-    let mut map_b = OccupancyMap::load(&a.maps[1])?;
-    let mut b_scale = 1.0;
-    if let (Some(ga), Some(gb)) = (map_a.georef, map_b.georef) {
-        if (ga.resolution - gb.resolution).abs() > 1e-9 * ga.resolution {
-            b_scale = gb.resolution / ga.resolution;
-            map_b = compose::resample(&map_b, ga.resolution)?;
-        }
-    }
+    let map_b = OccupancyMap::load(&a.maps[1])?;
     let mut backend = super::backend_on(a.backend)?;
     let start = Instant::now();
-    let al = align_with(&map_a, &map_b, &MergeOptions::default(), backend.as_mut())?;
+    let PairMerge {
+        alignment: al,
+        b_scale,
+        world,
+    } = pair::merge_pair(&map_a, &map_b, &MergeOptions::default(), backend.as_mut())?;
     let seconds = start.elapsed().as_secs_f64();
-    let world = match (map_a.georef, map_b.georef) {
-        (Some(ga), Some(gb)) => Some(to_world(
-            &al.transform,
-            &ga,
-            map_a.image.height(),
-            &gb,
-            map_b.image.height(),
-        )),
-        _ => None,
-    };
     write_stdout(|out| match a.format {
         super::TextOrJson::Json => {
             serde_json::to_writer_pretty(
@@ -166,7 +155,7 @@ pub(super) fn run(a: MergeArgs, budget: &Budget) -> Result<()> {
     let mut staged = files::Staged::default();
     let mut wrote = Vec::new();
     if let Some(pgm) = &pgm_out {
-        let merged = compose::compose(&map_a, &map_b, &al.transform)?;
+        let merged = pair::compose_pair(&map_a, &map_b, &al.transform)?;
         staged.write(pgm, |out| merged.image.write_pgm_to(out))?;
         if let Some(yaml) = &yaml_out {
             let text = yaml_text(pgm, &merged, "A");
@@ -175,7 +164,7 @@ pub(super) fn run(a: MergeArgs, budget: &Budget) -> Result<()> {
         wrote.push(pgm);
     }
     if let Some(png) = &a.overlay {
-        let picture = compose::overlay(&map_a, &map_b, &al.transform)?;
+        let picture = pair::overlay_pair(&map_a, &map_b, &al.transform)?;
         staged.write(png, |out| files::encode_png(out, &picture))?;
         wrote.push(png);
     }
@@ -184,41 +173,4 @@ pub(super) fn run(a: MergeArgs, budget: &Budget) -> Result<()> {
         ogm_corners::say!("ogm-corners: wrote {}", p.display());
     }
     Ok(())
-}
-
-/// The merged map's files for `-o`: `NAME.yaml` gives the yaml and `NAME.pgm`; `NAME.pgm` the image
-/// alone.
-pub(super) fn output_names(o: Option<&Path>) -> Result<(Option<PathBuf>, Option<PathBuf>)> {
-    match o {
-        Some(o)
-            if o.extension()
-                .is_some_and(|e| e.eq_ignore_ascii_case("yaml")) =>
-        {
-            Ok((Some(o.to_path_buf()), Some(o.with_extension("pgm"))))
-        }
-        Some(o) if o.extension().is_some_and(|e| e.eq_ignore_ascii_case("pgm")) => {
-            Ok((None, Some(o.to_path_buf())))
-        }
-        Some(o) => Err(Error::invalid(format!(
-            "{}: the merged map is written as NAME.yaml (with NAME.pgm) or NAME.pgm",
-            o.display()
-        ))),
-        None => Ok((None, None)),
-    }
-}
-
-/// The merged map's yaml text (its image `pgm` beside it); `reference` names the map whose frame it keeps,
-/// for the placeholder comment when that map had no yaml.
-pub(super) fn yaml_text(pgm: &Path, merged: &OccupancyMap, reference: &str) -> String {
-    let image = pgm
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    match merged.georef {
-        Some(g) => ogm_corners::map::map_yaml_text(&image, g.resolution, g.origin),
-        None => format!(
-            "# {reference} had no yaml: resolution 1 and origin 0 are placeholders.\n{}",
-            ogm_corners::map::map_yaml_text(&image, 1.0, [0.0; 3])
-        ),
-    }
 }

@@ -3,16 +3,15 @@
 //! (`--init-poses`).
 
 use std::path::{Path, PathBuf};
-use std::time::Instant;
-
 use ogm_corners::files;
 use ogm_corners::memory::Budget;
 use ogm_corners::merge::align::prepared_bytes;
-use ogm_corners::merge::global::{self, report, GlobalOptions};
-use ogm_corners::merge::{compose, mosaic};
+use ogm_corners::merge::global::{merge_maps, report, GlobalOptions};
 use ogm_corners::{Error, OccupancyMap, Result};
 
-use super::merge::{output_names, yaml_text, MergeArgs};
+use ogm_corners::map::{save_names, yaml_text};
+
+use super::merge::MergeArgs;
 use super::write_stdout;
 
 /// `NAME.ext` for group 0, `NAME-k.ext` for group k.
@@ -51,7 +50,7 @@ pub(super) fn run(a: MergeArgs, budget: &Budget) -> Result<()> {
         format_args!("{} maps and their preparation", paths.len()),
         total,
     )?;
-    let (yaml_out, pgm_out) = output_names(a.output.as_deref())?;
+    let (yaml_out, pgm_out) = save_names(a.output.as_deref())?;
     // Every file it may write, checked against the inputs before any work: at most one group per two maps.
     for g in 0..paths.len() / 2 {
         for (p, what) in [
@@ -80,24 +79,10 @@ pub(super) fn run(a: MergeArgs, budget: &Budget) -> Result<()> {
         }
     }
     let names: Vec<String> = paths.iter().map(|p| p.display().to_string()).collect();
-    let mut maps = paths
+    let maps = paths
         .iter()
         .map(OccupancyMap::load)
         .collect::<Result<Vec<_>>>()?;
-    // Every map at the first georeferenced map's resolution.
-    let mut scales = vec![None; maps.len()];
-    if let Some(res) = maps.iter().find_map(|m| m.georef).map(|g| g.resolution) {
-        for (m, s) in maps.iter_mut().zip(&mut scales) {
-            if let Some(g) = m.georef {
-                if (g.resolution - res).abs() > 1e-9 * res {
-                    *s = Some(g.resolution / res);
-                    *m = compose::resample(m, res)?;
-                }
-            }
-        }
-    }
-    let start = Instant::now();
-    let options = GlobalOptions::default();
     let bar = indicatif::ProgressBar::new(0);
     bar.set_style(
         indicatif::ProgressStyle::with_template(
@@ -106,33 +91,24 @@ pub(super) fn run(a: MergeArgs, budget: &Budget) -> Result<()> {
         .expect("valid template"),
     );
     let mut backend = super::backend_on(a.backend)?;
-    let run = global::run(&maps, &options, backend.as_mut(), &|k, n| {
-        bar.set_length(n as u64);
-        bar.set_position(k as u64);
-    })?;
+    let many = merge_maps(
+        maps,
+        &names,
+        &GlobalOptions::default(),
+        backend.as_mut(),
+        &|k, n| {
+            bar.set_length(n as u64);
+            bar.set_position(k as u64);
+        },
+    )?;
     bar.finish_and_clear();
-    let seconds = start.elapsed().as_secs_f64();
-    let placement = &run.placement;
-    let group_maps = |g: usize| -> (Vec<&OccupancyMap>, Vec<ogm_corners::merge::Rigid>) {
-        placement.groups[g]
-            .iter()
-            .map(|&m| (&maps[m], placement.maps[m].pose))
-            .unzip()
-    };
-    let frames = (0..placement.groups.len())
-        .map(|g| {
-            let (ms, ps) = group_maps(g);
-            mosaic::frame(&ms, &ps)
-        })
-        .collect::<Result<Vec<_>>>()?;
-    let mut doc = report::poses(&names, &maps, &scales, &run, &frames, seconds);
+    let mut doc = many.report.clone();
     // Every output staged, then all renamed into place together: a failure leaves none of them.
     let mut staged = files::Staged::default();
-    for g in 0..placement.groups.len() {
-        let (ms, ps) = group_maps(g);
+    for g in 0..many.groups() {
         if let Some(pgm) = &pgm_out {
             let pgm = group_path(pgm, g);
-            let (merged, _) = mosaic::compose_many(&ms, &ps)?;
+            let merged = many.merged(g)?;
             staged.write(&pgm, |out| merged.image.write_pgm_to(out))?;
             doc.groups[g].merged = Some(pgm.display().to_string());
             if let Some(yaml) = &yaml_out {
@@ -144,7 +120,7 @@ pub(super) fn run(a: MergeArgs, budget: &Budget) -> Result<()> {
         }
         if let Some(png) = &a.overlay {
             let png = group_path(png, g);
-            let picture = mosaic::overlay_many(&ms, &ps)?;
+            let picture = many.overlay(g)?;
             staged.write(&png, |out| files::encode_png(out, &picture))?;
             doc.groups[g].overlay = Some(png.display().to_string());
         }
@@ -173,7 +149,7 @@ pub(super) fn run(a: MergeArgs, budget: &Budget) -> Result<()> {
         }
         super::TextOrJson::Text => report::write_text(out, &doc),
     })?;
-    if placement.groups.is_empty() {
+    if many.groups() == 0 {
         return Err(Error::Declined(
             "no two maps could be placed together with confidence".to_string(),
         ));

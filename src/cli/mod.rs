@@ -19,7 +19,8 @@ use clap::{Args, Parser, Subcommand, ValueEnum};
 
 use ogm_corners::cpu::CpuBackend;
 use ogm_corners::fast::FastCpuBackend;
-use ogm_corners::gpu::{GpuBackend, GpuOptions};
+use ogm_corners::detector::BackendChoice;
+use ogm_corners::gpu::GpuOptions;
 use ogm_corners::memory::{self, Budget};
 use ogm_corners::robust::RobustParams;
 use ogm_corners::{
@@ -270,30 +271,17 @@ fn detector_on(backend: BackendArg, options: DetectOptions) -> Result<Detector> 
 
 /// The backend the user chose (auto says which on standard error).
 fn backend_on(backend: BackendArg) -> Result<Box<dyn Backend>> {
-    Ok(match backend {
-        BackendArg::Cpu => Box::new(FastCpuBackend),
-        BackendArg::Reference => Box::new(CpuBackend),
-        BackendArg::Gpu => Box::new(GpuBackend::new(GpuOptions::default())?),
-        BackendArg::Auto => match GpuBackend::open(true, GpuOptions::default()) {
-            Ok(Some(g)) => {
-                ogm_corners::say!(
-                    "ogm-corners: backend: gpu ({}, {})",
-                    g.adapter().name,
-                    g.adapter().backend
-                );
-                Box::new(g)
-            }
-            Ok(None) => {
-                ogm_corners::say!("ogm-corners: backend: cpu (no hardware GPU adapter found; --backend gpu accepts software ones)");
-                Box::new(FastCpuBackend)
-            }
-            Err(e @ Error::Input { .. }) => return Err(e),
-            Err(e) => {
-                ogm_corners::say!("ogm-corners: backend: cpu (the GPU could not be opened: {e})");
-                Box::new(FastCpuBackend)
-            }
-        },
-    })
+    let choice = match backend {
+        BackendArg::Auto => BackendChoice::Auto,
+        BackendArg::Cpu => BackendChoice::Cpu,
+        BackendArg::Reference => BackendChoice::Reference,
+        BackendArg::Gpu => BackendChoice::Gpu,
+    };
+    let (backend, note) = choice.open()?;
+    if let Some(note) = note {
+        ogm_corners::say!("ogm-corners: {note}");
+    }
+    Ok(backend)
 }
 
 /// The maps of a long-running command (`eval`, `compare`): files as given and folders searched as

@@ -3,10 +3,13 @@
 //! Pixel row 0 is the top of the map. The yaml origin is the pose of the lower-left pixel, as in ROS.
 
 mod find;
+mod ros_grid;
+mod save;
 mod yaml;
 
 use std::io::BufReader;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 use crate::decode::{Decoder, ImageKind};
 use crate::error::{Error, Result};
@@ -14,6 +17,8 @@ use crate::files;
 use crate::memory::Budget;
 
 pub use find::{find_maps, map_name, output_names, FoundMaps};
+pub use save::{save_names, yaml_text};
+pub use ros_grid::{grid_image, GridThresholds, GRID_FREE, GRID_OCCUPIED, GRID_UNKNOWN};
 use yaml::read_yaml;
 pub use yaml::{is_yaml, map_yaml_text, yaml_image, MapYaml, MAX_YAML_BYTES, MAX_YAML_NESTING};
 
@@ -21,33 +26,81 @@ pub use yaml::{is_yaml, map_yaml_text, yaml_image, MapYaml, MAX_YAML_BYTES, MAX_
 /// header that claims an absurd size, which would otherwise abort the process when allocating.
 pub const MAX_IMAGE_BYTES: u64 = 1 << 32;
 
+/// Pixels that live outside the library and are read in place, such as a numpy array handed in from
+/// Python: the holder keeps them alive and unchanged for as long as it exists.
+pub trait PixelSource: Send + Sync {
+    /// The pixels, row-major, row 0 at the top.
+    fn bytes(&self) -> &[u8];
+}
+
+impl PixelSource for Vec<u8> {
+    fn bytes(&self) -> &[u8] {
+        self
+    }
+}
+
+/// Where a map's pixels are: owned, or read in place from a [`PixelSource`] (copied on first write).
+#[derive(Clone)]
+enum Pixels {
+    Owned(Vec<u8>),
+    Shared(Arc<dyn PixelSource>),
+}
+
+impl Pixels {
+    fn bytes(&self) -> &[u8] {
+        match self {
+            Pixels::Owned(v) => v,
+            Pixels::Shared(s) => s.bytes(),
+        }
+    }
+}
+
 /// An 8-bit greyscale map image, row-major, row 0 at the top.
-#[derive(Clone, Debug, PartialEq, Eq)]
+#[derive(Clone)]
 pub struct MapImage {
     width: u32,
     height: u32,
-    pixels: Vec<u8>,
+    pixels: Pixels,
+}
+
+impl PartialEq for MapImage {
+    fn eq(&self, other: &Self) -> bool {
+        (self.width, self.height) == (other.width, other.height) && self.pixels() == other.pixels()
+    }
+}
+
+impl Eq for MapImage {}
+
+impl std::fmt::Debug for MapImage {
+    /// The size and where the pixels are, not the pixels.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let kind = match self.pixels {
+            Pixels::Owned(_) => "owned",
+            Pixels::Shared(_) => "shared",
+        };
+        write!(f, "MapImage({}x{}, {kind})", self.width, self.height)
+    }
 }
 
 impl MapImage {
     /// Wraps `pixels` (row-major, `width * height` bytes). Fails on a zero-size map or a length mismatch.
     pub fn new(width: u32, height: u32, pixels: Vec<u8>) -> Result<Self> {
-        if width == 0 || height == 0 {
-            return Err(Error::invalid(format!(
-                "zero-size map ({width}x{height}): nothing to detect in"
-            )));
-        }
-        let expected = width as u64 * height as u64;
-        if pixels.len() as u64 != expected {
-            return Err(Error::invalid(format!(
-                "map of {width}x{height} needs {expected} pixels, got {}",
-                pixels.len()
-            )));
-        }
+        check_len(width, height, pixels.len())?;
         Ok(MapImage {
             width,
             height,
-            pixels,
+            pixels: Pixels::Owned(pixels),
+        })
+    }
+
+    /// Wraps pixels read in place (`width * height` bytes from `source`), without a copy; the first
+    /// [`MapImage::pixels_mut`] copies them. Fails as [`MapImage::new`] does.
+    pub fn shared(width: u32, height: u32, source: Arc<dyn PixelSource>) -> Result<Self> {
+        check_len(width, height, source.bytes().len())?;
+        Ok(MapImage {
+            width,
+            height,
+            pixels: Pixels::Shared(source),
         })
     }
 
@@ -68,27 +121,50 @@ impl MapImage {
 
     /// The pixels, row-major, row 0 at the top.
     pub fn pixels(&self) -> &[u8] {
-        &self.pixels
+        self.pixels.bytes()
     }
 
-    /// Mutable pixels, for building maps in memory.
+    /// Mutable pixels, for building maps in memory (pixels read in place are copied first).
     pub fn pixels_mut(&mut self) -> &mut [u8] {
-        &mut self.pixels
+        if let Pixels::Shared(s) = &self.pixels {
+            self.pixels = Pixels::Owned(s.bytes().to_vec());
+        }
+        match &mut self.pixels {
+            Pixels::Owned(v) => v,
+            Pixels::Shared(_) => unreachable!("copied above"),
+        }
+    }
+
+    /// The same image with its pixels behind a reference count, so that its clones share them (the maps
+    /// a Python program passes around).
+    pub fn into_shared(self) -> MapImage {
+        match self.pixels {
+            Pixels::Owned(v) => MapImage {
+                pixels: Pixels::Shared(Arc::new(v)),
+                ..self
+            },
+            Pixels::Shared(_) => self,
+        }
+    }
+
+    /// Whether the pixels are read in place from a [`PixelSource`] rather than owned.
+    pub fn is_shared(&self) -> bool {
+        matches!(self.pixels, Pixels::Shared(_))
     }
 
     /// The pixel at column `x`, row `y`. Panics when out of range, like slice indexing.
     pub fn get(&self, x: u32, y: u32) -> u8 {
-        self.pixels[y as usize * self.width as usize + x as usize]
+        self.pixels()[y as usize * self.width as usize + x as usize]
     }
 
     /// Number of pixels.
     pub fn len(&self) -> usize {
-        self.pixels.len()
+        self.pixels().len()
     }
 
     /// Always false: a `MapImage` has at least one pixel.
     pub fn is_empty(&self) -> bool {
-        self.pixels.is_empty()
+        self.pixels().is_empty()
     }
 
     /// Writes the map as a binary PGM (P5), atomically ([`files::write_atomic`]), without a second copy
@@ -100,8 +176,24 @@ impl MapImage {
     /// The image as a binary PGM (P5, maxval 255) into `out`.
     pub fn write_pgm_to(&self, out: &mut dyn std::io::Write) -> std::io::Result<()> {
         write!(out, "P5\n{} {}\n255\n", self.width, self.height)?;
-        out.write_all(&self.pixels)
+        out.write_all(self.pixels())
     }
+}
+
+/// Refuses a zero-size map or a pixel count other than `width * height`.
+fn check_len(width: u32, height: u32, len: usize) -> Result<()> {
+    if width == 0 || height == 0 {
+        return Err(Error::invalid(format!(
+            "zero-size map ({width}x{height}): nothing to detect in"
+        )));
+    }
+    let expected = width as u64 * height as u64;
+    if len as u64 != expected {
+        return Err(Error::invalid(format!(
+            "map of {width}x{height} needs {expected} pixels, got {len}"
+        )));
+    }
+    Ok(())
 }
 
 /// How pixel values map to occupancy, as in ROS `map_server`.

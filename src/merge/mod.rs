@@ -4,6 +4,7 @@
 //! - [`align`](mod@align): the transform between two maps, verified.
 //! - [`transform`]: pixel and world transforms between two maps' frames.
 //! - [`compose`](mod@compose): the merged map in A's frame.
+//! - [`pair`]: two maps merged end to end (resolutions, alignment, world transform, merged map).
 //! - [`pairs`]: pair sets with ground truth and their success test (`merge-eval`).
 //! - [`synthetic`]: pairs with exact truth cut from any map.
 //! - [`global`]: many maps at once: every pair aligned, one consistent placement of all.
@@ -20,6 +21,7 @@ mod fft;
 pub mod global;
 pub mod hypotheses;
 pub mod mosaic;
+pub mod pair;
 pub mod pairs;
 mod prepare;
 mod score;

@@ -20,6 +20,7 @@
 
 pub mod eval;
 pub mod graph;
+mod merged;
 pub mod posegraph;
 pub mod report;
 
@@ -30,6 +31,7 @@ use super::align::{
 };
 use super::transform::Rigid;
 use crate::error::Result;
+pub use merged::{merge_maps, ManyMerge};
 
 /// How to place many maps.
 #[derive(Clone, Copy, Debug, PartialEq)]

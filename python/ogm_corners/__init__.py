@@ -1,0 +1,56 @@
+"""Corners in robot occupancy grid maps, and map merging with no initial poses.
+
+The OGM corner detector of "A New Corner Detector Approach for Occupancy Grid Map Merging" and its
+robust form, the paper's baselines (Harris, Shi-Tomasi, Trajkovic-Hedley), on the CPU or any GPU wgpu
+drives, bit-identical between them; and a merger of many robots' maps that declines rather than guess.
+
+    import ogm_corners as oc
+    m = oc.load_map("map.yaml")              # or oc.Map.from_occupancy_grid(msg)
+    kp = oc.detect(m, detector="ogm-robust")  # kp.x, kp.y, kp.world, kp.array (structured)
+    al = oc.merge(m, oc.load_map("other.yaml"))
+    if al.accepted:
+        merged = oc.compose(m, "other.yaml", al)
+"""
+
+from . import _core
+from ._core import BackendUnavailableError
+from ._detect import BACKENDS, DETECTORS, Detector, detect
+from ._keypoints import DTYPE, DTYPE_WORLD, Keypoints
+from ._map import Map, OccupancyGrid, State, load_map
+from ._merge import (
+    Alignment,
+    ManyMerge,
+    Pose,
+    WorldTransform,
+    compose,
+    merge,
+    merge_many,
+    overlay,
+)
+from . import synthetic
+
+__version__: str = _core.__version__
+
+__all__ = [
+    "Alignment",
+    "BACKENDS",
+    "BackendUnavailableError",
+    "DETECTORS",
+    "DTYPE",
+    "DTYPE_WORLD",
+    "Detector",
+    "Keypoints",
+    "ManyMerge",
+    "Map",
+    "OccupancyGrid",
+    "Pose",
+    "State",
+    "WorldTransform",
+    "compose",
+    "detect",
+    "load_map",
+    "merge",
+    "merge_many",
+    "overlay",
+    "synthetic",
+]

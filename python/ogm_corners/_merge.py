@@ -1,0 +1,226 @@
+"""Merging maps with no initial poses: two (``merge``, ``compose``, ``overlay``) or many (``merge_many``)."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from dataclasses import dataclass, field
+from typing import Any, Dict, Iterator, List, Optional, Sequence, Tuple, Union
+
+import numpy as np
+
+from . import _core
+from ._map import Map, load_map
+
+
+def _rigid_matrix(theta: float, tx: float, ty: float) -> np.ndarray:
+    c, s = math.cos(theta), math.sin(theta)
+    return np.array([[c, -s, tx], [s, c, ty], [0.0, 0.0, 1.0]])
+
+
+@dataclass(frozen=True)
+class WorldTransform:
+    """A pose in a map frame, metres and radians (ROS: x east, y north, yaw counter-clockwise):
+    ``w_a = R(yaw) w_b + (x, y)``."""
+
+    x: float
+    y: float
+    yaw: float
+
+    @property
+    def matrix(self) -> np.ndarray:
+        """The 3x3 homogeneous matrix."""
+        return _rigid_matrix(self.yaw, self.x, self.y)
+
+
+def _world(d: Optional[Dict[str, float]]) -> Optional[WorldTransform]:
+    return None if d is None else WorldTransform(x=d["x"], y=d["y"], yaw=d["yaw"])
+
+
+@dataclass(frozen=True)
+class Alignment:
+    """The verdict on map B aligned onto map A (``merge``).
+
+    ``theta_deg``, ``tx``, ``ty``: B's pixels to A's pixels, ``p_a = R(theta) p_b + t`` (x right, y down,
+    pixel centres at integers; B at A's resolution, ``b_scale`` its resolution over A's). ``world``: the
+    pose of B's map frame in A's when both are georeferenced. ``accepted`` is False with a ``reason``
+    when the merger is not confident; the transform is then its best guess and must not be used.
+    """
+
+    accepted: bool
+    reason: Optional[str]
+    theta_deg: float
+    tx: float
+    ty: float
+    score: float
+    overlap: float
+    b_scale: float
+    world: Optional[WorldTransform]
+    features: Dict[str, float] = field(repr=False)
+
+    @property
+    def theta(self) -> float:
+        """The turn in radians (pixel frame: positive turns clockwise on screen, y pointing down)."""
+        return math.radians(self.theta_deg)
+
+    @property
+    def matrix(self) -> np.ndarray:
+        """The 3x3 matrix from B's pixels (at A's resolution) to A's."""
+        return _rigid_matrix(self.theta, self.tx, self.ty)
+
+    @property
+    def transform(self) -> Tuple[float, float, float]:
+        """(theta_deg, tx, ty)."""
+        return (self.theta_deg, self.tx, self.ty)
+
+
+def _as_map(m: Any) -> Map:
+    if isinstance(m, Map):
+        return m
+    if isinstance(m, (str, os.PathLike)):
+        return load_map(m)
+    raise TypeError(f"expected a Map or a path, got {type(m).__name__}")
+
+
+def merge(a: Any, b: Any, *, backend: str = "cpu") -> Alignment:
+    """Aligns map ``b`` onto map ``a`` with no initial pose and says whether it is confident.
+
+    ``a`` and ``b`` are ``Map`` objects or paths. ``backend`` scores the candidates (the same verdict on
+    every backend; the CPU by default: a pair is less work than opening a GPU).
+    """
+    ma, mb = _as_map(a), _as_map(b)
+    d = json.loads(_core.merge(ma._m, mb._m, backend))
+    t = d["transform"]
+    return Alignment(
+        accepted=d["accepted"],
+        reason=d["reason"],
+        theta_deg=t["theta_deg"],
+        tx=t["tx"],
+        ty=t["ty"],
+        score=d["score"],
+        overlap=d["overlap"],
+        b_scale=d["b_scale"],
+        world=_world(d["world"]),
+        features=d["features"],
+    )
+
+
+TransformLike = Union[Alignment, Tuple[float, float, float]]
+
+
+def _transform(alignment: TransformLike, force: bool) -> Tuple[float, float, float]:
+    if isinstance(alignment, Alignment):
+        if not alignment.accepted and not force:
+            raise ValueError(
+                f"not merged: {alignment.reason or 'not confident'} (force=True composes anyway)"
+            )
+        return alignment.transform
+    theta, tx, ty = (float(v) for v in alignment)
+    return (theta, tx, ty)
+
+
+def compose(a: Any, b: Any, alignment: TransformLike, *, force: bool = False) -> Map:
+    """The merged map of ``a`` and ``b`` in A's frame (georeferenced as A), B placed by ``alignment``
+    (an ``Alignment``, or ``(theta_deg, tx, ty)``). A declined alignment is refused (``ValueError``)
+    unless ``force=True``: a wrong merge is worse than none."""
+    t = _transform(alignment, force)
+    return Map._wrap(_core.compose(_as_map(a)._m, _as_map(b)._m, t))
+
+
+def overlay(a: Any, b: Any, alignment: TransformLike) -> np.ndarray:
+    """A picture of the alignment as (height, width, 3) uint8 RGB on the merged canvas: walls of A only
+    blue, of B only orange, of both black; free space of both white, of one light grey; a wall on the
+    other map's free space magenta."""
+    t = _transform(alignment, True)
+    return _core.overlay(_as_map(a)._m, _as_map(b)._m, t)
+
+
+@dataclass(frozen=True)
+class Pose:
+    """One input map's place: ``group`` (maps placed together) and ``theta_deg``, ``tx``, ``ty`` from its
+    pixels (at the reference resolution: ``scale``) to its group's merged-map pixels; ``world`` its map
+    frame's pose in the merged map's frame when georeferenced."""
+
+    map: str
+    group: int
+    theta_deg: float
+    tx: float
+    ty: float
+    world: Optional[WorldTransform]
+    scale: Optional[float]
+    copy_of: Optional[str]
+
+    @property
+    def matrix(self) -> np.ndarray:
+        """The 3x3 matrix from the map's pixels to the merged map's."""
+        return _rigid_matrix(math.radians(self.theta_deg), self.tx, self.ty)
+
+
+class ManyMerge:
+    """Many maps placed at once (``merge_many``). Unpacks as ``merged, poses = merge_many(maps)``:
+    ``merged`` is group 0's merged map (None when no two maps could be placed together), ``poses`` one
+    ``Pose`` per input map, None for a map not placed (``report["maps"][i]["reason"]`` says why).
+    ``report`` is the command line's ``--poses`` document; ``merged_map(g)`` and ``overlay(g)`` draw
+    any group."""
+
+    def __init__(self, core: Any) -> None:
+        self._core = core
+        #: The ``merge ... --poses`` JSON document as a dict.
+        self.report: Dict[str, Any] = json.loads(core._report())
+        self.poses: List[Optional[Pose]] = [
+            None
+            if not m["placed"]
+            else Pose(
+                map=m["map"],
+                group=m["group"],
+                theta_deg=m["transform"]["theta_deg"],
+                tx=m["transform"]["tx"],
+                ty=m["transform"]["ty"],
+                world=_world(m.get("world")),
+                scale=m.get("scale"),
+                copy_of=m.get("copy_of"),
+            )
+            for m in self.report["maps"]
+        ]
+        self._merged: Dict[int, Map] = {}
+
+    @property
+    def groups(self) -> int:
+        """The number of groups."""
+        return len(self.report["groups"])
+
+    def merged_map(self, group: int = 0) -> Map:
+        """Group ``group``'s merged map, in its first map's frame."""
+        if group not in self._merged:
+            self._merged[group] = Map._wrap(self._core._merged(group))
+        return self._merged[group]
+
+    def overlay(self, group: int = 0) -> np.ndarray:
+        """Group ``group``'s picture, each map's walls in its own colour, (height, width, 3) uint8."""
+        return self._core._overlay(group)
+
+    @property
+    def merged(self) -> Optional[Map]:
+        """Group 0's merged map, or None when nothing was placed together."""
+        return self.merged_map(0) if self.groups else None
+
+    def __iter__(self) -> Iterator[Any]:
+        return iter((self.merged, self.poses))
+
+    def __repr__(self) -> str:
+        placed = sum(p is not None for p in self.poses)
+        return f"ManyMerge({placed} of {len(self.poses)} maps placed in {self.groups} group(s))"
+
+
+def merge_many(
+    maps: Sequence[Any], *, names: Optional[Sequence[str]] = None, backend: str = "cpu"
+) -> ManyMerge:
+    """Places every map at once (``Map`` objects or paths): groups of maps of one place, each map's pose
+    in its group's merged map, merges no single pair would trust confirmed around cycles and accepted
+    ones that cycles contradict dropped. ``names`` label the maps in the report (default: their source
+    files, else ``map0``, ``map1``, ...)."""
+    ms = [_as_map(m) for m in maps]
+    if names is None:
+        names = [m.source or f"map{i}" for i, m in enumerate(ms)]
+    return ManyMerge(_core.merge_many([m._m for m in ms], list(names), backend))

@@ -1,0 +1,28 @@
+"""Synthetic maps with exact truth, for trying the package without data and for tests: the seeded office
+map of ``ogm-corners demo``, and overlapping robot maps cut from a map, each turned and shifted."""
+
+from __future__ import annotations
+
+from typing import List, Tuple
+
+from . import _core
+from ._map import Map
+
+
+def office(width: int = 1024, height: int = 768, seed: int = 1, resolution: float = 0.05) -> Map:
+    """The synthetic office map of ``ogm-corners demo`` (rooms, doors, furniture, unknown outside),
+    georeferenced at ``resolution`` metres a pixel with origin 0."""
+    return Map._wrap(_core.synthetic_office(width, height, seed, resolution))
+
+
+def robot_maps(
+    source: Map, n: int, *, noise: float = 0.0, seed: int = 1
+) -> List[Tuple[Map, Tuple[float, float, float]]]:
+    """``n`` overlapping maps cut from ``source`` as ``n`` robots would have mapped it: windows about 45%
+    shared with their neighbours, each turned by a random angle and shifted, free cells speckled with
+    probability ``noise``. Each comes with its exact pose (theta_deg, tx, ty): its pixels to the
+    source's. They keep the source's resolution, with origin 0."""
+    return [
+        (Map._wrap(m), pose)
+        for m, pose in _core.synthetic_robot_maps(source._m, n, noise, seed)
+    ]

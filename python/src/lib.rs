@@ -1,0 +1,30 @@
+//! `ogm_corners._core`: the compiled half of the Python package. The pure-Python package around it
+//! (`python/ogm_corners/`) shapes the API; this module converts between numpy and the Rust library and
+//! releases the interpreter's lock while the library works.
+
+mod detect;
+mod errors;
+mod map;
+mod merge;
+
+use pyo3::prelude::*;
+
+#[pymodule]
+fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    m.add_class::<map::Map>()?;
+    m.add_class::<detect::Detector>()?;
+    m.add_class::<merge::ManyMerge>()?;
+    m.add_function(wrap_pyfunction!(map::load_map, m)?)?;
+    m.add_function(wrap_pyfunction!(map::synthetic_office, m)?)?;
+    m.add_function(wrap_pyfunction!(map::synthetic_robot_maps, m)?)?;
+    m.add_function(wrap_pyfunction!(merge::merge, m)?)?;
+    m.add_function(wrap_pyfunction!(merge::compose, m)?)?;
+    m.add_function(wrap_pyfunction!(merge::overlay, m)?)?;
+    m.add_function(wrap_pyfunction!(merge::merge_many, m)?)?;
+    m.add(
+        "BackendUnavailableError",
+        m.py().get_type::<errors::BackendUnavailableError>(),
+    )?;
+    Ok(())
+}

@@ -1,0 +1,174 @@
+//! Merging: two maps (`merge`, `compose`, `overlay`) and many (`merge_many`). Verdicts and reports
+//! travel as the command line's JSON, which the package turns into its classes.
+
+use numpy::ndarray::Array3;
+use numpy::{IntoPyArray, PyArray3};
+use pyo3::prelude::*;
+use serde::Serialize;
+
+use ogm_corners::merge::align::Features;
+use ogm_corners::merge::global::{self, GlobalOptions};
+use ogm_corners::merge::pair::{self, PairMerge};
+use ogm_corners::merge::transform::WorldRigid;
+use ogm_corners::merge::{MergeOptions, Rigid};
+use ogm_corners::{BackendChoice, Error};
+
+use crate::errors::{to_py, unlocked};
+use crate::map::Map;
+
+/// The verdict on a pair, as `merge A B --format json` writes it.
+#[derive(Serialize)]
+struct Verdict {
+    accepted: bool,
+    reason: Option<String>,
+    transform: Rigid,
+    world: Option<WorldRigid>,
+    b_scale: f64,
+    score: f64,
+    overlap: f64,
+    features: Features,
+}
+
+/// A picture as a (height, width, 3) uint8 array.
+fn rgb_array(py: Python<'_>, picture: image::RgbImage) -> PyResult<Bound<'_, PyArray3<u8>>> {
+    let (w, h) = (picture.width() as usize, picture.height() as usize);
+    let array = Array3::from_shape_vec((h, w, 3), picture.into_raw())
+        .map_err(|e| to_py(Error::Internal(e.to_string())))?;
+    Ok(array.into_pyarray(py))
+}
+
+/// The backend a name gives, opened.
+fn backend(py: Python<'_>, name: &str) -> PyResult<Box<dyn ogm_corners::Backend>> {
+    let choice = BackendChoice::parse(name).map_err(to_py)?;
+    unlocked(py, || choice.open()).map(|(b, _)| b)
+}
+
+/// Aligns `b` onto `a` with no initial pose: the verdict as JSON.
+#[pyfunction]
+#[pyo3(signature = (a, b, backend="cpu"))]
+pub fn merge(py: Python<'_>, a: &Map, b: &Map, backend: &str) -> PyResult<String> {
+    let mut on = self::backend(py, backend)?;
+    let (ma, mb) = (&a.inner, &b.inner);
+    let PairMerge {
+        alignment: al,
+        b_scale,
+        world,
+    } = unlocked(py, || {
+        pair::merge_pair(ma, mb, &MergeOptions::default(), on.as_mut())
+    })?;
+    let verdict = Verdict {
+        accepted: al.accepted,
+        reason: al.reason,
+        transform: al.transform,
+        world,
+        b_scale,
+        score: al.score,
+        overlap: al.features.inside,
+        features: al.features,
+    };
+    serde_json::to_string(&verdict).map_err(|e| to_py(Error::Internal(e.to_string())))
+}
+
+/// The merged map of `a` and `b`, B placed by (theta degrees, tx, ty) in A's frame.
+#[pyfunction]
+pub fn compose(py: Python<'_>, a: &Map, b: &Map, transform: (f64, f64, f64)) -> PyResult<Map> {
+    let t = rigid(transform);
+    let (ma, mb) = (&a.inner, &b.inner);
+    unlocked(py, || pair::compose_pair(ma, mb, &t)).map(Map::wrap)
+}
+
+/// The picture of an alignment: A's and B's walls in two colours, agreement and conflicts.
+#[pyfunction]
+pub fn overlay<'py>(
+    py: Python<'py>,
+    a: &Map,
+    b: &Map,
+    transform: (f64, f64, f64),
+) -> PyResult<Bound<'py, PyArray3<u8>>> {
+    let t = rigid(transform);
+    let (ma, mb) = (&a.inner, &b.inner);
+    let picture = unlocked(py, || pair::overlay_pair(ma, mb, &t))?;
+    rgb_array(py, picture)
+}
+
+fn rigid((theta_deg, tx, ty): (f64, f64, f64)) -> Rigid {
+    Rigid { theta_deg, tx, ty }
+}
+
+/// Many maps placed; see the package's `ogm_corners.ManyMerge`.
+#[pyclass(frozen, module = "ogm_corners._core", name = "ManyMerge")]
+pub struct ManyMerge {
+    inner: global::ManyMerge,
+}
+
+#[pymethods]
+impl ManyMerge {
+    /// The report (`merge ... --poses` JSON).
+    fn _report(&self) -> PyResult<String> {
+        serde_json::to_string(&self.inner.report).map_err(|e| to_py(Error::Internal(e.to_string())))
+    }
+
+    /// Group `g`'s merged map.
+    fn _merged(&self, py: Python<'_>, g: usize) -> PyResult<Map> {
+        self.check(g)?;
+        let m = &self.inner;
+        unlocked(py, || m.merged(g)).map(Map::wrap)
+    }
+
+    /// Group `g`'s picture, each map's walls in its own colour.
+    fn _overlay<'py>(&self, py: Python<'py>, g: usize) -> PyResult<Bound<'py, PyArray3<u8>>> {
+        self.check(g)?;
+        let m = &self.inner;
+        let picture = unlocked(py, || m.overlay(g))?;
+        rgb_array(py, picture)
+    }
+}
+
+impl ManyMerge {
+    fn check(&self, g: usize) -> PyResult<()> {
+        let n = self.inner.groups();
+        if g >= n {
+            return Err(pyo3::exceptions::PyIndexError::new_err(format!(
+                "group {g} of {n}"
+            )));
+        }
+        Ok(())
+    }
+}
+
+/// Places every map at once (groups of maps of one place), each map's pose in its group's merged map.
+#[pyfunction]
+#[pyo3(signature = (maps, names, backend="cpu"))]
+pub fn merge_many(
+    py: Python<'_>,
+    maps: Vec<PyRef<'_, Map>>,
+    names: Vec<String>,
+    backend: &str,
+) -> PyResult<ManyMerge> {
+    if maps.len() < 2 {
+        return Err(to_py(Error::invalid(format!(
+            "merge needs at least two maps; found {}",
+            maps.len()
+        ))));
+    }
+    if names.len() != maps.len() {
+        return Err(to_py(Error::invalid(format!(
+            "{} names for {} maps",
+            names.len(),
+            maps.len()
+        ))));
+    }
+    let mut on = self::backend(py, backend)?;
+    // Clones share the pixels (Map::wrap), so this copies no image.
+    let owned: Vec<ogm_corners::OccupancyMap> = maps.iter().map(|m| m.inner.clone()).collect();
+    let inner = unlocked(py, || {
+        global::merge_maps(
+            owned,
+            &names,
+            &GlobalOptions::default(),
+            on.as_mut(),
+            &|_, _| {},
+        )
+    })?;
+    Ok(ManyMerge { inner })
+}

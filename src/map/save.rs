@@ -1,0 +1,68 @@
+//! Writing a map as ROS `map_server` reads it: `NAME.yaml` with `NAME.pgm` beside it, or the image alone.
+
+use std::path::{Path, PathBuf};
+
+use super::{map_yaml_text, OccupancyMap};
+use crate::error::{Error, Result};
+use crate::files;
+
+/// The files a map is written to for `path`: `NAME.yaml` gives the yaml and `NAME.pgm`; `NAME.pgm` the
+/// image alone; anything else is refused.
+pub fn save_names(o: Option<&Path>) -> Result<(Option<PathBuf>, Option<PathBuf>)> {
+    match o {
+        Some(o)
+            if o.extension()
+                .is_some_and(|e| e.eq_ignore_ascii_case("yaml")) =>
+        {
+            Ok((Some(o.to_path_buf()), Some(o.with_extension("pgm"))))
+        }
+        Some(o) if o.extension().is_some_and(|e| e.eq_ignore_ascii_case("pgm")) => {
+            Ok((None, Some(o.to_path_buf())))
+        }
+        Some(o) => Err(Error::invalid(format!(
+            "{}: the map is written as NAME.yaml (with NAME.pgm) or NAME.pgm",
+            o.display()
+        ))),
+        None => Ok((None, None)),
+    }
+}
+
+/// The yaml text of `map` with its image `pgm` beside it; `reference` names the map whose frame it keeps,
+/// for the placeholder comment when that map had no georeference.
+pub fn yaml_text(pgm: &Path, map: &OccupancyMap, reference: &str) -> String {
+    let image = pgm
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    match map.georef {
+        Some(g) => map_yaml_text(&image, g.resolution, g.origin),
+        None => format!(
+            "# {reference} had no yaml: resolution 1 and origin 0 are placeholders.\n{}",
+            map_yaml_text(&image, 1.0, [0.0; 3])
+        ),
+    }
+}
+
+impl OccupancyMap {
+    /// Writes the map to `NAME.yaml` (and `NAME.pgm` beside it) or `NAME.pgm` alone, both renamed into
+    /// place together when complete: a failure leaves neither. The image is written as it is, with the
+    /// map's own thresholds only when they are the ROS defaults (a yaml names none other).
+    pub fn save(&self, path: &Path) -> Result<()> {
+        let (yaml, pgm) = save_names(Some(path))?;
+        let pgm = pgm.expect("save_names gives an image for a path");
+        if yaml.is_some() && self.thresholds != super::Thresholds::default() {
+            return Err(Error::invalid(format!(
+                "{}: the map reads its pixels with other thresholds than the ROS defaults, which the \
+                 yaml written here cannot say; write NAME.pgm alone",
+                path.display()
+            )));
+        }
+        let mut staged = files::Staged::default();
+        staged.write(&pgm, |out| self.image.write_pgm_to(out))?;
+        if let Some(yaml) = &yaml {
+            let text = yaml_text(&pgm, self, "the map");
+            staged.write(yaml, |out| out.write_all(text.as_bytes()))?;
+        }
+        staged.commit()
+    }
+}

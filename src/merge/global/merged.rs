@@ -1,0 +1,99 @@
+//! Many maps merged end to end: every map brought to one resolution, placed ([`super::run`]), each
+//! group's canvas and the report of every map's pose; each group's merged map and picture on demand
+//! (what `merge A B C ...` and the Python `merge_many` do).
+
+use std::time::Instant;
+
+use super::report::{self, Poses};
+use super::{GlobalOptions, Run};
+use crate::backend::Backend;
+use crate::error::Result;
+use crate::map::OccupancyMap;
+use crate::merge::mosaic::{self, Frame};
+use crate::merge::{compose, Rigid};
+
+/// Many maps placed, with what it takes to draw each group.
+#[derive(Clone, Debug)]
+pub struct ManyMerge {
+    /// The maps as placed: each at the first georeferenced map's resolution.
+    pub maps: Vec<OccupancyMap>,
+    /// Each map's resolution over that reference resolution, where it differs ([`report::MapEntry::scale`]).
+    pub scales: Vec<Option<f64>>,
+    /// The placement and every pair's verdict.
+    pub run: Run,
+    /// Each group's canvas in its first map's frame.
+    pub frames: Vec<Frame>,
+    /// The report: each map's pose in its group's merged map, the groups, the dropped merges.
+    pub report: Poses,
+}
+
+/// Places `maps` (named `names` in the report): each brought to the first georeferenced map's resolution,
+/// then [`super::run`] (`backend` scores the dense checks, `progress` hears pairs done and in all).
+pub fn merge_maps(
+    mut maps: Vec<OccupancyMap>,
+    names: &[String],
+    options: &GlobalOptions,
+    backend: &mut dyn Backend,
+    progress: &(dyn Fn(usize, usize) + Sync),
+) -> Result<ManyMerge> {
+    let start = Instant::now();
+    let mut scales = vec![None; maps.len()];
+    if let Some(res) = maps.iter().find_map(|m| m.georef).map(|g| g.resolution) {
+        for (m, s) in maps.iter_mut().zip(&mut scales) {
+            if let Some(g) = m.georef {
+                if (g.resolution - res).abs() > 1e-9 * res {
+                    *s = Some(g.resolution / res);
+                    *m = compose::resample(m, res)?;
+                }
+            }
+        }
+    }
+    let run = super::run(&maps, options, backend, progress)?;
+    let frames = (0..run.placement.groups.len())
+        .map(|g| {
+            let (ms, ps) = group_of(&maps, &run, g);
+            mosaic::frame(&ms, &ps)
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let seconds = start.elapsed().as_secs_f64();
+    let report = report::poses(names, &maps, &scales, &run, &frames, seconds);
+    Ok(ManyMerge {
+        maps,
+        scales,
+        run,
+        frames,
+        report,
+    })
+}
+
+/// Group `g`'s maps and their poses in its frame.
+fn group_of<'m>(maps: &'m [OccupancyMap], run: &Run, g: usize) -> (Vec<&'m OccupancyMap>, Vec<Rigid>) {
+    run.placement.groups[g]
+        .iter()
+        .map(|&m| (&maps[m], run.placement.maps[m].pose))
+        .unzip()
+}
+
+impl ManyMerge {
+    /// The number of groups (maps placed together; none when no two maps could be).
+    pub fn groups(&self) -> usize {
+        self.run.placement.groups.len()
+    }
+
+    /// Group `g`'s maps and their poses in its frame.
+    pub fn group(&self, g: usize) -> (Vec<&OccupancyMap>, Vec<Rigid>) {
+        group_of(&self.maps, &self.run, g)
+    }
+
+    /// Group `g`'s merged map ([`mosaic::compose_many`]).
+    pub fn merged(&self, g: usize) -> Result<OccupancyMap> {
+        let (ms, ps) = self.group(g);
+        mosaic::compose_many(&ms, &ps).map(|(m, _)| m)
+    }
+
+    /// Group `g`'s picture, every map's walls in its own colour ([`mosaic::overlay_many`]).
+    pub fn overlay(&self, g: usize) -> Result<image::RgbImage> {
+        let (ms, ps) = self.group(g);
+        mosaic::overlay_many(&ms, &ps)
+    }
+}

@@ -1,0 +1,83 @@
+//! Two maps merged: B brought to A's resolution, aligned onto A with no initial pose, the world form of
+//! the transform, and the merged map and its picture (what `merge A B` and the Python `merge` do).
+
+use std::borrow::Cow;
+
+use super::align::{align_with, Alignment, MergeOptions};
+use super::compose;
+use super::transform::{to_world, Rigid, WorldRigid};
+use crate::backend::Backend;
+use crate::error::Result;
+use crate::map::OccupancyMap;
+
+/// The verdict on a pair ([`merge_pair`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct PairMerge {
+    /// The alignment of B (at A's resolution) onto A, accepted or not.
+    pub alignment: Alignment,
+    /// B's pixels per A pixel before aligning (its resolution over A's; 1 when they agree): the
+    /// transform applies to B resampled to A's resolution.
+    pub b_scale: f64,
+    /// The pose of B's map frame in A's (metres, radians), when both maps are georeferenced.
+    pub world: Option<WorldRigid>,
+}
+
+/// `b` at `a`'s resolution (resampled by nearest neighbour only when both are georeferenced and their
+/// resolutions differ), and `b`'s resolution over `a`'s.
+pub fn at_resolution_of<'b>(
+    a: &OccupancyMap,
+    b: &'b OccupancyMap,
+) -> Result<(Cow<'b, OccupancyMap>, f64)> {
+    if let (Some(ga), Some(gb)) = (a.georef, b.georef) {
+        if (ga.resolution - gb.resolution).abs() > 1e-9 * ga.resolution {
+            let scale = gb.resolution / ga.resolution;
+            return Ok((Cow::Owned(compose::resample(b, ga.resolution)?), scale));
+        }
+    }
+    Ok((Cow::Borrowed(b), 1.0))
+}
+
+/// Aligns `b` onto `a` with no initial pose ([`align_with`], candidates scored on `backend`), `b` first
+/// brought to `a`'s resolution.
+pub fn merge_pair(
+    a: &OccupancyMap,
+    b: &OccupancyMap,
+    options: &MergeOptions,
+    backend: &mut dyn Backend,
+) -> Result<PairMerge> {
+    let (b, b_scale) = at_resolution_of(a, b)?;
+    let alignment = align_with(a, &b, options, backend)?;
+    let world = world_of(a, &b, &alignment.transform);
+    Ok(PairMerge {
+        alignment,
+        b_scale,
+        world,
+    })
+}
+
+/// The world form of `t` (B's pixels, at A's resolution, to A's), when both maps are georeferenced.
+fn world_of(a: &OccupancyMap, b_resampled: &OccupancyMap, t: &Rigid) -> Option<WorldRigid> {
+    match (a.georef, b_resampled.georef) {
+        (Some(ga), Some(gb)) => Some(to_world(
+            t,
+            &ga,
+            a.image.height(),
+            &gb,
+            b_resampled.image.height(),
+        )),
+        _ => None,
+    }
+}
+
+/// The merged map of `a` and `b` in A's frame, B placed by `t` (B's pixels at A's resolution to A's, as
+/// [`merge_pair`] gives it); see [`compose::compose`].
+pub fn compose_pair(a: &OccupancyMap, b: &OccupancyMap, t: &Rigid) -> Result<OccupancyMap> {
+    let (b, _) = at_resolution_of(a, b)?;
+    compose::compose(a, &b, t)
+}
+
+/// The picture of the alignment ([`compose::overlay`]), `t` as for [`compose_pair`].
+pub fn overlay_pair(a: &OccupancyMap, b: &OccupancyMap, t: &Rigid) -> Result<image::RgbImage> {
+    let (b, _) = at_resolution_of(a, b)?;
+    compose::overlay(a, &b, t)
+}
