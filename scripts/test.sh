@@ -31,10 +31,14 @@ if [ -z "${OGM_MAPS_DIR:-}" ] && [ ! -d ../shared/maps ]; then
     echo "scripts/test.sh: NOTE: ../shared/maps not found; the real-map tests will say SKIPPED (and fail under CI=true)" >&2
 fi
 
-# OpenCV (for the Harris / Shi-Tomasi agreement test) in a virtual environment under target/.
-venv=target/opencv-venv
-if [ ! -x "$venv/bin/python" ] || ! "$venv/bin/python" -c "import cv2, numpy" 2>/dev/null; then
-    echo "scripts/test.sh: setting up $venv with opencv-python-headless" >&2
+# A virtual environment under target/ with the given PyPI packages (made once, remade when one is missing).
+python_env() {
+    local venv=$1 check=$2
+    shift 2
+    if [ -x "$venv/bin/python" ] && "$venv/bin/python" -c "$check" 2>/dev/null; then
+        return 0
+    fi
+    echo "scripts/test.sh: setting up $venv with $*" >&2
     if ! python3 -m venv --help >/dev/null 2>&1 || ! python3 -c "import ensurepip" 2>/dev/null; then
         sudo=""
         if [ "$(id -u)" != 0 ]; then sudo="sudo"; fi
@@ -44,8 +48,19 @@ if [ ! -x "$venv/bin/python" ] || ! "$venv/bin/python" -c "import cv2, numpy" 2>
     fi
     rm -rf "$venv"
     python3 -m venv "$venv"
-    "$venv/bin/pip" install -q --disable-pip-version-check opencv-python-headless numpy
-fi
+    "$venv/bin/pip" install -q --disable-pip-version-check "$@"
+}
+
+# OpenCV (for the Harris / Shi-Tomasi agreement test).
+python_env target/opencv-venv "import cv2, numpy" opencv-python-headless numpy
+# The Python package's build tool and test tools (rosbags: the ROS bag example, no ROS install needed).
+pyvenv=target/python-venv
+python_env "$pyvenv" "import maturin, numpy, pytest, rosbags" "maturin>=1.9.4,<2" numpy pytest rosbags
 
 # Unit, integration and doc tests. The dev profile is optimised (Cargo.toml), so real maps stay quick.
 cargo test --locked
+
+# The Python package, built into its environment (the dev profile: the crates cargo test just built are
+# reused), then its tests, which compare it with the binary cargo test built.
+(cd python && VIRTUAL_ENV="$PWD/../$pyvenv" "../$pyvenv/bin/maturin" develop --locked --quiet)
+OGM_CORNERS_BIN="$PWD/target/debug/ogm-corners" "$pyvenv/bin/python" -m pytest python/tests -q -p no:cacheprovider

@@ -90,7 +90,11 @@ impl Detector {
     /// Detects corners in an image whose values `classes` reads, such as `nav_msgs/OccupancyGrid` cells
     /// in place ([`crate::map::GridThresholds::class_table`]). The baselines, which read grey levels,
     /// see the three states drawn as `map_server` draws them (a copy of the image).
-    pub fn detect_classified(&mut self, image: &MapImage, classes: &ClassTable) -> Result<Detection> {
+    pub fn detect_classified(
+        &mut self,
+        image: &MapImage,
+        classes: &ClassTable,
+    ) -> Result<Detection> {
         self.detect_as(image, classes, true)
     }
 

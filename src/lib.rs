@@ -55,7 +55,9 @@ pub mod states;
 pub mod synth;
 
 pub use baselines::{Baseline, BaselineParams};
-pub use detector::{Backend, BackendChoice, DetectOptions, Detection, Detector, DetectorKind, Keypoint};
+pub use detector::{
+    Backend, BackendChoice, DetectOptions, Detection, Detector, DetectorKind, Keypoint,
+};
 pub use error::{Error, Result};
 pub use map::{GeoRef, MapImage, OccupancyMap, Thresholds};
 pub use rules::{RuleSet, RuleTable};

@@ -26,6 +26,7 @@ from ._merge import (
     merge,
     merge_many,
     overlay,
+    rigid_matrix,
 )
 from . import synthetic
 
@@ -52,5 +53,6 @@ __all__ = [
     "merge",
     "merge_many",
     "overlay",
+    "rigid_matrix",
     "synthetic",
 ]

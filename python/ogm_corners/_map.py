@@ -164,6 +164,9 @@ class Map:
             except (TypeError, OverflowError) as e:
                 raise ValueError(f"occupancy grid data must be int8 cells: {e}") from None
         cells = np.ascontiguousarray(cells.reshape(-1)).view(np.uint8)
+        # MapMetaData.resolution is a float32: 0.05 arrives as 0.05000000074505806. Its shortest float32
+        # form is what the map's author wrote, and what a saved yaml should say.
+        resolution = float(str(np.float32(resolution)))
         return cls._wrap(
             _core.Map._from_grid(
                 cells, int(width), int(height), float(resolution), _origin(origin),

@@ -19,6 +19,12 @@ def _rigid_matrix(theta: float, tx: float, ty: float) -> np.ndarray:
     return np.array([[c, -s, tx], [s, c, ty], [0.0, 0.0, 1.0]])
 
 
+def rigid_matrix(theta_deg: float, tx: float, ty: float) -> np.ndarray:
+    """The 3x3 homogeneous matrix of a pixel transform ``(theta_deg, tx, ty)`` as ``Alignment``,
+    ``Pose`` and ``synthetic.robot_maps`` give them: ``p' = R(theta) p + t``, x right, y down."""
+    return _rigid_matrix(math.radians(theta_deg), tx, ty)
+
+
 @dataclass(frozen=True)
 class WorldTransform:
     """A pose in a map frame, metres and radians (ROS: x east, y north, yaw counter-clockwise):
@@ -67,7 +73,7 @@ class Alignment:
     @property
     def matrix(self) -> np.ndarray:
         """The 3x3 matrix from B's pixels (at A's resolution) to A's."""
-        return _rigid_matrix(self.theta, self.tx, self.ty)
+        return rigid_matrix(self.theta_deg, self.tx, self.ty)
 
     @property
     def transform(self) -> Tuple[float, float, float]:
@@ -154,13 +160,13 @@ class Pose:
     @property
     def matrix(self) -> np.ndarray:
         """The 3x3 matrix from the map's pixels to the merged map's."""
-        return _rigid_matrix(math.radians(self.theta_deg), self.tx, self.ty)
+        return rigid_matrix(self.theta_deg, self.tx, self.ty)
 
 
 class ManyMerge:
     """Many maps placed at once (``merge_many``). Unpacks as ``merged, poses = merge_many(maps)``:
     ``merged`` is group 0's merged map (None when no two maps could be placed together), ``poses`` one
-    ``Pose`` per input map, None for a map not placed (``report["maps"][i]["reason"]`` says why).
+    ``Pose`` per input map, None for a map not placed (``reasons[i]`` says why).
     ``report`` is the command line's ``--poses`` document; ``merged_map(g)`` and ``overlay(g)`` draw
     any group."""
 
@@ -182,6 +188,10 @@ class ManyMerge:
                 copy_of=m.get("copy_of"),
             )
             for m in self.report["maps"]
+        ]
+        #: Why each map is not placed (None for the placed ones).
+        self.reasons: List[Optional[str]] = [
+            None if m["placed"] else m.get("reason") for m in self.report["maps"]
         ]
         self._merged: Dict[int, Map] = {}
 

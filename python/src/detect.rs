@@ -10,7 +10,7 @@ use pyo3::prelude::*;
 use ogm_corners::map::GridThresholds;
 use ogm_corners::robust::RobustParams;
 use ogm_corners::{
-    Baseline, BaselineParams, BackendChoice, DetectOptions, Detection, DetectorKind, Error, GeoRef,
+    BackendChoice, Baseline, BaselineParams, DetectOptions, Detection, DetectorKind, Error, GeoRef,
     RuleSet,
 };
 

@@ -107,7 +107,6 @@ impl Map {
     #[pyo3(signature = (pixels, resolution=None, origin=None, *, negate=false, occupied_thresh=0.65, free_thresh=0.196, copy=true))]
     #[allow(clippy::too_many_arguments)]
     fn new(
-        py: Python<'_>,
         pixels: PyReadonlyArray2<'_, u8>,
         resolution: Option<f64>,
         origin: Option<(f64, f64, f64)>,
@@ -130,7 +129,6 @@ impl Map {
             g.check_finite(image.width(), image.height())
                 .map_err(|m| to_py(Error::invalid(m)))?;
         }
-        let _ = py;
         Ok(Map::wrap(OccupancyMap {
             thresholds,
             georef,
@@ -192,7 +190,9 @@ impl Map {
     /// (x, y, yaw) of the lower-left pixel's outer corner in metres and radians, or None.
     #[getter]
     fn origin(&self) -> Option<(f64, f64, f64)> {
-        self.inner.georef.map(|g| (g.origin[0], g.origin[1], g.origin[2]))
+        self.inner
+            .georef
+            .map(|g| (g.origin[0], g.origin[1], g.origin[2]))
     }
 
     /// (negate, occupied_thresh, free_thresh): how pixel values become states.
@@ -314,6 +314,9 @@ pub fn synthetic_office(
     }))
 }
 
+/// A pixel transform as Python has it: (theta degrees, tx, ty).
+type Transform = (f64, f64, f64);
+
 /// `n` overlapping robot maps cut from `source` (each turned and shifted, with speckle at `noise`), each
 /// with its exact pose (theta degrees, tx, ty: its pixels to the source's).
 #[pyfunction]
@@ -324,7 +327,7 @@ pub fn synthetic_robot_maps(
     n: usize,
     noise: f64,
     seed: u64,
-) -> PyResult<Vec<(Map, (f64, f64, f64))>> {
+) -> PyResult<Vec<(Map, Transform)>> {
     if !(0.0..=1.0).contains(&noise) {
         return Err(PyValueError::new_err(format!(
             "noise must lie in [0, 1], got {noise}"

@@ -2,7 +2,7 @@
 //! alignment is confident (see [`ogm_corners::merge`]). With more maps, a folder, or `--poses` /
 //! `--init-poses`: every map placed at once ([`super::merge_many`]).
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::time::Instant;
 
 use clap::Args;

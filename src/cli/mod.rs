@@ -18,8 +18,8 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use clap::{Args, Parser, Subcommand, ValueEnum};
 
 use ogm_corners::cpu::CpuBackend;
-use ogm_corners::fast::FastCpuBackend;
 use ogm_corners::detector::BackendChoice;
+use ogm_corners::fast::FastCpuBackend;
 use ogm_corners::gpu::GpuOptions;
 use ogm_corners::memory::{self, Budget};
 use ogm_corners::robust::RobustParams;

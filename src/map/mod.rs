@@ -17,8 +17,8 @@ use crate::files;
 use crate::memory::Budget;
 
 pub use find::{find_maps, map_name, output_names, FoundMaps};
-pub use save::{save_names, yaml_text};
 pub use ros_grid::{grid_image, GridThresholds, GRID_FREE, GRID_OCCUPIED, GRID_UNKNOWN};
+pub use save::{save_names, yaml_text};
 use yaml::read_yaml;
 pub use yaml::{is_yaml, map_yaml_text, yaml_image, MapYaml, MAX_YAML_BYTES, MAX_YAML_NESTING};
 

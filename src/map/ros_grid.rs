@@ -99,7 +99,7 @@ impl GeoRef {
 fn check_grid(cells: usize, width: u32, height: u32) -> Result<()> {
     if width == 0 || height == 0 {
         return Err(Error::invalid(format!(
-            "zero-size grid ({width}x{height}): nothing to detect in"
+            "zero-size grid ({width}x{height}): an occupancy grid needs cells"
         )));
     }
     let expected = u64::from(width) * u64::from(height);
@@ -128,15 +128,12 @@ pub fn grid_image(
         .collect();
     let w = width as usize;
     let mut pixels = vec![0u8; cells.len()];
-    pixels
-        .par_chunks_mut(w)
-        .enumerate()
-        .for_each(|(r, row)| {
-            let src = if flip { height as usize - 1 - r } else { r };
-            for (p, &c) in row.iter_mut().zip(&cells[src * w..(src + 1) * w]) {
-                *p = value[c as usize];
-            }
-        });
+    pixels.par_chunks_mut(w).enumerate().for_each(|(r, row)| {
+        let src = if flip { height as usize - 1 - r } else { r };
+        for (p, &c) in row.iter_mut().zip(&cells[src * w..(src + 1) * w]) {
+            *p = value[c as usize];
+        }
+    });
     MapImage::new(width, height, pixels)
 }
 
@@ -238,12 +235,23 @@ mod tests {
         let t = GridThresholds::default();
         let e = |r: Result<OccupancyMap>| r.unwrap_err().to_string();
         let ok = [0u8; 6];
-        assert!(e(OccupancyMap::from_occupancy_grid(&ok, 4, 2, 0.05, [0.0; 3], &t))
-            .contains("has 8 cells, got 6"));
-        assert!(e(OccupancyMap::from_occupancy_grid(&[], 0, 2, 0.05, [0.0; 3], &t))
-            .contains("zero-size grid"));
-        assert!(e(OccupancyMap::from_occupancy_grid(&ok, 3, 2, 0.0, [0.0; 3], &t))
-            .contains("resolution"));
+        assert!(e(OccupancyMap::from_occupancy_grid(
+            &ok, 4, 2, 0.05, [0.0; 3], &t
+        ))
+        .contains("has 8 cells, got 6"));
+        assert!(e(OccupancyMap::from_occupancy_grid(
+            &[],
+            0,
+            2,
+            0.05,
+            [0.0; 3],
+            &t
+        ))
+        .contains("zero-size grid"));
+        assert!(e(OccupancyMap::from_occupancy_grid(
+            &ok, 3, 2, 0.0, [0.0; 3], &t
+        ))
+        .contains("resolution"));
         assert!(e(OccupancyMap::from_occupancy_grid(
             &ok,
             3,
@@ -257,7 +265,9 @@ mod tests {
             occupied_thresh: 0.2,
             free_thresh: 0.3,
         };
-        assert!(e(OccupancyMap::from_occupancy_grid(&ok, 3, 2, 0.05, [0.0; 3], &bad))
-            .contains("free_thresh"));
+        assert!(e(OccupancyMap::from_occupancy_grid(
+            &ok, 3, 2, 0.05, [0.0; 3], &bad
+        ))
+        .contains("free_thresh"));
     }
 }

@@ -67,7 +67,11 @@ pub fn merge_maps(
 }
 
 /// Group `g`'s maps and their poses in its frame.
-fn group_of<'m>(maps: &'m [OccupancyMap], run: &Run, g: usize) -> (Vec<&'m OccupancyMap>, Vec<Rigid>) {
+fn group_of<'m>(
+    maps: &'m [OccupancyMap],
+    run: &Run,
+    g: usize,
+) -> (Vec<&'m OccupancyMap>, Vec<Rigid>) {
     run.placement.groups[g]
         .iter()
         .map(|&m| (&maps[m], run.placement.maps[m].pose))
