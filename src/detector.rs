@@ -237,3 +237,67 @@ pub fn strongest(
     keypoints.sort_unstable();
     Ok(keypoints)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::map::GridThresholds;
+
+    /// A room of OccupancyGrid cells (100 walls, 0 free, -1 outside) as bytes, and the same room as the
+    /// map_server image.
+    fn room() -> (MapImage, MapImage) {
+        let (w, h) = (12u32, 10u32);
+        let mut cells = vec![-1i8 as u8; (w * h) as usize];
+        let mut grey = vec![crate::states::UNKNOWN; (w * h) as usize];
+        for y in 1..h - 1 {
+            for x in 1..w - 1 {
+                let wall = x == 1 || y == 1 || x == w - 2 || y == h - 2;
+                let i = (y * w + x) as usize;
+                cells[i] = if wall { 100 } else { 0 };
+                grey[i] = if wall { 0 } else { 254 };
+            }
+        }
+        (
+            MapImage::new(w, h, cells).unwrap(),
+            MapImage::new(w, h, grey).unwrap(),
+        )
+    }
+
+    #[test]
+    fn grid_cells_detect_as_their_map_server_image() {
+        let (cells, grey) = room();
+        let classes = GridThresholds::default().class_table().unwrap();
+        for kind in [
+            DetectorKind::Ogm,
+            DetectorKind::OgmRobust,
+            DetectorKind::Baseline(crate::Baseline::Harris),
+            DetectorKind::Baseline(crate::Baseline::Trajkovic),
+        ] {
+            let mut d = Detector::new(DetectOptions {
+                detector: kind,
+                ..DetectOptions::default()
+            });
+            let from_cells = d.detect_classified(&cells, &classes).unwrap();
+            let from_grey = d.detect_image(&grey, &Thresholds::default()).unwrap();
+            assert_eq!(from_cells, from_grey, "{}", kind.name());
+            if kind == DetectorKind::Ogm {
+                assert_eq!(from_cells.keypoints.len(), 4);
+            }
+        }
+    }
+
+    #[test]
+    fn backend_names() {
+        for name in BackendChoice::NAMES {
+            assert!(BackendChoice::parse(name).is_ok());
+        }
+        assert_eq!(BackendChoice::parse("cpu").unwrap(), BackendChoice::Cpu);
+        let e = BackendChoice::parse("tpu").unwrap_err().to_string();
+        assert_eq!(
+            e,
+            "unknown backend `tpu`: expected one of auto, cpu, reference, gpu"
+        );
+        let (b, note) = BackendChoice::Reference.open().unwrap();
+        assert_eq!((b.name().as_str(), note), ("cpu-reference", None));
+    }
+}

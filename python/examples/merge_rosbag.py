@@ -167,8 +167,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
 
     result = ogm_corners.merge_many(maps, names=topics, backend=args.backend)
     merged, poses = result
-    for topic, pose, entry in zip(topics, poses, result.report["maps"]):
-        print(describe(topic, pose, entry.get("reason")))
+    for topic, pose, why in zip(topics, poses, result.reasons):
+        print(describe(topic, pose, why))
     if merged is None:
         return fail("no two maps could be placed together with confidence", status=3)
 

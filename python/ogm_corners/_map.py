@@ -253,8 +253,18 @@ class Map:
         c, s = math.cos(yaw), math.sin(yaw)
         return ox + c * mx - s * my, oy + s * mx + c * my
 
+    def __reduce__(self) -> Any:
+        # Pickled (multiprocessing, joblib) as its pixels, georeference and thresholds.
+        negate, occupied, free = self.thresholds
+        kwargs = {"negate": negate, "occupied_thresh": occupied, "free_thresh": free}
+        return (_unpickle, (np.array(self.pixels), self.resolution, self.origin, kwargs))
+
     def __repr__(self) -> str:
         return repr(self._m)
+
+
+def _unpickle(pixels: np.ndarray, resolution: Optional[float], origin: Any, kwargs: dict) -> Map:
+    return Map(pixels, resolution, origin, copy=False, **kwargs)
 
 
 def load_map(path: PathLike) -> Map:

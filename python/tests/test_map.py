@@ -104,3 +104,15 @@ def test_with_georef_shares_pixels(office):
     m = office.with_georef(0.1, (1.0, 2.0, 0.5))
     assert m.resolution == 0.1 and m.origin == (1.0, 2.0, 0.5)
     assert np.shares_memory(m.pixels, office.pixels)
+
+
+def test_maps_and_keypoints_pickle(office):
+    import pickle
+
+    m = pickle.loads(pickle.dumps(office))
+    np.testing.assert_array_equal(m.pixels, office.pixels)
+    assert (m.resolution, m.origin, m.thresholds) == (office.resolution, office.origin, office.thresholds)
+    kp = oc.detect(office, backend="cpu")
+    back = pickle.loads(pickle.dumps(kp))
+    np.testing.assert_array_equal(back.array, kp.array)
+    assert back.detector == kp.detector

@@ -498,3 +498,30 @@ pub fn decode_image(
         .map(|(img, _)| img)
         .map_err(|e| e.to_string())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn shared_pixels_are_read_in_place_and_copied_on_write() {
+        let source: Arc<dyn PixelSource> = Arc::new(vec![1u8, 2, 3, 4, 5, 6]);
+        let img = MapImage::shared(3, 2, source.clone()).unwrap();
+        assert!(img.is_shared());
+        assert_eq!(img.pixels().as_ptr(), source.bytes().as_ptr());
+        assert_eq!(img.get(2, 1), 6);
+        // A clone shares the pixels; a write copies them first and leaves the source alone.
+        let mut copy = img.clone();
+        assert_eq!(copy.pixels().as_ptr(), source.bytes().as_ptr());
+        copy.pixels_mut()[0] = 9;
+        assert!(!copy.is_shared());
+        assert_eq!(source.bytes()[0], 1);
+        assert_ne!(copy, img);
+        assert_eq!(MapImage::new(3, 2, vec![1, 2, 3, 4, 5, 6]).unwrap(), img);
+        assert!(MapImage::shared(4, 2, source).is_err());
+        // An owned image made shared keeps its pixels and shares them from then on.
+        let owned = MapImage::new(2, 1, vec![7, 8]).unwrap().into_shared();
+        assert!(owned.is_shared() && owned.pixels() == [7, 8]);
+        assert_eq!(owned.clone().pixels().as_ptr(), owned.pixels().as_ptr());
+    }
+}
