@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import array as pyarray
 import enum
 import errno
 import math
@@ -44,6 +45,30 @@ def _origin(origin: Any) -> Origin:
     return values  # type: ignore[return-value]
 
 
+def _grid_cells(data: Any) -> np.ndarray:
+    """OccupancyGrid data as an int8 array, without a copy where the container allows it: bytes and
+    ``array('b')`` (rclpy) are viewed, int8 numpy arrays (rosbags) taken as they are; other integer
+    arrays and sequences are converted with a range check (values outside -128..127 are an error, never
+    wrapped)."""
+    if isinstance(data, (bytes, bytearray, memoryview)) or (
+        isinstance(data, pyarray.array) and data.typecode == "b"
+    ):
+        return np.frombuffer(data, dtype=np.int8)
+    if isinstance(data, np.ndarray):
+        if data.dtype == np.int8:
+            return data
+        if data.dtype.kind not in "iu":
+            raise ValueError(f"occupancy grid data must be int8 cells, got {data.dtype}")
+        if data.size and (data.min() < -128 or data.max() > 127):
+            raise ValueError("occupancy grid cells must lie in -128..127 (int8)")
+        return data.astype(np.int8)
+    try:
+        # array('b') checks every value's range in C, in every Python and numpy version.
+        return np.frombuffer(pyarray.array("b", data), dtype=np.int8)
+    except (TypeError, OverflowError) as e:
+        raise ValueError(f"occupancy grid data must be int8 cells (-128..127): {e}") from None
+
+
 @dataclass(frozen=True)
 class OccupancyGrid:
     """A map as ``nav_msgs/OccupancyGrid`` carries it: ``data`` int8, row 0 at the bottom, 100 occupied,
@@ -75,10 +100,8 @@ class OccupancyGrid:
         if isinstance(current, np.ndarray):
             msg.data = self.data.copy()
         else:
-            import array
-
             # rclpy takes array('b') for int8[] without a per-element check.
-            msg.data = array.array("b", self.data.tobytes())
+            msg.data = pyarray.array("b", self.data.tobytes())
         return msg
 
 
@@ -152,17 +175,7 @@ class Map:
             data = data.data
         if width is None or height is None or resolution is None:
             raise TypeError("from_occupancy_grid needs width, height and resolution (or a message)")
-        if isinstance(data, (bytes, bytearray, memoryview)):
-            cells = np.frombuffer(data, dtype=np.int8)
-        else:
-            try:
-                cells = np.asarray(data)
-                if cells.dtype != np.int8:
-                    if cells.size and (cells.min() < -128 or cells.max() > 127):
-                        raise ValueError("occupancy grid cells must lie in -128..127 (int8)")
-                    cells = cells.astype(np.int8)
-            except (TypeError, OverflowError) as e:
-                raise ValueError(f"occupancy grid data must be int8 cells: {e}") from None
+        cells = _grid_cells(data)
         cells = np.ascontiguousarray(cells.reshape(-1)).view(np.uint8)
         # MapMetaData.resolution is a float32: 0.05 arrives as 0.05000000074505806. Its shortest float32
         # form is what the map's author wrote, and what a saved yaml should say.

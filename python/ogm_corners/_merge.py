@@ -100,14 +100,14 @@ def merge(a: Any, b: Any, *, backend: str = "cpu") -> Alignment:
     t = d["transform"]
     return Alignment(
         accepted=d["accepted"],
-        reason=d["reason"],
+        reason=d.get("reason"),
         theta_deg=t["theta_deg"],
         tx=t["tx"],
         ty=t["ty"],
         score=d["score"],
         overlap=d["overlap"],
         b_scale=d["b_scale"],
-        world=_world(d["world"]),
+        world=_world(d.get("world")),
         features=d["features"],
     )
 

@@ -188,6 +188,20 @@ impl Detector {
         Ok((words.into_pyarray(py), angle))
     }
 
+    /// Seconds of one detection in `map` timed inside the extension, the lock released as for
+    /// `_detect_map` (the Rust call that `python/benches/overhead.py` sets Python's calls against).
+    fn _time_rust(&self, py: Python<'_>, map: &Map) -> PyResult<f64> {
+        let m = &map.inner;
+        unlocked(py, || {
+            let mut d = self.lock();
+            let start = std::time::Instant::now();
+            let found = d.detect(m)?;
+            let seconds = start.elapsed().as_secs_f64();
+            drop(found);
+            Ok(seconds)
+        })
+    }
+
     /// Detects in a 2-D array read in place: grey levels with the ROS defaults, or with `grid`,
     /// OccupancyGrid cells (int8 viewed as uint8) read as map_saver reads them.
     #[pyo3(signature = (pixels, grid, occupied_thresh=0.65, free_thresh=0.25))]

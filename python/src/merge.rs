@@ -3,31 +3,14 @@
 
 use numpy::ndarray::Array3;
 use numpy::{IntoPyArray, PyArray3};
-use pyo3::prelude::*;
-use serde::Serialize;
-
-use ogm_corners::merge::align::Features;
 use ogm_corners::merge::global::{self, GlobalOptions};
-use ogm_corners::merge::pair::{self, PairMerge};
-use ogm_corners::merge::transform::WorldRigid;
+use ogm_corners::merge::pair;
 use ogm_corners::merge::{MergeOptions, Rigid};
 use ogm_corners::{BackendChoice, Error};
+use pyo3::prelude::*;
 
 use crate::errors::{to_py, unlocked};
 use crate::map::Map;
-
-/// The verdict on a pair, as `merge A B --format json` writes it.
-#[derive(Serialize)]
-struct Verdict {
-    accepted: bool,
-    reason: Option<String>,
-    transform: Rigid,
-    world: Option<WorldRigid>,
-    b_scale: f64,
-    score: f64,
-    overlap: f64,
-    features: Features,
-}
 
 /// A picture as a (height, width, 3) uint8 array.
 fn rgb_array(py: Python<'_>, picture: image::RgbImage) -> PyResult<Bound<'_, PyArray3<u8>>> {
@@ -49,24 +32,10 @@ fn backend(py: Python<'_>, name: &str) -> PyResult<Box<dyn ogm_corners::Backend>
 pub fn merge(py: Python<'_>, a: &Map, b: &Map, backend: &str) -> PyResult<String> {
     let mut on = self::backend(py, backend)?;
     let (ma, mb) = (&a.inner, &b.inner);
-    let PairMerge {
-        alignment: al,
-        b_scale,
-        world,
-    } = unlocked(py, || {
+    let merged = unlocked(py, || {
         pair::merge_pair(ma, mb, &MergeOptions::default(), on.as_mut())
     })?;
-    let verdict = Verdict {
-        accepted: al.accepted,
-        reason: al.reason,
-        transform: al.transform,
-        world,
-        b_scale,
-        score: al.score,
-        overlap: al.features.inside,
-        features: al.features,
-    };
-    serde_json::to_string(&verdict).map_err(|e| to_py(Error::Internal(e.to_string())))
+    serde_json::to_string(&merged.verdict()).map_err(|e| to_py(Error::Internal(e.to_string())))
 }
 
 /// The merged map of `a` and `b`, B placed by (theta degrees, tx, ty) in A's frame.

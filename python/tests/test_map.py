@@ -98,6 +98,12 @@ def test_save_and_load(tmp_path, office):
     with pytest.raises(ValueError, match="NAME.yaml"):
         office.save(tmp_path / "m.png")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["m.pgm", "m.yaml"]
+    # Its own thresholds go into the yaml, so it reads back the same.
+    odd = oc.Map(office.pixels, 0.05, (1.0, 2.0, 0.0), negate=True, occupied_thresh=0.7, free_thresh=0.1)
+    odd.save(tmp_path / "odd.yaml")
+    again = oc.load_map(tmp_path / "odd.yaml")
+    assert again.thresholds == (True, 0.7, 0.1)
+    np.testing.assert_array_equal(again.states(), odd.states())
 
 
 def test_with_georef_shares_pixels(office):

@@ -11,10 +11,9 @@ use serde::Serialize;
 use ogm_corners::files;
 use ogm_corners::map::{save_names, yaml_text};
 use ogm_corners::memory::Budget;
-use ogm_corners::merge::align::{prepared_bytes, Features};
-use ogm_corners::merge::pair::{self, PairMerge};
-use ogm_corners::merge::transform::WorldRigid;
-use ogm_corners::merge::{MergeOptions, Rigid};
+use ogm_corners::merge::align::prepared_bytes;
+use ogm_corners::merge::pair::{self, Verdict};
+use ogm_corners::merge::MergeOptions;
 use ogm_corners::{Error, OccupancyMap, Result};
 
 use super::write_stdout;
@@ -52,21 +51,11 @@ pub(super) struct MergeArgs {
     pub(super) backend: super::BackendArg,
 }
 
-/// The JSON verdict.
+/// The JSON verdict, with the time it took.
 #[derive(Serialize)]
-struct Verdict<'a> {
-    accepted: bool,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    reason: Option<&'a str>,
-    /// B's pixels to A's (B at A's resolution when they differ).
-    transform: Rigid,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    world: Option<WorldRigid>,
-    /// B's pixels per A pixel before aligning (1 when the resolutions agree).
-    b_scale: f64,
-    score: f64,
-    overlap: f64,
-    features: Features,
+struct Timed {
+    #[serde(flatten)]
+    verdict: Verdict,
     seconds: f64,
 }
 
@@ -97,25 +86,15 @@ pub(super) fn run(a: MergeArgs, budget: &Budget) -> Result<()> {
     let map_b = OccupancyMap::load(&a.maps[1])?;
     let mut backend = super::backend_on(a.backend)?;
     let start = Instant::now();
-    let PairMerge {
-        alignment: al,
-        b_scale,
-        world,
-    } = pair::merge_pair(&map_a, &map_b, &MergeOptions::default(), backend.as_mut())?;
+    let merged = pair::merge_pair(&map_a, &map_b, &MergeOptions::default(), backend.as_mut())?;
     let seconds = start.elapsed().as_secs_f64();
+    let (al, world) = (&merged.alignment, merged.world);
     write_stdout(|out| match a.format {
         super::TextOrJson::Json => {
             serde_json::to_writer_pretty(
                 &mut *out,
-                &Verdict {
-                    accepted: al.accepted,
-                    reason: al.reason.as_deref(),
-                    transform: al.transform,
-                    world,
-                    b_scale,
-                    score: al.score,
-                    overlap: al.features.inside,
-                    features: al.features,
+                &Timed {
+                    verdict: merged.verdict(),
                     seconds,
                 },
             )?;
@@ -148,17 +127,19 @@ pub(super) fn run(a: MergeArgs, budget: &Budget) -> Result<()> {
     })?;
     if !al.accepted {
         return Err(Error::Declined(
-            al.reason.unwrap_or_else(|| "not confident".to_string()),
+            al.reason
+                .clone()
+                .unwrap_or_else(|| "not confident".to_string()),
         ));
     }
     // The merged map, its yaml and the picture renamed into place together: a failure leaves none.
     let mut staged = files::Staged::default();
     let mut wrote = Vec::new();
     if let Some(pgm) = &pgm_out {
-        let merged = pair::compose_pair(&map_a, &map_b, &al.transform)?;
-        staged.write(pgm, |out| merged.image.write_pgm_to(out))?;
+        let merged_map = pair::compose_pair(&map_a, &map_b, &al.transform)?;
+        staged.write(pgm, |out| merged_map.image.write_pgm_to(out))?;
         if let Some(yaml) = &yaml_out {
-            let text = yaml_text(pgm, &merged, "A");
+            let text = yaml_text(pgm, &merged_map, "A");
             staged.write(yaml, |out| out.write_all(text.as_bytes()))?;
         }
         wrote.push(pgm);

@@ -20,7 +20,10 @@ pub use find::{find_maps, map_name, output_names, FoundMaps};
 pub use ros_grid::{grid_image, GridThresholds, GRID_FREE, GRID_OCCUPIED, GRID_UNKNOWN};
 pub use save::{save_names, yaml_text};
 use yaml::read_yaml;
-pub use yaml::{is_yaml, map_yaml_text, yaml_image, MapYaml, MAX_YAML_BYTES, MAX_YAML_NESTING};
+pub use yaml::{
+    is_yaml, map_yaml_text, map_yaml_text_with, yaml_image, MapYaml, MAX_YAML_BYTES,
+    MAX_YAML_NESTING,
+};
 
 /// Largest decoded image the loader accepts, in bytes: a 65536 x 65536 8-bit map. Guards against a
 /// header that claims an absurd size, which would otherwise abort the process when allocating.

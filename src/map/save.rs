@@ -2,7 +2,7 @@
 
 use std::path::{Path, PathBuf};
 
-use super::{map_yaml_text, OccupancyMap};
+use super::{map_yaml_text_with, OccupancyMap};
 use crate::error::{Error, Result};
 use crate::files;
 
@@ -35,28 +35,21 @@ pub fn yaml_text(pgm: &Path, map: &OccupancyMap, reference: &str) -> String {
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_default();
     match map.georef {
-        Some(g) => map_yaml_text(&image, g.resolution, g.origin),
+        Some(g) => map_yaml_text_with(&image, g.resolution, g.origin, &map.thresholds),
         None => format!(
             "# {reference} had no yaml: resolution 1 and origin 0 are placeholders.\n{}",
-            map_yaml_text(&image, 1.0, [0.0; 3])
+            map_yaml_text_with(&image, 1.0, [0.0; 3], &map.thresholds)
         ),
     }
 }
 
 impl OccupancyMap {
     /// Writes the map to `NAME.yaml` (and `NAME.pgm` beside it) or `NAME.pgm` alone, both renamed into
-    /// place together when complete: a failure leaves neither. The image is written as it is, with the
-    /// map's own thresholds only when they are the ROS defaults (a yaml names none other).
+    /// place together when complete: a failure leaves neither. The image is written as it is, the yaml
+    /// with the map's thresholds, so the map loads back the same.
     pub fn save(&self, path: &Path) -> Result<()> {
         let (yaml, pgm) = save_names(Some(path))?;
         let pgm = pgm.expect("save_names gives an image for a path");
-        if yaml.is_some() && self.thresholds != super::Thresholds::default() {
-            return Err(Error::invalid(format!(
-                "{}: the map reads its pixels with other thresholds than the ROS defaults, which the \
-                 yaml written here cannot say; write NAME.pgm alone",
-                path.display()
-            )));
-        }
         let mut staged = files::Staged::default();
         staged.write(&pgm, |out| self.image.write_pgm_to(out))?;
         if let Some(yaml) = &yaml {

@@ -12,6 +12,16 @@ use crate::files;
 /// default thresholds, trinary mode and `resolution` and `origin` (a non-finite yaw written as 0). The
 /// image name is written as a YAML scalar, quoted when it needs to be.
 pub fn map_yaml_text(image: &str, resolution: f64, origin: [f64; 3]) -> String {
+    map_yaml_text_with(image, resolution, origin, &Thresholds::default())
+}
+
+/// [`map_yaml_text`] with the given thresholds.
+pub fn map_yaml_text_with(
+    image: &str,
+    resolution: f64,
+    origin: [f64; 3],
+    t: &Thresholds,
+) -> String {
     let image = serde_yaml::to_string(image).unwrap_or_default();
     let yaw = if origin[2].is_finite() {
         origin[2]
@@ -19,11 +29,14 @@ pub fn map_yaml_text(image: &str, resolution: f64, origin: [f64; 3]) -> String {
         0.0
     };
     format!(
-        "image: {}\nresolution: {resolution:?}\norigin: [{:?}, {:?}, {yaw:?}]\nnegate: 0\n\
-         occupied_thresh: 0.65\nfree_thresh: 0.196\nmode: trinary\n",
+        "image: {}\nresolution: {resolution:?}\norigin: [{:?}, {:?}, {yaw:?}]\nnegate: {}\n\
+         occupied_thresh: {:?}\nfree_thresh: {:?}\nmode: trinary\n",
         image.trim_end(),
         origin[0],
-        origin[1]
+        origin[1],
+        u8::from(t.negate),
+        t.occupied_thresh,
+        t.free_thresh
     )
 }
 

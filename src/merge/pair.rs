@@ -3,7 +3,9 @@
 
 use std::borrow::Cow;
 
-use super::align::{align_with, Alignment, MergeOptions};
+use serde::Serialize;
+
+use super::align::{align_with, Alignment, Features, MergeOptions};
 use super::compose;
 use super::transform::{to_world, Rigid, WorldRigid};
 use crate::backend::Backend;
@@ -20,6 +22,46 @@ pub struct PairMerge {
     pub b_scale: f64,
     /// The pose of B's map frame in A's (metres, radians), when both maps are georeferenced.
     pub world: Option<WorldRigid>,
+}
+
+/// The verdict on a pair as `merge A B --format json` writes it (and the Python package reads it).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Verdict {
+    /// Whether the merge is confident.
+    pub accepted: bool,
+    /// Why not, when not.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub reason: Option<String>,
+    /// B's pixels to A's (B at A's resolution when they differ).
+    pub transform: Rigid,
+    /// B's map frame in A's, when both are georeferenced.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub world: Option<WorldRigid>,
+    /// B's pixels per A pixel before aligning (1 when the resolutions agree).
+    pub b_scale: f64,
+    /// The acceptance rule's value minus its threshold.
+    pub score: f64,
+    /// The share of B's known area that falls in A's.
+    pub overlap: f64,
+    /// The verification's features.
+    pub features: Features,
+}
+
+impl PairMerge {
+    /// The verdict to report.
+    pub fn verdict(&self) -> Verdict {
+        let al = &self.alignment;
+        Verdict {
+            accepted: al.accepted,
+            reason: al.reason.clone(),
+            transform: al.transform,
+            world: self.world,
+            b_scale: self.b_scale,
+            score: al.score,
+            overlap: al.features.inside,
+            features: al.features,
+        }
+    }
 }
 
 /// `b` at `a`'s resolution (resampled by nearest neighbour only when both are georeferenced and their
