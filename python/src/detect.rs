@@ -80,6 +80,8 @@ fn detector_kind(name: &str) -> PyResult<DetectorKind> {
 #[pyclass(frozen, module = "ogm_corners._core", name = "Detector")]
 pub struct Detector {
     inner: Mutex<ogm_corners::Detector>,
+    /// Kept beside the detector so that reading them never waits for a detection.
+    name: &'static str,
     backend: String,
     note: Option<String>,
 }
@@ -150,6 +152,7 @@ impl Detector {
         let (backend, note) = unlocked(py, || choice.open())?;
         let inner = ogm_corners::Detector::with_backend(options, backend);
         Ok(Detector {
+            name: options.detector.name(),
             backend: inner.backend_name(),
             inner: Mutex::new(inner),
             note,
@@ -171,7 +174,7 @@ impl Detector {
     /// The detector's name (ogm, ogm-robust, harris, shi-tomasi, trajkovic).
     #[getter]
     fn detector(&self) -> &'static str {
-        self.lock().options().detector.name()
+        self.name
     }
 
     /// Detects in a map: (records as uint64 words, the robust detector's grid angle).

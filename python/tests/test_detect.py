@@ -209,3 +209,15 @@ def test_the_gil_is_released_during_detection():
     assert span["end"] - span["start"] > 0.2, "the detection was too short to tell"
     # With the lock held, the main thread could not run at all inside the call.
     assert len(during) > 1000, f"{len(during)} ticks during a {span['end'] - span['start']:.2f} s call"
+
+
+def test_a_detector_shared_between_threads(office):
+    from concurrent.futures import ThreadPoolExecutor
+
+    d = oc.Detector("ogm-robust", "cpu")
+    want = d.detect(office).array
+    with ThreadPoolExecutor(4) as pool:
+        results = list(pool.map(lambda _: (d.detect(office).array, d.detector), range(8)))
+    for got, name in results:
+        np.testing.assert_array_equal(got, want)
+        assert name == "ogm-robust"
