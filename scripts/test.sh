@@ -53,14 +53,26 @@ python_env() {
 
 # OpenCV (for the Harris / Shi-Tomasi agreement test).
 python_env target/opencv-venv "import cv2, numpy" opencv-python-headless numpy
-# The Python package's build tool and test tools (rosbags: the ROS bag example, no ROS install needed).
+# The Python package's build tool (its metadata check) and test tools (rosbags: the ROS bag example, no ROS
+# install needed).
 pyvenv=target/python-venv
 python_env "$pyvenv" "import maturin, numpy, pytest, rosbags" "maturin>=1.9.4,<2" numpy pytest rosbags
 
-# Unit, integration and doc tests. The dev profile is optimised (Cargo.toml), so real maps stay quick.
-cargo test --locked
+# Unit, integration and doc tests, and the Python extension, in one build: with the same dependency graph
+# (feature unification spans the selected packages) the extension costs only itself. The extension links
+# no libpython, as maturin builds it (PYO3_BUILD_EXTENSION_MODULE). The dev profile is optimised
+# (Cargo.toml), so real maps stay quick.
+export PYO3_BUILD_EXTENSION_MODULE=1
+cargo build --locked --workspace --lib --bins --tests
+cargo test --locked --workspace
 
-# The Python package, built into its environment (the dev profile: the crates cargo test just built are
-# reused), then its tests, which compare it with the binary cargo test built.
-(cd python && VIRTUAL_ENV="$PWD/../$pyvenv" "../$pyvenv/bin/maturin" develop --locked --quiet)
-OGM_CORNERS_BIN="$PWD/target/debug/ogm-corners" "$pyvenv/bin/python" -m pytest python/tests -q -p no:cacheprovider
+# The Python package: the extension placed in python/ogm_corners/ as `maturin develop` places it, the
+# package's metadata checked by making its source distribution (`pip install ./python` builds the same
+# crate in release), then its tests, which compare it with the binary built above.
+cp target/debug/lib_core.so python/ogm_corners/_core.abi3.so
+(cd python && "../$pyvenv/bin/maturin" sdist --out ../target/sdist >/dev/null 2>&1) || {
+    echo "scripts/test.sh: maturin could not make the Python package's source distribution" >&2
+    exit 1
+}
+PYTHONPATH="$PWD/python" OGM_CORNERS_BIN="$PWD/target/debug/ogm-corners" \
+    "$pyvenv/bin/python" -m pytest python/tests -q -p no:cacheprovider

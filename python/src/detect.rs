@@ -36,29 +36,30 @@ struct Record {
 
 /// The records of a detection as 64-bit words (5 a record), moved into numpy without a copy.
 fn records(found: &Detection, georef: Option<GeoRef>) -> Vec<u64> {
-    let recs: Vec<Record> = found
-        .keypoints
-        .iter()
-        .map(|k| {
-            let (world_x, world_y) = georef
-                .map(|g| g.pixel_to_world(k.x, k.y, found.height))
-                .unwrap_or((f64::NAN, f64::NAN));
-            Record {
-                x: k.x,
-                y: k.y,
-                rule: k.rule,
-                code: k.code,
-                scale: k.scale,
-                convex: u8::from(k.convex),
-                _pad: 0,
-                score: k.score,
-                world_x,
-                world_y,
-            }
-        })
-        .collect();
-    bytemuck::allocation::cast_vec(recs)
+    let mut words = Vec::with_capacity(found.keypoints.len() * WORDS);
+    for k in &found.keypoints {
+        let (world_x, world_y) = georef
+            .map(|g| g.pixel_to_world(k.x, k.y, found.height))
+            .unwrap_or((f64::NAN, f64::NAN));
+        let record = Record {
+            x: k.x,
+            y: k.y,
+            rule: k.rule,
+            code: k.code,
+            scale: k.scale,
+            convex: u8::from(k.convex),
+            _pad: 0,
+            score: k.score,
+            world_x,
+            world_y,
+        };
+        words.extend_from_slice(&bytemuck::cast::<Record, [u64; WORDS]>(record));
+    }
+    words
 }
+
+/// 64-bit words a record.
+const WORDS: usize = std::mem::size_of::<Record>() / 8;
 
 /// The detector a name gives.
 fn detector_kind(name: &str) -> PyResult<DetectorKind> {
