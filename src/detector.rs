@@ -125,11 +125,8 @@ impl Detector {
                 self.options.unknown_as_occupied,
             )?,
             DetectorKind::Baseline(kind) if redraw => {
-                let grey = image
-                    .pixels()
-                    .iter()
-                    .map(|&v| classes.state(v).map_server_value())
-                    .collect();
+                let value = classes.map_server_values();
+                let grey = image.pixels().iter().map(|&v| value[v as usize]).collect();
                 let grey = MapImage::new(image.width(), image.height(), grey)?;
                 self.backend
                     .baseline_keypoints(kind, &grey, &self.options.baseline)?

@@ -73,6 +73,12 @@ impl ClassTable {
         self.states[v as usize]
     }
 
+    /// The value ROS `map_server` writes for each pixel value's state (0, 205, 254): the table that draws
+    /// an image read with this table as a trinary map.
+    pub fn map_server_values(&self) -> [u8; 256] {
+        self.states.map(CellState::map_server_value)
+    }
+
     /// All 256 states, indexed by pixel value (for upload to other backends).
     pub fn states(&self) -> &[CellState; 256] {
         &self.states

@@ -71,18 +71,26 @@ pub fn image_of(array: &PyReadonlyArray2<'_, u8>, copy: bool) -> PyResult<MapIma
     }
 }
 
-/// A georeference from Python's optional resolution and origin.
-fn georef_of(resolution: Option<f64>, origin: Option<(f64, f64, f64)>) -> PyResult<Option<GeoRef>> {
-    match (resolution, origin) {
-        (None, None) => Ok(None),
-        (None, Some(_)) => Err(PyValueError::new_err(
-            "an origin needs a resolution (metres a pixel)",
-        )),
-        (Some(r), o) => {
-            let (x, y, yaw) = o.unwrap_or((0.0, 0.0, 0.0));
-            GeoRef::checked(r, [x, y, yaw]).map(Some).map_err(to_py)
+/// A georeference from Python's optional resolution and origin, checked to give every pixel of `image`
+/// finite world coordinates.
+fn georef_of(
+    resolution: Option<f64>,
+    origin: Option<(f64, f64, f64)>,
+    image: &MapImage,
+) -> PyResult<Option<GeoRef>> {
+    let (r, (x, y, yaw)) = match (resolution, origin) {
+        (None, None) => return Ok(None),
+        (None, Some(_)) => {
+            return Err(PyValueError::new_err(
+                "an origin needs a resolution (metres a pixel)",
+            ))
         }
-    }
+        (Some(r), o) => (r, o.unwrap_or((0.0, 0.0, 0.0))),
+    };
+    let g = GeoRef::checked(r, [x, y, yaw]).map_err(to_py)?;
+    g.check_finite(image.width(), image.height())
+        .map_err(|m| to_py(Error::invalid(m)))?;
+    Ok(Some(g))
 }
 
 /// An occupancy map: a greyscale image read as ROS `map_server` reads it (occupied, unknown, free), and,
@@ -123,12 +131,8 @@ impl Map {
         thresholds
             .validate()
             .map_err(|m| to_py(Error::invalid(m)))?;
-        let georef = georef_of(resolution, origin)?;
         let image = image_of(&pixels, copy)?;
-        if let Some(g) = georef {
-            g.check_finite(image.width(), image.height())
-                .map_err(|m| to_py(Error::invalid(m)))?;
-        }
+        let georef = georef_of(resolution, origin, &image)?;
         Ok(Map::wrap(OccupancyMap {
             thresholds,
             georef,
@@ -260,11 +264,7 @@ impl Map {
     /// The same pixels and thresholds with another georeference (no copy).
     #[pyo3(signature = (resolution, origin=None))]
     fn with_georef(&self, resolution: f64, origin: Option<(f64, f64, f64)>) -> PyResult<Map> {
-        let georef = georef_of(Some(resolution), origin)?;
-        if let Some(g) = georef {
-            g.check_finite(self.inner.image.width(), self.inner.image.height())
-                .map_err(|m| to_py(Error::invalid(m)))?;
-        }
+        let georef = georef_of(Some(resolution), origin, &self.inner.image)?;
         Ok(Map::wrap(OccupancyMap {
             georef,
             ..self.inner.clone()

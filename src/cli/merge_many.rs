@@ -2,14 +2,14 @@
 //! group's merged map and picture, each map's pose (`--poses`), the multirobot_map_merge parameters
 //! (`--init-poses`).
 
+use std::path::{Path, PathBuf};
+
 use ogm_corners::files;
+use ogm_corners::map::{save_names, yaml_text};
 use ogm_corners::memory::Budget;
 use ogm_corners::merge::align::prepared_bytes;
 use ogm_corners::merge::global::{merge_maps, report, GlobalOptions};
 use ogm_corners::{Error, OccupancyMap, Result};
-use std::path::{Path, PathBuf};
-
-use ogm_corners::map::{save_names, yaml_text};
 
 use super::merge::MergeArgs;
 use super::write_stdout;

@@ -112,24 +112,20 @@ fn check_grid(cells: usize, width: u32, height: u32) -> Result<()> {
 }
 
 /// The trinary image of grid `cells` (int8 values as bytes, row-major, `width * height`), drawn as
-/// `map_saver` draws it: 0 occupied, 205 unknown, 254 free. With `flip`, grid row 0 is the image's bottom
-/// row (the ROS layout); without, rows stay in order (cells indexed as an array is).
+/// `map_saver` draws it: 0 occupied, 205 unknown, 254 free; grid row 0 (the ROS layout's bottom row) is
+/// the image's bottom row.
 pub fn grid_image(
     cells: &[u8],
     width: u32,
     height: u32,
     thresholds: &GridThresholds,
-    flip: bool,
 ) -> Result<MapImage> {
     check_grid(cells.len(), width, height)?;
-    let classes = thresholds.class_table()?;
-    let value: Vec<u8> = (0..=255u8)
-        .map(|b| classes.state(b).map_server_value())
-        .collect();
+    let value = thresholds.class_table()?.map_server_values();
     let w = width as usize;
     let mut pixels = vec![0u8; cells.len()];
     pixels.par_chunks_mut(w).enumerate().for_each(|(r, row)| {
-        let src = if flip { height as usize - 1 - r } else { r };
+        let src = height as usize - 1 - r;
         for (p, &c) in row.iter_mut().zip(&cells[src * w..(src + 1) * w]) {
             *p = value[c as usize];
         }
@@ -154,7 +150,7 @@ impl OccupancyMap {
         georef
             .check_finite(width.max(1), height.max(1))
             .map_err(Error::invalid)?;
-        let image = grid_image(cells, width, height, thresholds, true)?;
+        let image = grid_image(cells, width, height, thresholds)?;
         Ok(OccupancyMap {
             georef: Some(georef),
             ..OccupancyMap::from_image(image)

@@ -216,6 +216,23 @@ pub fn overlay(a: &OccupancyMap, b: &OccupancyMap, t: &Rigid) -> Result<image::R
     ))
 }
 
+/// `map` at `resolution` (metres a pixel): resampled ([`resample`]) when it is georeferenced at another
+/// resolution, with its resolution over the new one; otherwise as it is, with `None`. How the two-map and
+/// the many-map merges bring every map to the reference map's resolution.
+pub fn at_resolution(
+    map: &OccupancyMap,
+    resolution: f64,
+) -> Result<(std::borrow::Cow<'_, OccupancyMap>, Option<f64>)> {
+    use std::borrow::Cow;
+    match map.georef {
+        Some(g) if (g.resolution - resolution).abs() > 1e-9 * resolution => Ok((
+            Cow::Owned(resample(map, resolution)?),
+            Some(g.resolution / resolution),
+        )),
+        _ => Ok((Cow::Borrowed(map), None)),
+    }
+}
+
 /// `map` resampled by nearest neighbour to `resolution` (metres a pixel), keeping its origin: how a map
 /// of another resolution is brought to the reference map's before aligning.
 pub fn resample(map: &OccupancyMap, resolution: f64) -> Result<OccupancyMap> {

@@ -70,13 +70,10 @@ pub fn at_resolution_of<'b>(
     a: &OccupancyMap,
     b: &'b OccupancyMap,
 ) -> Result<(Cow<'b, OccupancyMap>, f64)> {
-    if let (Some(ga), Some(gb)) = (a.georef, b.georef) {
-        if (ga.resolution - gb.resolution).abs() > 1e-9 * ga.resolution {
-            let scale = gb.resolution / ga.resolution;
-            return Ok((Cow::Owned(compose::resample(b, ga.resolution)?), scale));
-        }
+    match a.georef {
+        Some(ga) => compose::at_resolution(b, ga.resolution).map(|(b, k)| (b, k.unwrap_or(1.0))),
+        None => Ok((Cow::Borrowed(b), 1.0)),
     }
-    Ok((Cow::Borrowed(b), 1.0))
 }
 
 /// Aligns `b` onto `a` with no initial pose ([`align_with`], candidates scored on `backend`), `b` first

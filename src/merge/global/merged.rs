@@ -2,6 +2,7 @@
 //! group's canvas and the report of every map's pose; each group's merged map and picture on demand
 //! (what `merge A B C ...` and the Python `merge_many` do).
 
+use std::borrow::Cow;
 use std::time::Instant;
 
 use super::report::{self, Poses};
@@ -40,11 +41,9 @@ pub fn merge_maps(
     let mut scales = vec![None; maps.len()];
     if let Some(res) = maps.iter().find_map(|m| m.georef).map(|g| g.resolution) {
         for (m, s) in maps.iter_mut().zip(&mut scales) {
-            if let Some(g) = m.georef {
-                if (g.resolution - res).abs() > 1e-9 * res {
-                    *s = Some(g.resolution / res);
-                    *m = compose::resample(m, res)?;
-                }
+            let (at, scale) = compose::at_resolution(m, res)?;
+            if let Cow::Owned(resampled) = at {
+                (*m, *s) = (resampled, scale);
             }
         }
     }
