@@ -34,8 +34,10 @@ from __future__ import annotations
 import argparse
 import fnmatch
 import math
+import os
 import struct
 import sys
+import tempfile
 import zlib
 from pathlib import Path
 from typing import Any, Dict, List, Optional, Sequence
@@ -112,9 +114,18 @@ def write_png(path: Any, rgb: Any) -> None:
         return struct.pack(">I", len(body)) + kind + body + struct.pack(">I", zlib.crc32(kind + body))
 
     header = struct.pack(">IIBBBBB", width, height, 8, 2, 0, 0, 0)
-    with open(path, "wb") as f:
-        f.write(b"\x89PNG\r\n\x1a\n")
-        f.write(chunk(b"IHDR", header) + chunk(b"IDAT", zlib.compress(rows, 6)) + chunk(b"IEND", b""))
+    png = b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", header) + chunk(b"IDAT", zlib.compress(rows, 6))
+    png += chunk(b"IEND", b"")
+    # Written beside the target and renamed into place: a reader never sees half a picture.
+    folder = os.path.dirname(os.path.abspath(path))
+    fd, tmp = tempfile.mkstemp(prefix=".overlay.", suffix=".tmp", dir=folder)
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(png)
+        os.replace(tmp, path)
+    except BaseException:
+        os.unlink(tmp)
+        raise
 
 
 def parse_args(argv: Optional[Sequence[str]]) -> argparse.Namespace:
@@ -174,11 +185,13 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
 
     if result.groups > 1 and (args.output or args.overlay):
         print(f"merge_rosbag: note: {result.groups} groups; only group 0 is written", file=sys.stderr)
+    # The picture is drawn before anything is written, so a failure to draw it leaves no output.
+    picture = result.overlay(0) if args.overlay else None
     if args.output:
         merged.save(args.output)
         print(f"wrote {args.output}")
-    if args.overlay:
-        write_png(args.overlay, result.overlay(0))
+    if picture is not None:
+        write_png(args.overlay, picture)
         print(f"wrote {args.overlay}")
     return 0
 
