@@ -5,7 +5,7 @@
 
 use serde::Serialize;
 
-use crate::baselines::{self, Baseline, BaselineParams, ExactParams};
+use crate::baselines::{Baseline, BaselineParams, Candidate, ExactParams};
 use crate::cpu::merge_score::{FixedRigid, ScoreTarget};
 use crate::error::Result;
 use crate::grid::RotatedGrid;
@@ -13,6 +13,8 @@ use crate::map::MapImage;
 use crate::robust::RobustParams;
 use crate::rules::{RuleSet, RuleTable};
 use crate::states::ClassTable;
+use crate::stream::select::CandidateList;
+use crate::stream::Rows;
 
 /// A corner: pixel coordinates (origin top-left, x right, y down), the rule that fired and the code.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize)]
@@ -134,23 +136,68 @@ pub trait Backend: Send {
         params: &ExactParams,
     ) -> Result<Vec<i64>>;
 
-    /// The keypoints of a baseline detector, sorted by (y, x). By default the score map from
-    /// [`Backend::baseline_scores`] goes through the shared selection ([`crate::baselines::select`]); a
-    /// backend may fuse the two as long as the result is identical.
+    /// The keypoints of a baseline detector, sorted by (y, x): the map as one window through
+    /// [`Backend::baseline_rows`] and the shared selection ([`CandidateList`]), the path a streamed map
+    /// takes window by window.
     fn baseline_keypoints(
         &mut self,
         kind: Baseline,
         image: &MapImage,
         params: &BaselineParams,
     ) -> Result<Vec<Keypoint>> {
-        let exact = params.exact()?;
-        let scores = self.baseline_scores(kind, image, &exact)?;
-        Ok(
-            baselines::select(kind, &scores, image.width(), image.height(), params)
-                .into_iter()
-                .map(|(x, y, score)| Keypoint::scored(x, y, score))
-                .collect(),
-        )
+        let core = (0, image.height() as usize);
+        let (found, max) = self.baseline_rows(kind, Rows::of(image), core, params, i64::MIN)?;
+        let mut list = CandidateList::new(kind, params);
+        list.add(found, max);
+        Ok(list
+            .finish(image.width(), image.height(), params)
+            .into_iter()
+            .map(|(x, y, score)| Keypoint::scored(x, y, score))
+            .collect())
+    }
+
+    /// The OGM keypoints of rows `core` of a window of a map, sorted by (y, x); `rows` holds the rows around
+    /// the core the map has (at least one for the OGM detector, [`crate::stream::HALO`] for the baselines). By default the window is detected as an image
+    /// of its own ([`Backend::detect`]) and the core's rows kept.
+    fn detect_rows(
+        &mut self,
+        rows: Rows,
+        core: (usize, usize),
+        classes: &ClassTable,
+        rules: &RuleTable,
+        unknown_as_occupied: bool,
+    ) -> Result<Vec<Keypoint>> {
+        let image = rows.image()?;
+        let found = self.detect(&image, classes, rules, unknown_as_occupied)?;
+        Ok(in_core(found, rows.first(), core))
+    }
+
+    /// The candidates of a baseline in rows `core` of a window, in (y, x) order: its positive 3x3 local
+    /// maxima (over neighbours in the map), and the window's part of the map's largest score: a value no
+    /// larger than that score, and equal to it in the window that holds it whenever it is positive.
+    /// Candidates that fail the quality threshold against `known_max` (the windows before's largest part,
+    /// `i64::MIN` for none) may be left out. By default the window's score map ([`Backend::baseline_scores`]
+    /// of the window as an image) is searched on the host.
+    fn baseline_rows(
+        &mut self,
+        kind: Baseline,
+        rows: Rows,
+        core: (usize, usize),
+        params: &BaselineParams,
+        known_max: i64,
+    ) -> Result<(Vec<Candidate>, i64)> {
+        let _ = known_max;
+        let image = rows.image()?;
+        let scores = self.baseline_scores(kind, &image, &params.exact()?)?;
+        Ok(window_maxima(&scores, rows, core))
+    }
+
+    /// Pixels a window of a streamed map should hold ([`crate::stream::WindowPlan`]): small enough that
+    /// [`crate::stream::WINDOWS_IN_FLIGHT`] windows and the backend's working memory for one stay a few tens
+    /// of megabytes, large enough that the halo rows and each window's set-up stay a small share.
+    fn window_bytes(&self, options: &DetectOptions) -> u64 {
+        let _ = options;
+        4 << 20
     }
 
     /// The coarse maps of `image` sampled on `grid`, one per scale, exactly as
@@ -188,13 +235,53 @@ pub trait Backend: Send {
     }
 }
 
-/// The reference's buffers: one state per pixel (OGM); the blurred map, the gradient products and the
+/// Keypoints of a window detected as an image of its own, kept when their map row (`first` + their row) is
+/// in `core`, in map rows.
+pub fn in_core(found: Vec<Keypoint>, first: usize, core: (usize, usize)) -> Vec<Keypoint> {
+    found
+        .into_iter()
+        .filter_map(|mut k| {
+            let y = first + k.y as usize;
+            k.y = y as u32;
+            (core.0..core.1).contains(&y).then_some(k)
+        })
+        .collect()
+}
+
+/// The positive 3x3 local maxima of rows `core` of a window's score map (`scores`: one per pixel of
+/// `rows`), and the largest score of those rows (`i64::MIN` for none).
+pub fn window_maxima(scores: &[i64], rows: Rows, core: (usize, usize)) -> (Vec<Candidate>, i64) {
+    let (w, first) = (rows.width(), rows.first());
+    let held = rows.end() - first;
+    let mut out = Vec::new();
+    let mut max = i64::MIN;
+    for y in core.0..core.1 {
+        let r = y - first;
+        for (x, &v) in scores[r * w..(r + 1) * w].iter().enumerate() {
+            max = max.max(v);
+            // The window's own edges are the map's wherever a core row touches them.
+            if v > 0 && crate::cpu::select_maxima::local_max(scores, w, held, x, r) {
+                out.push((x as u32, y as u32, v));
+            }
+        }
+    }
+    (out, max)
+}
+
+/// The reference's buffers: a copy of the window it detects in (the whole map in memory; not for the robust
+/// detector), then one state per pixel (OGM); the blurred map, the gradient products and the
 /// structure tensor alive together (Harris, Shi-Tomasi: 1 + 12 + 12 bytes a pixel), then the score map
 /// and, for Shi-Tomasi, the selection's buffers ([`shi_tomasi_selection_bytes`]); or the low-resolution
 /// and full score maps (Trajkovic: 2 + 8).
 pub fn reference_working_bytes(options: &DetectOptions, width: u32, height: u32) -> u64 {
     let px = u64::from(width) * u64::from(height);
-    match options.detector {
+    // The window the reference detects in, copied into an image of its own (the backends' default route).
+    let window = if options.detector == DetectorKind::OgmRobust {
+        0
+    } else {
+        px
+    };
+    window.saturating_add(match options.detector {
         DetectorKind::Ogm => px,
         DetectorKind::OgmRobust => crate::robust::robust_working_bytes(width, height),
         DetectorKind::Baseline(Baseline::Harris) => px.saturating_mul(25),
@@ -203,7 +290,7 @@ pub fn reference_working_bytes(options: &DetectOptions, width: u32, height: u32)
                 .saturating_add(shi_tomasi_selection_bytes(options, width, height)),
         ),
         DetectorKind::Baseline(Baseline::Trajkovic) => px.saturating_mul(10),
-    }
+    })
 }
 
 /// What goodFeaturesToTrack's selection allocates beside a full score map: the thresholded copy (8 bytes a

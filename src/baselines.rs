@@ -141,6 +141,9 @@ pub fn cpu_scores(kind: Baseline, image: &crate::MapImage, p: &ExactParams) -> V
 
 use crate::cpu::select_maxima::local_max;
 
+/// A keypoint candidate (x, y, score).
+pub type Candidate = (u32, u32, i64);
+
 /// The selection of [`select`] from the candidates of [`crate::cpu::select_maxima::select_maxima`] (every
 /// positive 3x3 local maximum, in (y, x) order) and the map's largest score, which is all a backend has to
 /// hand over. Identical to [`select`]: Harris keeps the candidates above quality x max, Trajkovic all of
@@ -149,33 +152,28 @@ use crate::cpu::select_maxima::local_max;
 /// becomes 0 <= it), and when t < 0 (max < 0) no pixel passes the threshold at all.
 pub fn select_candidates(
     kind: Baseline,
-    candidates: &[(u32, u32, i64)],
+    mut candidates: Vec<Candidate>,
     max: i64,
     width: u32,
     height: u32,
     params: &BaselineParams,
-) -> Vec<(u32, u32, i64)> {
+) -> Vec<Candidate> {
     let q = params.quality_ppm();
     let above = |v: i64| i128::from(v) * 1_000_000 > q * i128::from(max);
     match kind {
-        Baseline::Harris => candidates
-            .iter()
-            .copied()
-            .filter(|&(_, _, v)| above(v))
-            .collect(),
-        Baseline::Trajkovic => candidates.to_vec(),
+        Baseline::Harris => {
+            candidates.retain(|&(_, _, v)| above(v));
+            candidates
+        }
+        Baseline::Trajkovic => candidates,
         Baseline::ShiTomasi => {
             let (w, h) = (width as usize, height as usize);
-            let cand = candidates
-                .iter()
-                .filter(|&&(x, y, v)| {
-                    above(v)
-                        && (1..w.saturating_sub(1)).contains(&(x as usize))
-                        && (1..h.saturating_sub(1)).contains(&(y as usize))
-                })
-                .map(|&(x, y, v)| (v, y as usize * w + x as usize))
-                .collect();
-            min_distance_greedy(cand, w, h, params)
+            candidates.retain(|&(x, y, v)| {
+                above(v)
+                    && (1..w.saturating_sub(1)).contains(&(x as usize))
+                    && (1..h.saturating_sub(1)).contains(&(y as usize))
+            });
+            greedy_min_distance(candidates, w, h, params)
         }
     }
 }
@@ -194,7 +192,7 @@ pub fn select(
         // maximum.
         Baseline::Harris | Baseline::Trajkovic => {
             let (candidates, max) = crate::cpu::select_maxima::select_maxima(scores, w, h);
-            select_candidates(kind, &candidates, max, width, height, params)
+            select_candidates(kind, candidates, max, width, height, params)
         }
         // Shi-Tomasi the way goodFeaturesToTrack states it, on the thresholded map: the reference for the
         // candidates route the GPU takes.
@@ -270,4 +268,136 @@ fn min_distance_greedy(
     }
     out.sort_unstable_by_key(|&(x, y, _)| (y, x));
     out
+}
+
+/// goodFeaturesToTrack's greedy pass over the candidates (the reference's `select_shi_tomasi` from its
+/// sort on): strongest first, ties the later pixel first; each kept unless a kept one lies closer than the
+/// minimum distance; at most `max_corners`; then in (y, x) order.
+///
+/// The candidates are what a backend hands over ([`select_candidates`]); the memory is bounded by them and
+/// [`DENSE_BLOCKS`], not by the map (blocks grow on huge maps: a 100000^2 map would have 1.2 10^8 blocks of
+/// 9 pixels).
+///
+/// The reference looks for kept points in the 3x3 cells (of the minimum distance's size) around a
+/// candidate, on a full grid of cells: a vector per cell, as many as the map has pixels for small
+/// distances. Here cells are grouped into blocks of at least 8 pixels square, each block a list of its
+/// kept points threaded through one array, and a candidate examines exactly the same points: those of the
+/// blocks that overlap its 3x3 cells, filtered to those cells.
+pub fn greedy_min_distance(
+    cands: Vec<Candidate>,
+    w: usize,
+    h: usize,
+    params: &BaselineParams,
+) -> Vec<Candidate> {
+    greedy_within(cands, w, h, params, DENSE_BLOCKS)
+}
+
+/// [`greedy_min_distance`] with at most `max_blocks` blocks.
+fn greedy_within(
+    cands: Vec<Candidate>,
+    w: usize,
+    h: usize,
+    params: &BaselineParams,
+    max_blocks: usize,
+) -> Vec<Candidate> {
+    let mut cand: Vec<(i64, usize)> = cands
+        .into_iter()
+        .map(|(x, y, v)| (v, y as usize * w + x as usize))
+        .collect();
+    cand.sort_unstable_by(|a, b| b.cmp(a));
+    let min_d2 = params.min_distance * params.min_distance;
+    let cell = params.min_distance.max(1.0).ceil() as usize;
+    let (gw, gh) = (w.div_ceil(cell), h.div_ceil(cell));
+    // Blocks of at least 8 pixels square; larger on huge maps, so that the heads stay a dense array of at
+    // most DENSE_BLOCKS (each block's list is longer, and filtered to the 3x3 cells all the same).
+    let mut per_block = 8usize.div_ceil(cell);
+    while gw.div_ceil(per_block) * gh.div_ceil(per_block) > max_blocks.max(1) {
+        per_block *= 2;
+    }
+    let (bw, bh) = (gw.div_ceil(per_block), gh.div_ceil(per_block));
+    // First kept point of each block, and per kept point (x, y, next in its block); NONE ends a list.
+    // Kept points are fewer than the candidates, which fit in memory: u32 indices hold them.
+    const NONE: u32 = u32::MAX;
+    let mut head = vec![NONE; bw * bh];
+    let mut kept: Vec<(u32, u32, u32)> = Vec::new();
+    let mut out = Vec::new();
+    for (v, i) in cand {
+        if params.max_corners.is_some_and(|m| out.len() >= m) {
+            break;
+        }
+        let (x, y) = (i % w, i / w);
+        let (cx, cy) = (x / cell, y / cell);
+        let (gx0, gx1) = (cx.saturating_sub(1), (cx + 1).min(gw - 1));
+        let (gy0, gy1) = (cy.saturating_sub(1), (cy + 1).min(gh - 1));
+        let near = (gy0 / per_block..=gy1 / per_block).any(|by| {
+            (gx0 / per_block..=gx1 / per_block).any(|bx| {
+                let mut k = head[by * bw + bx];
+                while k != NONE {
+                    let (px, py, next) = kept[k as usize];
+                    let (px, py) = (px as usize, py as usize);
+                    let in_cells =
+                        (gx0..=gx1).contains(&(px / cell)) && (gy0..=gy1).contains(&(py / cell));
+                    let (dx, dy) = (px as f64 - x as f64, py as f64 - y as f64);
+                    if in_cells && dx * dx + dy * dy < min_d2 {
+                        return true;
+                    }
+                    k = next;
+                }
+                false
+            })
+        });
+        if !near {
+            let b = (cy / per_block) * bw + cx / per_block;
+            kept.push((x as u32, y as u32, head[b]));
+            head[b] = (kept.len() - 1) as u32;
+            out.push((x as u32, y as u32, v));
+        }
+    }
+    out.sort_unstable_by_key(|&(x, y, _)| (y, x));
+    out
+}
+
+/// Most blocks [`greedy_min_distance`] keeps heads for (64 MiB): huge maps get larger blocks.
+pub const DENSE_BLOCKS: usize = 1 << 24;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Blocks grown to fit a cap (as on huge maps) examine the same kept points: the reference's greedy
+    /// pass, for minimum distances from 0 to 20.
+    #[test]
+    fn larger_blocks_keep_the_same_points() {
+        let (w, h) = (300usize, 200usize);
+        let mut rng = crate::synth::Rng::new(11);
+        // Distinct pixels with random scores (many ties).
+        let cands: Vec<Candidate> = (0..4000)
+            .map(|_| {
+                let key = (rng.range(0, w as u32), rng.range(0, h as u32));
+                (key, i64::from(rng.range(1, 50)))
+            })
+            .collect::<std::collections::BTreeMap<_, _>>()
+            .into_iter()
+            .map(|((x, y), v)| (x, y, v))
+            .collect();
+        for d in [0.0, 1.0, 2.5, 3.0, 7.0, 20.0] {
+            let params = BaselineParams {
+                min_distance: d,
+                ..BaselineParams::default()
+            };
+            let reference = min_distance_greedy(
+                cands
+                    .iter()
+                    .map(|&(x, y, v)| (v, y as usize * w + x as usize))
+                    .collect(),
+                w,
+                h,
+                &params,
+            );
+            for cap in [1, 7, 64, DENSE_BLOCKS] {
+                let got = greedy_within(cands.clone(), w, h, &params, cap);
+                assert_eq!(got, reference, "min distance {d}, {cap} blocks");
+            }
+        }
+    }
 }

@@ -1,12 +1,15 @@
 //! The detector API: a [`Detector`] runs one of the detectors on a backend and returns a [`Detection`].
 
 pub use crate::backend::{Backend, DetectOptions, DetectorKind, Keypoint};
+use crate::baselines::Candidate;
 use crate::error::{Error, Result};
 use crate::fast::FastCpuBackend;
 use crate::map::{MapImage, OccupancyMap, Thresholds};
 use crate::robust::RobustInfo;
 use crate::rules::RuleTable;
 use crate::states::ClassTable;
+use crate::stream::select::CandidateList;
+use crate::stream::{for_each_window, RowSource, Rows, Window, WindowPlan};
 
 /// The keypoints found in one map.
 #[derive(Clone, Debug, PartialEq)]
@@ -26,6 +29,8 @@ pub struct Detector {
     options: DetectOptions,
     rules: RuleTable,
     backend: Box<dyn Backend>,
+    /// Pixels a streamed window holds, when not the backend's choice.
+    window_bytes: Option<u64>,
 }
 
 impl Detector {
@@ -40,6 +45,7 @@ impl Detector {
             options,
             rules: RuleTable::new(options.rules),
             backend,
+            window_bytes: None,
         }
     }
 
@@ -105,8 +111,9 @@ impl Detector {
         classes: &ClassTable,
         redraw: bool,
     ) -> Result<Detection> {
+        let (w, h) = (image.width(), image.height());
         let mut robust = None;
-        let mut keypoints = match self.options.detector {
+        let keypoints = match self.options.detector {
             DetectorKind::OgmRobust => {
                 let (k, info) = crate::robust::detect(
                     &mut *self.backend,
@@ -116,36 +123,222 @@ impl Detector {
                     &self.options.robust,
                 )?;
                 robust = Some(info);
-                k
+                match self.options.max_corners {
+                    Some(n) => strongest(k, n, DetectorKind::OgmRobust)?,
+                    None => k,
+                }
             }
-            DetectorKind::Ogm => self.backend.detect(
-                image,
-                classes,
-                &self.rules,
-                self.options.unknown_as_occupied,
-            )?,
-            DetectorKind::Baseline(kind) if redraw => {
-                let value = classes.map_server_values();
-                let grey = image.pixels().iter().map(|&v| value[v as usize]).collect();
-                let grey = MapImage::new(image.width(), image.height(), grey)?;
-                self.backend
-                    .baseline_keypoints(kind, &grey, &self.options.baseline)?
-            }
-            DetectorKind::Baseline(kind) => {
-                self.backend
-                    .baseline_keypoints(kind, image, &self.options.baseline)?
+            kind => {
+                // The map in memory is one window of the streamed path.
+                let grey;
+                let image = if redraw && matches!(kind, DetectorKind::Baseline(_)) {
+                    let value = classes.map_server_values();
+                    let px = image.pixels().iter().map(|&v| value[v as usize]).collect();
+                    grey = MapImage::new(w, h, px)?;
+                    &grey
+                } else {
+                    image
+                };
+                let mut one = |f: &mut dyn FnMut(Window) -> Result<()>| {
+                    f(Window {
+                        rows: Rows::of(image),
+                        core: (0, h as usize),
+                    })
+                    .map(|()| Vec::new())
+                };
+                let mut out = Vec::new();
+                self.run_windows(&mut one, classes, (w, h), &mut |k| {
+                    out.extend_from_slice(k);
+                    Ok(())
+                })?;
+                out
             }
         };
-        if let Some(n) = self.options.max_corners {
-            keypoints = strongest(keypoints, n, self.options.detector)?;
-        }
         Ok(Detection {
-            width: image.width(),
-            height: image.height(),
+            width: w,
+            height: h,
             keypoints,
             robust,
         })
     }
+
+    /// Detects corners in a map read row by row from `source`, whose values `classes` reads, holding a few
+    /// windows of rows at a time ([`crate::stream`]): the memory is bounded by the windows and the
+    /// keypoints, not by the map, and the keypoints are those of [`Detector::detect_image`] on the whole
+    /// map, bit for bit, in the same order. They go to `sink` in (y, x) order: window by window for the OGM
+    /// detector (without `max_corners`), at the end (in chunks of 65536) for the baselines, whose thresholds
+    /// need the map's maximum, and with `max_corners`. `on_rows` sees each window's rows and core first (to draw a downsampled picture).
+    ///
+    /// The robust detector turns the whole map to its walls and is refused: it needs the map in memory.
+    pub fn detect_streamed(
+        &mut self,
+        source: &mut dyn RowSource,
+        classes: &ClassTable,
+        sink: &mut dyn FnMut(&[Keypoint]) -> Result<()>,
+        on_rows: &mut dyn FnMut(Rows, (usize, usize)),
+    ) -> Result<Streamed> {
+        if self.options.detector == DetectorKind::OgmRobust {
+            return Err(Error::invalid(
+                "the ogm-robust detector resamples the whole map on a turned grid and needs it in memory: it is not streamed",
+            ));
+        }
+        let (w, h) = (source.width(), source.height());
+        let plan = self.window_plan(w);
+        let mut windows = |f: &mut dyn FnMut(Window) -> Result<()>| {
+            for_each_window(source, plan, &mut |win| {
+                on_rows(win.rows, win.core);
+                f(win)
+            })
+        };
+        let mut count = 0u64;
+        let warnings = self.run_windows(&mut windows, classes, (w, h), &mut |k| {
+            count += k.len() as u64;
+            sink(k)
+        })?;
+        Ok(Streamed {
+            width: w,
+            height: h,
+            count,
+            warnings,
+        })
+    }
+
+    /// How [`Detector::detect_streamed`] cuts a map `width` wide into windows: about
+    /// [`Backend::window_bytes`] of pixels each, or what [`Detector::set_window_bytes`] set.
+    pub fn window_plan(&self, width: u32) -> WindowPlan {
+        let bytes = self
+            .window_bytes
+            .unwrap_or_else(|| self.backend.window_bytes(&self.options));
+        let halo = match self.options.detector {
+            DetectorKind::Ogm => crate::stream::OGM_HALO,
+            _ => crate::stream::HALO,
+        };
+        WindowPlan::with_bytes(width, bytes, halo)
+    }
+
+    /// Sets the pixels a streamed window holds (`None`: the backend's choice). Smaller windows hold less
+    /// memory and pay more halo rows; the keypoints are the same for every size.
+    pub fn set_window_bytes(&mut self, bytes: Option<u64>) {
+        self.window_bytes = bytes;
+    }
+
+    /// The pixels a streamed window holds now ([`Detector::set_window_bytes`], else the backend's choice).
+    pub fn window_bytes(&self) -> u64 {
+        self.window_bytes
+            .unwrap_or_else(|| self.backend.window_bytes(&self.options))
+    }
+
+    /// Bytes [`Detector::detect_streamed`] allocates for a `width` x `height` map beyond the keypoints
+    /// (and the decoder's own buffers): the windows in flight, and the backend's working memory for one.
+    pub fn streamed_bytes(&self, width: u32, height: u32) -> u64 {
+        let plan = self.window_plan(width);
+        let rows = (plan.core_rows + 2 * plan.halo).min(height as usize) as u32;
+        plan.bytes(width, height)
+            .saturating_add(self.backend.working_bytes(&self.options, width, rows))
+    }
+
+    /// The OGM detector and the baselines over the windows `windows` hands to its argument; keypoints to
+    /// `sink`. Returns what `windows` returns (the source's warnings).
+    fn run_windows(
+        &mut self,
+        windows: &mut WindowsOf,
+        classes: &ClassTable,
+        (w, h): (u32, u32),
+        sink: &mut dyn FnMut(&[Keypoint]) -> Result<()>,
+    ) -> Result<Vec<String>> {
+        let Detector {
+            options,
+            rules,
+            backend,
+            ..
+        } = self;
+        let max_corners = options.max_corners;
+        match options.detector {
+            DetectorKind::OgmRobust => {
+                Err(Error::Internal("the robust detector has no windows".into()))
+            }
+            DetectorKind::Ogm => {
+                let mut held = Vec::new();
+                let warnings = windows(&mut |win| {
+                    let found = backend.detect_rows(
+                        win.rows,
+                        win.core,
+                        classes,
+                        rules,
+                        options.unknown_as_occupied,
+                    )?;
+                    match max_corners {
+                        None => sink(&found),
+                        Some(_) => {
+                            held.extend(found);
+                            Ok(())
+                        }
+                    }
+                })?;
+                if let Some(n) = max_corners {
+                    let kept = strongest(held, n, DetectorKind::Ogm)?;
+                    if !kept.is_empty() {
+                        sink(&kept)?;
+                    }
+                }
+                Ok(warnings)
+            }
+            DetectorKind::Baseline(kind) => {
+                let params = options.baseline;
+                let mut list = CandidateList::new(kind, &params);
+                let warnings = windows(&mut |win| {
+                    let (found, max) = backend.baseline_rows(
+                        kind,
+                        win.rows,
+                        win.core,
+                        &params,
+                        list.known_max(),
+                    )?;
+                    list.add(found, max);
+                    Ok(())
+                })?;
+                let found = list.finish(w, h, &params);
+                let scored = |c: &[Candidate]| -> Vec<Keypoint> {
+                    c.iter()
+                        .map(|&(x, y, v)| Keypoint::scored(x, y, v))
+                        .collect()
+                };
+                let found = match max_corners {
+                    Some(n) => strongest(scored(&found), n, options.detector)?,
+                    None => {
+                        // In chunks: a second list of all the keypoints would double the peak on huge maps.
+                        for chunk in found.chunks(SINK_CHUNK) {
+                            sink(&scored(chunk))?;
+                        }
+                        Vec::new()
+                    }
+                };
+                if !found.is_empty() {
+                    sink(&found)?;
+                }
+                Ok(warnings)
+            }
+        }
+    }
+}
+
+/// Something that calls its argument on every window of a map and returns the source's warnings.
+type WindowsOf<'a> = dyn FnMut(&mut dyn FnMut(Window) -> Result<()>) -> Result<Vec<String>> + 'a;
+
+/// Keypoints handed to a sink at once when they are all known (the baselines).
+const SINK_CHUNK: usize = 1 << 16;
+
+/// What a streamed detection saw ([`Detector::detect_streamed`]).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Streamed {
+    /// Map width in pixels.
+    pub width: u32,
+    /// Map height in pixels.
+    pub height: u32,
+    /// Keypoints handed to the sink.
+    pub count: u64,
+    /// The source's warnings (such as trailing bytes ignored).
+    pub warnings: Vec<String>,
 }
 
 /// Where to detect: the backends a user chooses among by name.

@@ -52,6 +52,8 @@ pub mod plot;
 pub mod robust;
 pub mod rules;
 pub mod states;
+pub mod stream;
+pub mod streamed;
 pub mod synth;
 
 pub use baselines::{Baseline, BaselineParams};

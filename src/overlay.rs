@@ -7,6 +7,7 @@ use image::{Rgb, RgbImage};
 use crate::backend::Keypoint;
 use crate::error::Result;
 use crate::map::MapImage;
+use crate::stream::Rows;
 
 /// Marker colour of each rule: 4 orange, 5 red, 6 blue; the baselines' keypoints (rule 0) magenta.
 pub fn rule_colour(rule: u8) -> Rgb<u8> {
@@ -44,33 +45,104 @@ pub fn render_overlay(map: &MapImage, keypoints: &[Keypoint]) -> RgbImage {
 
 /// [`render_overlay`] with an explicit zoom `s` (>= 1) or shrink `d` (>= 1).
 pub fn render_overlay_at(map: &MapImage, keypoints: &[Keypoint], s: u32, d: u32) -> RgbImage {
-    let (s, d) = (s.max(1), d.max(1));
-    let (w, h) = (map.width().div_ceil(d) * s, map.height().div_ceil(d) * s);
-    let mut img = RgbImage::from_fn(w, h, |x, y| {
-        let (bx, by) = ((x / s) * d, (y / s) * d);
-        let mut v = u8::MAX;
-        for yy in by..(by + d).min(map.height()) {
-            for xx in bx..(bx + d).min(map.width()) {
-                v = v.min(map.get(xx, yy));
-            }
-        }
-        Rgb([v, v, v])
-    });
-    let radius = (2 * s + 2) as i64;
-    for k in keypoints {
-        let colour = rule_colour(k.rule);
-        let (kx, ky) = (k.x / d, k.y / d);
-        for dy in 0..s {
-            for dx in 0..s {
-                img.put_pixel(kx * s + dx, ky * s + dy, colour);
-            }
-        }
-        // Centre of the enlarged cell, in doubled coordinates so that even zooms stay symmetric.
-        let cx2 = (2 * kx * s + s) as i64;
-        let cy2 = (2 * ky * s + s) as i64;
-        ring(&mut img, cx2, cy2, radius, colour);
+    let mut canvas = OverlayCanvas::with_shrink(map.width(), map.height(), d);
+    canvas.add_rows(Rows::of(map), (0, map.height() as usize));
+    canvas.render_at(keypoints, s)
+}
+
+/// The map as an overlay draws it, filled row by row as a streamed detection reads them: each pixel the
+/// darkest of its block of `d` x `d` map pixels ([`overlay_shrink`]), so a huge map's overlay needs only
+/// its own small picture in memory.
+pub struct OverlayCanvas {
+    width: u32,
+    height: u32,
+    d: u32,
+    grey: Vec<u8>,
+    /// Keypoints to mark, by canvas cell (row, column) and rule: at most a few per cell, however many
+    /// keypoints a huge map has.
+    marks: std::collections::BTreeSet<(u32, u32, u8)>,
+}
+
+impl OverlayCanvas {
+    /// A canvas for a `width` x `height` map, shrunk by [`overlay_shrink`].
+    pub fn new(width: u32, height: u32) -> Self {
+        Self::with_shrink(width, height, overlay_shrink(width, height))
     }
-    img
+
+    /// A canvas for a `width` x `height` map, shrunk by `d` (>= 1).
+    pub fn with_shrink(width: u32, height: u32, d: u32) -> Self {
+        let d = d.max(1);
+        let n = width.div_ceil(d) as usize * height.div_ceil(d) as usize;
+        OverlayCanvas {
+            width,
+            height,
+            d,
+            grey: vec![u8::MAX; n],
+            marks: Default::default(),
+        }
+    }
+
+    /// Draws map rows `core` (held in `rows`).
+    pub fn add_rows(&mut self, rows: Rows, core: (usize, usize)) {
+        let d = self.d as usize;
+        let cw = self.width.div_ceil(self.d) as usize;
+        for y in core.0..core.1 {
+            let out = &mut self.grey[(y / d) * cw..(y / d + 1) * cw];
+            if d == 1 {
+                for (o, &v) in out.iter_mut().zip(rows.row(y)) {
+                    *o = (*o).min(v);
+                }
+            } else {
+                for (o, block) in out.iter_mut().zip(rows.row(y).chunks(d)) {
+                    *o = block.iter().fold(*o, |m, &v| m.min(v));
+                }
+            }
+        }
+    }
+
+    /// Marks keypoints (their canvas cells and rules).
+    pub fn mark(&mut self, keypoints: &[Keypoint]) {
+        let d = self.d;
+        self.marks
+            .extend(keypoints.iter().map(|k| (k.y / d, k.x / d, k.rule)));
+    }
+
+    /// The overlay at the zoom [`render_overlay`] uses, with the marks and `keypoints`.
+    pub fn render(&mut self, keypoints: &[Keypoint]) -> RgbImage {
+        self.render_at(keypoints, overlay_scale(self.width, self.height))
+    }
+
+    /// The picture enlarged by `s` (>= 1), each marked cell (and each of `keypoints`) filled with its rule's
+    /// colour and circled so that it stands out at any zoom.
+    pub fn render_at(&mut self, keypoints: &[Keypoint], s: u32) -> RgbImage {
+        self.mark(keypoints);
+        let (s, d) = (s.max(1), self.d);
+        let cw = self.width.div_ceil(d);
+        let (w, h) = (cw * s, self.height.div_ceil(d) * s);
+        let mut img = RgbImage::from_fn(w, h, |x, y| {
+            let v = self.grey[((y / s) * cw + x / s) as usize];
+            Rgb([v, v, v])
+        });
+        let radius = (2 * s + 2) as i64;
+        for &(ky, kx, rule) in &self.marks {
+            let colour = rule_colour(rule);
+            for dy in 0..s {
+                for dx in 0..s {
+                    img.put_pixel(kx * s + dx, ky * s + dy, colour);
+                }
+            }
+            // Centre of the enlarged cell, in doubled coordinates so that even zooms stay symmetric.
+            let cx2 = (2 * kx * s + s) as i64;
+            let cy2 = (2 * ky * s + s) as i64;
+            ring(&mut img, cx2, cy2, radius, colour);
+        }
+        img
+    }
+
+    /// Writes the overlay as a PNG, atomically ([`crate::files::write_atomic`]).
+    pub fn write(&mut self, path: &Path, keypoints: &[Keypoint]) -> Result<()> {
+        crate::files::write_png(path, &self.render(keypoints))
+    }
 }
 
 /// A one-pixel-wide circle of `radius` around the doubled-coordinate centre (cx2 / 2, cy2 / 2).
@@ -91,14 +163,15 @@ pub fn ring(img: &mut RgbImage, cx2: i64, cy2: i64, radius: i64, colour: Rgb<u8>
 }
 
 /// Bytes [`render_overlay`] and its PNG encoding allocate for a `width` x `height` map (the RGB picture,
-/// and at most as much again for the compressed stream the encoder keeps), for memory budgets.
+/// and at most as much again for the compressed stream the encoder keeps, and the grey canvas), for
+/// memory budgets.
 pub fn overlay_bytes(width: u32, height: u32) -> u64 {
     let (s, d) = (
         u64::from(overlay_scale(width, height)),
         u64::from(overlay_shrink(width, height)),
     );
     let side = |n: u32| u64::from(n).div_ceil(d) * s;
-    6 * side(width) * side(height)
+    7 * side(width) * side(height)
 }
 
 /// Renders and writes the overlay as a PNG, atomically ([`crate::files::write_atomic`]).

@@ -79,7 +79,8 @@ impl Canvas {
 const MIN_ROOM: u32 = 24;
 
 /// Checks that [`office_map`] can make a `width` x `height` map: each side at least [`MIN_OFFICE_SIDE`],
-/// at most [`crate::map::MAX_IMAGE_BYTES`] pixels. (It allocates the map once, `width * height` bytes.)
+/// at most [`crate::map::MAX_IMAGE_BYTES`] pixels. (It allocates the map once, `width * height` bytes;
+/// [`OfficeRows`] makes larger maps row by row.)
 pub fn check_office_size(width: u32, height: u32) -> Result<()> {
     if width < MIN_OFFICE_SIDE || height < MIN_OFFICE_SIDE {
         return Err(Error::invalid(format!(
@@ -99,58 +100,140 @@ pub fn check_office_size(width: u32, height: u32) -> Result<()> {
 pub const PARALLEL_PIXELS: u64 = 1 << 28;
 /// Side of the offices [`office_map_parallel`] tiles a large map with.
 const PARALLEL_TILE: u32 = 8192;
+/// Side of the offices [`OfficeRows::new`] tiles a map above [`PARALLEL_PIXELS`] with: a strip of them is
+/// 1024 to 2047 rows, what the generator holds.
+pub const STREAM_TILE: u32 = 1024;
 
 /// A large synthetic map made on all threads: a grid of independent offices of about 8192 x 8192 (the
 /// last row and column absorb the remainder), each [`office_map`] with its own seed derived from `seed`
 /// and its place. Deterministic; for maps whose single-threaded drawing would dominate a benchmark
-/// (65536 x 65536 is 4 GiB).
+/// (65536 x 65536 is 4 GiB). The rows of [`OfficeRows::with_tile`] with tiles of 8192.
 pub fn office_map_parallel(width: u32, height: u32, seed: u64) -> Result<MapImage> {
-    use rayon::prelude::*;
     check_office_size(width, height)?;
-    let cuts = |n: u32| -> Vec<(u32, u32)> {
-        let k = (n / PARALLEL_TILE).max(1);
-        (0..k)
-            .map(|i| {
-                (
-                    i * PARALLEL_TILE,
-                    if i + 1 == k {
-                        n
-                    } else {
-                        (i + 1) * PARALLEL_TILE
-                    },
-                )
-            })
-            .collect()
-    };
-    let (xs, ys) = (cuts(width), cuts(height));
-    let w = width as usize;
-    let mut px = vec![UNKNOWN; w * height as usize];
-    // Each band of tiles is drawn and copied by one task, a tile at a time; the bands are disjoint slices of
-    // the map, so the extra memory is one tile per thread.
-    let mut bands: Vec<(&mut [u8], u32, u32)> = Vec::with_capacity(ys.len());
-    let mut rest = px.as_mut_slice();
-    for &(y0, y1) in &ys {
-        let (band, tail) = rest.split_at_mut((y1 - y0) as usize * w);
-        bands.push((band, y0, y1));
-        rest = tail;
+    let mut rows = OfficeRows::with_tile(width, height, seed, PARALLEL_TILE)?;
+    let mut px = vec![0u8; width as usize * height as usize];
+    for row in px.chunks_exact_mut(width as usize) {
+        rows.next_row(row)?;
     }
-    bands
-        .into_par_iter()
-        .enumerate()
-        .try_for_each(|(ty, (band, y0, y1))| -> Result<()> {
-            for (tx, &(x0, x1)) in xs.iter().enumerate() {
-                let s =
-                    seed ^ (((ty as u64) << 32) | tx as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15);
-                let t = office_map(x1 - x0, y1 - y0, s)?;
+    MapImage::new(width, height, px)
+}
+
+/// Where the tiles of a side of `n` pixels start and end: `n / tile` tiles (at least one), the last
+/// absorbing the remainder.
+fn cuts(n: u32, tile: u32) -> Vec<(u32, u32)> {
+    let k = (n / tile).max(1);
+    (0..k)
+        .map(|i| (i * tile, if i + 1 == k { n } else { (i + 1) * tile }))
+        .collect()
+}
+
+/// A synthetic office map of any size made row by row, holding one strip of tiles at a time: a grid of
+/// independent [`office_map`]s with seeds derived from `seed` and their place (as
+/// [`office_map_parallel`]), each strip drawn on all threads. Deterministic.
+pub struct OfficeRows {
+    width: u32,
+    height: u32,
+    seed: u64,
+    xs: Vec<(u32, u32)>,
+    ys: Vec<(u32, u32)>,
+    /// The strip being handed out, its index and the next row in it.
+    strip: Vec<u8>,
+    strip_i: usize,
+    next: u32,
+}
+
+impl OfficeRows {
+    /// The map `demo` and `bench` write: up to [`PARALLEL_PIXELS`] one office (exactly [`office_map`]),
+    /// above it offices of [`STREAM_TILE`].
+    pub fn new(width: u32, height: u32, seed: u64) -> Result<Self> {
+        let tile = if u64::from(width) * u64::from(height) <= PARALLEL_PIXELS {
+            width.max(height)
+        } else {
+            STREAM_TILE
+        };
+        Self::with_tile(width, height, seed, tile)
+    }
+
+    /// Offices of about `tile` pixels a side.
+    pub fn with_tile(width: u32, height: u32, seed: u64, tile: u32) -> Result<Self> {
+        if width < MIN_OFFICE_SIDE || height < MIN_OFFICE_SIDE {
+            check_office_size(width, height)?;
+        }
+        let tile = tile.max(MIN_OFFICE_SIDE);
+        Ok(OfficeRows {
+            width,
+            height,
+            seed,
+            xs: cuts(width, tile),
+            ys: cuts(height, tile),
+            strip: Vec::new(),
+            strip_i: usize::MAX,
+            next: 0,
+        })
+    }
+
+    /// Bytes the generator holds: its largest strip, and an office per thread while drawing it.
+    pub fn bytes(&self) -> u64 {
+        let tall = self.ys.iter().map(|&(a, b)| b - a).max().unwrap_or(0);
+        let wide = self.xs.iter().map(|&(a, b)| b - a).max().unwrap_or(0);
+        // An office per thread at most, and no more than the strip has.
+        let drawn = rayon::current_num_threads().min(self.xs.len()) as u64;
+        u64::from(tall) * (u64::from(self.width) + drawn * u64::from(wide))
+    }
+
+    /// Writes the next row into `out` (`width` bytes).
+    pub fn next_row(&mut self, out: &mut [u8]) -> Result<()> {
+        use rayon::prelude::*;
+        let y = self.next;
+        if y >= self.height {
+            return Err(Error::Internal("read past the last row".into()));
+        }
+        let ty = self
+            .ys
+            .iter()
+            .position(|&(a, b)| (a..b).contains(&y))
+            .unwrap_or(0);
+        let (y0, y1) = self.ys[ty];
+        if self.strip_i != ty {
+            let w = self.width as usize;
+            let seed = self.seed;
+            let tiles: Vec<MapImage> = self
+                .xs
+                .par_iter()
+                .enumerate()
+                .map(|(tx, &(x0, x1))| {
+                    let s = seed
+                        ^ (((ty as u64) << 32) | tx as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15);
+                    office_map(x1 - x0, y1 - y0, s)
+                })
+                .collect::<Result<_>>()?;
+            self.strip.clear();
+            self.strip.resize((y1 - y0) as usize * w, 0);
+            for (t, &(x0, _)) in tiles.iter().zip(&self.xs) {
                 let tw = t.width() as usize;
                 for (r, row) in t.pixels().chunks_exact(tw).enumerate() {
                     let at = r * w + x0 as usize;
-                    band[at..at + tw].copy_from_slice(row);
+                    self.strip[at..at + tw].copy_from_slice(row);
                 }
             }
-            Ok(())
-        })?;
-    MapImage::new(width, height, px)
+            self.strip_i = ty;
+        }
+        let w = self.width as usize;
+        let r = (y - y0) as usize;
+        out.copy_from_slice(&self.strip[r * w..(r + 1) * w]);
+        self.next += 1;
+        Ok(())
+    }
+
+    /// Width in pixels.
+    pub fn width(&self) -> u32 {
+        self.width
+    }
+
+    /// Height in pixels.
+    pub fn height(&self) -> u32 {
+        self.height
+    }
 }
 
 /// A synthetic office floor as a SLAM map would show it: rooms from recursive splits, corridors, doors,

@@ -1088,10 +1088,26 @@ fn bad_headers_are_refused() {
     );
     assert_eq!(err_of(b"P5 0 5 255\n"), "zero-size image (0x5)");
     assert_eq!(err_of(b"P2 5 0 255\n"), "zero-size image (5x0)");
+    // Over 2^32 pixels is no header error (maps are streamed row by row); here the raster is missing.
     assert_eq!(
         err_of(b"P5 65537 65536 255\n"),
-        "image of 65537x65536 exceeds 4294967296 pixels"
+        "truncated PGM: the 65537x65536 raster needs 4295032832 bytes, the file has 0 after the header"
     );
+    // Holding such an image whole in memory is refused.
+    assert_eq!(
+        ogm_corners::decode::check_in_memory(65537, 65536).unwrap_err(),
+        "image of 65537x65536 exceeds 4294967296 pixels (detect reads larger maps row by row)"
+    );
+    assert!(ogm_corners::decode::check_in_memory(65536, 65536).is_ok());
+    // Rasters whose byte count overflows 64 bits read as truncated, never as an overflow.
+    for header in [
+        &b"P5 4294967295 4294967295 65535\n"[..],
+        b"P6 4294967295 4294967295 65535\n",
+        b"P4 4294967295 4294967295\n",
+    ] {
+        let e = err_of(header);
+        assert!(e.starts_with("truncated"), "{e}");
+    }
     assert_eq!(err_of(b"P5 2 2 0\n"), "PGM maxval is 0");
     assert_eq!(err_of(b"P5 2 2 65536\n"), "PGM maxval 65536 exceeds 65535");
     assert!(err_of(b"P5 2 2 99999999999\n").contains("too large"));

@@ -22,7 +22,8 @@ fn reference_keypoints(kind: Baseline, img: &MapImage, params: &BaselineParams) 
 }
 
 fn fast_keypoints(kind: Baseline, img: &MapImage, params: &BaselineParams) -> Points {
-    fast::keypoints(kind, img, params)
+    FastCpuBackend
+        .baseline_keypoints(kind, img, params)
         .unwrap()
         .into_iter()
         .map(|k| (k.x, k.y, k.score))
@@ -339,7 +340,10 @@ fn invalid_parameters_are_refused_like_the_reference() {
     ] {
         assert!(p.exact().is_err());
         for kind in KINDS {
-            assert!(fast::keypoints(kind, &img, &p).is_err(), "{kind:?} {p:?}");
+            assert!(
+                FastCpuBackend.baseline_keypoints(kind, &img, &p).is_err(),
+                "{kind:?} {p:?}"
+            );
         }
     }
 }

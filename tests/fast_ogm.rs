@@ -4,7 +4,7 @@
 mod common;
 
 use ogm_corners::cpu::CpuBackend;
-use ogm_corners::fast::bitplanes::{interval_scalar, plane_row, words, ValueSet};
+use ogm_corners::fast::bitplanes::{interval_scalar, plane_row, plane_rows2, words, ValueSet};
 use ogm_corners::fast::FastCpuBackend;
 use ogm_corners::synth::{office_map, Rng, FREE, OCCUPIED, UNKNOWN};
 use ogm_corners::{Backend, ClassTable, MapImage, OccupancyMap, RuleSet, RuleTable, Thresholds};
@@ -191,6 +191,28 @@ proptest! {
         let mut out = [0u64; 1];
         plane_row(&ValueSet::Interval { lo, span }, &bytes, &mut out);
         prop_assert_eq!(out[0], interval_scalar(lo, span, &bytes));
+    }
+
+    /// Two planes from one pass (AVX2 where the CPU has it) are the two planes one by one.
+    #[test]
+    fn two_planes_from_one_pass_agree(
+        bytes in proptest::collection::vec(any::<u8>(), 0..300),
+        (la, sa, lb, sb) in (any::<u8>(), any::<u8>(), any::<u8>(), any::<u8>()),
+        table in any::<bool>(),
+    ) {
+        let a = ValueSet::Interval { lo: la, span: sa };
+        let b = if table {
+            ValueSet::from_members(&(0..256).map(|v| v % 3 == 0).collect::<Vec<_>>())
+        } else {
+            ValueSet::Interval { lo: lb, span: sb }
+        };
+        let n = words(bytes.len());
+        let (mut fa, mut fb) = (vec![0u64; n], vec![0u64; n]);
+        plane_rows2(&a, &b, &bytes, &mut fa, &mut fb);
+        let (mut ga, mut gb) = (vec![0u64; n], vec![0u64; n]);
+        plane_row(&a, &bytes, &mut ga);
+        plane_row(&b, &bytes, &mut gb);
+        prop_assert_eq!((fa, fb), (ga, gb));
     }
 
     #[test]

@@ -399,11 +399,31 @@ fn commands_that_would_exhaust_memory_are_refused_up_front() {
         w.finish().unwrap();
     }
     assert!(fs::metadata(&bomb).unwrap().len() < 16 << 20);
-    let o = ogm(&["detect", "--max-memory", "256M", s(&bomb)]);
+    // Held whole (the robust detector), it is refused from the header.
+    let o = ogm(&[
+        "detect",
+        "--detector",
+        "ogm-robust",
+        "--max-memory",
+        "256M",
+        s(&bomb),
+    ]);
     refused(&o, "limit of 256.0 MiB");
+    // Streamed (the other detectors), it is read row by row within the limit: all occupied, no corner.
+    let o = ogm(&[
+        "detect",
+        "--backend",
+        "cpu",
+        "--max-memory",
+        "256M",
+        s(&bomb),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(stdout(&o), "x,y,rule,code\n");
     // The limit also comes from the environment.
     let mut c = Command::new(BIN);
-    c.args(["detect", s(&bomb)]).env("OGM_MAX_MEMORY", "100M");
+    c.args(["detect", "--detector", "ogm-robust", s(&bomb)])
+        .env("OGM_MAX_MEMORY", "100M");
     let o = within(c, 60);
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     // demo refuses before it makes its folder or its map.

@@ -75,6 +75,11 @@ pub(super) struct BenchArgs {
     /// records name the file (`image`).
     #[arg(long, value_name = "PATH")]
     save_map: Option<PathBuf>,
+    /// Only write the synthetic map of the one --size to FILE (a binary PGM) and measure nothing: made
+    /// and written row by row, so any size works (a 100000x100000 map is a 10 GB file); for timing
+    /// `detect` on maps larger than memory.
+    #[arg(long, value_name = "FILE", conflicts_with = "save_map")]
+    write_map: Option<PathBuf>,
 }
 
 /// A map to load when its turn comes (so only one is in memory at a time).
@@ -180,7 +185,30 @@ fn parse_bandwidth(s: &str) -> std::result::Result<f64, String> {
     }
 }
 
+/// `--write-map`: the synthetic map of the one size, row by row to a file.
+fn write_map(a: &BenchArgs, path: &Path, budget: &Budget) -> Result<()> {
+    let &[(w, h)] = a.size.as_slice() else {
+        return Err(Error::invalid(
+            "--write-map writes one synthetic map: give one --size",
+        ));
+    };
+    if !a.maps.is_empty() {
+        return Err(Error::invalid(
+            "--write-map writes a synthetic map: give no maps",
+        ));
+    }
+    let mut rows = synth::OfficeRows::new(w, h, a.seed)?;
+    budget.check(
+        format_args!("bench --write-map --size {w}x{h}"),
+        rows.bytes(),
+    )?;
+    ogm_corners::stream::write_pgm(path, &mut rows)
+}
+
 pub(super) fn bench(a: BenchArgs, budget: &Budget) -> Result<()> {
+    if let Some(path) = &a.write_map {
+        return write_map(&a, path, budget);
+    }
     let kinds = detector_list(&a.detector);
     let sizes = if a.maps.is_empty() && a.size.is_empty() {
         vec![(4096, 4096)]

@@ -7,11 +7,12 @@ use clap::Args;
 
 use crate::batch;
 
-use ogm_corners::files::{self, Inputs};
+use ogm_corners::files::{self, AtomicFile, Inputs};
 use ogm_corners::map::find_maps;
 use ogm_corners::memory::Budget;
 use ogm_corners::output::{self, Format};
-use ogm_corners::{overlay, Error, OccupancyMap, Result};
+use ogm_corners::overlay::OverlayCanvas;
+use ogm_corners::{overlay, streamed, DetectorKind, Error, OccupancyMap, Result};
 
 use super::{write_stdout, DetectOpts, FormatArg};
 
@@ -60,7 +61,10 @@ pub(super) fn run(a: DetectArgs, budget: &Budget) -> Result<()> {
     if a.output.is_none() {
         super::check_stdout()?;
     }
-    // The map before the backend, so a bad map is the only message; the map, the backend's buffers and
+    if a.opts.options().detector != DetectorKind::OgmRobust {
+        return run_streamed(&a, format, budget);
+    }
+    // The robust detector holds the map in memory. The map before the backend, so a bad map is the only message; the map, the backend's buffers and
     // the overlay are counted from the header, before the pixels are read.
     let map = OccupancyMap::load_within(path, budget, &|w, h| a.extra_bytes(w, h))?;
     for w in &map.warnings {
@@ -90,6 +94,98 @@ pub(super) fn run(a: DetectArgs, budget: &Budget) -> Result<()> {
         overlay::write_overlay(png, &map.image, &det.keypoints)?;
     }
     Ok(())
+}
+
+/// One map read row by row: the keypoints written as they come, the overlay drawn downsampled on the way;
+/// memory bounded by a few windows of rows, whatever the map's size.
+fn run_streamed(a: &DetectArgs, format: Format, budget: &Budget) -> Result<()> {
+    let path = &a.maps[0];
+    let mut map = OccupancyMap::open_rows(path)?;
+    for w in &map.warnings {
+        ogm_corners::say!("ogm-corners: warning: {w}");
+    }
+    let mut inputs = Inputs::new();
+    inputs.add(path);
+    inputs.add(&map.image_path);
+    if let Some(o) = &a.output {
+        inputs.claim_output(o, "--output")?;
+    }
+    if let Some(o) = &a.overlay {
+        inputs.claim_output(o, "--overlay")?;
+    }
+    let mut detector = a.opts.detector()?;
+    streamed::check_streamed_budget(&mut detector, &map, a.overlay.is_some(), budget)?;
+    let (w, h) = map.size();
+    let mut canvas = a.overlay.as_ref().map(|_| OverlayCanvas::new(w, h));
+    let done = match &a.output {
+        Some(out) => {
+            let mut file = AtomicFile::create(out)?;
+            let mut outputs = [streamed::Output {
+                out: &mut file,
+                format,
+                name: out.display().to_string(),
+            }];
+            let done = streamed::detect_to(&mut detector, &mut map, &mut outputs, canvas.as_mut())?;
+            file.flush().map_err(|e| Error::output(out, e))?;
+            // Written before the keypoint file is renamed into place: a failed overlay leaves neither.
+            if let (Some(png), Some(c)) = (&a.overlay, canvas.as_mut()) {
+                c.write(png, &[])?;
+            }
+            file.commit()?;
+            done
+        }
+        None => {
+            let stdout = std::io::stdout();
+            let mut out = PipeOut {
+                inner: std::io::BufWriter::new(stdout.lock()),
+                closed: false,
+            };
+            let mut outputs = [streamed::Output {
+                out: &mut out,
+                format,
+                name: "<stdout>".into(),
+            }];
+            let done = streamed::detect_to(&mut detector, &mut map, &mut outputs, canvas.as_mut())
+                .and_then(|d| {
+                    out.flush()
+                        .map(|()| d)
+                        .map_err(|e| Error::output("<stdout>", e))
+                });
+            let done = match done {
+                // `| head`: the reader has what it wanted.
+                Err(_) if out.closed => return Ok(()),
+                other => other?,
+            };
+            if let (Some(png), Some(c)) = (&a.overlay, canvas.as_mut()) {
+                c.write(png, &[])?;
+            }
+            done
+        }
+    };
+    for w in &done.warnings {
+        ogm_corners::say!("ogm-corners: warning: {w}");
+    }
+    Ok(())
+}
+
+/// Standard output that remembers a closed pipe, so that `| head` ends the run quietly.
+struct PipeOut<W: Write> {
+    inner: W,
+    closed: bool,
+}
+
+impl<W: Write> Write for PipeOut<W> {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        let r = self.inner.write(buf);
+        self.closed |= matches!(&r, Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe);
+        r
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        let r = self.inner.flush();
+        self.closed |= matches!(&r, Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe);
+        r
+    }
 }
 
 /// Many maps (or folders) into the folder `--output`: unreadable entries are reported and skipped, and make

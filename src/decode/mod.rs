@@ -59,10 +59,25 @@ pub struct Header {
     /// grey frame (width * height) plus one grey row, plus an estimate of the png crate's own
     /// working set (a few raw rows and its inflate buffers).
     pub decoder_bytes: u64,
+    /// Whether decoding holds the whole image (an interlaced PNG: its seven passes cover every row), so
+    /// that it cannot be streamed in bounded memory.
+    pub whole_image: bool,
 }
 
-/// Most pixels an image may have: 2^32, a 65536 x 65536 map.
+/// Most pixels an image decoded into memory may have: 2^32, a 65536 x 65536 map ([`check_in_memory`]).
+/// A map read row by row ([`crate::stream`]) has no such limit: only its width and height, each below
+/// 2^32 (keypoint coordinates are `u32`), bound it.
 pub const MAX_PIXELS: u64 = 1 << 32;
+
+/// Refuses an image of more than [`MAX_PIXELS`] pixels, for paths that hold it whole in memory.
+pub fn check_in_memory(width: u32, height: u32) -> Result<(), String> {
+    if u64::from(width) * u64::from(height) > MAX_PIXELS {
+        return Err(format!(
+            "image of {width}x{height} exceeds {MAX_PIXELS} pixels (detect reads larger maps row by row)"
+        ));
+    }
+    Ok(())
+}
 
 /// A header-first, row-by-row decoder of one image.
 pub struct Decoder<R: BufRead> {
@@ -149,6 +164,38 @@ impl<R: BufRead> Decoder<R> {
         Ok(())
     }
 
+    /// Decodes the next rows (top to bottom, `out.len() / width` of them) into `out`, as
+    /// [`Decoder::read_row`] does one by one. An 8-bit PGM whose samples are their own grey levels
+    /// (maxval 255, the ROS maps) is read in one piece straight into `out`: one copy from the
+    /// operating system, so a map streamed from disk is read at the disk's speed.
+    pub fn read_rows(&mut self, out: &mut [u8]) -> Result<(), String> {
+        let w = self.header.width as usize;
+        let rows = out.len() / w.max(1);
+        if rows * w != out.len() {
+            return Err(format!(
+                "row buffer of {} bytes for an image {} pixels wide",
+                out.len(),
+                self.header.width
+            ));
+        }
+        if rows as u64 > u64::from(self.header.height - self.rows_done) {
+            return Err(format!(
+                "{rows} rows asked for, {} left",
+                self.header.height - self.rows_done
+            ));
+        }
+        if let Inner::Pnm(d) = &mut self.inner {
+            if d.read_raw_rows(self.rows_done, out)? {
+                self.rows_done += rows as u32;
+                return Ok(());
+            }
+        }
+        for row in out.chunks_exact_mut(w) {
+            self.read_row(row)?;
+        }
+        Ok(())
+    }
+
     /// Call after the last row: warnings (e.g. trailing bytes ignored).
     ///
     /// Fails when rows are left unread, or when the end of the PNG image data is damaged (the old
@@ -179,6 +226,7 @@ pub fn decode_bytes(
 ) -> Result<(u32, u32, Vec<u8>, Vec<String>), String> {
     let mut dec = Decoder::new(bytes, Some(bytes.len() as u64), hint, max_decoder_bytes)?;
     let (w, h) = (dec.header().width, dec.header().height);
+    check_in_memory(w, h)?;
     let n = usize::try_from(u64::from(w) * u64::from(h))
         .map_err(|_| format!("image of {w}x{h} does not fit in memory here"))?;
     let mut pixels = Vec::new();
@@ -197,15 +245,11 @@ pub fn decode_bytes(
 
 const PNG_SIGNATURE: &[u8] = b"\x89PNG\r\n\x1a\n";
 
-/// Checks the size rules shared by both formats.
+/// Checks the size rules shared by both formats (the pixel count is [`check_in_memory`]'s, for the
+/// paths that need it).
 fn check_size(width: u32, height: u32) -> Result<(), String> {
     if width == 0 || height == 0 {
         return Err(format!("zero-size image ({width}x{height})"));
-    }
-    if u64::from(width) * u64::from(height) > MAX_PIXELS {
-        return Err(format!(
-            "image of {width}x{height} exceeds {MAX_PIXELS} pixels"
-        ));
     }
     Ok(())
 }
@@ -356,6 +400,38 @@ impl<R: BufRead> Source<R> {
 
     fn handle(&self) -> Arc<Shared> {
         Arc::clone(&self.shared)
+    }
+
+    /// Fills as much of `out` as the input holds (up to the cap), returning how much: the buffered bytes
+    /// first, then reads straight into `out` (a `BufReader` hands a large read to the file directly).
+    pub(crate) fn read_bulk(&mut self, out: &mut [u8]) -> io::Result<usize> {
+        let mut n = 0;
+        while n < out.len() {
+            let pos = self.shared.pos.load(Ordering::Relaxed);
+            let limit = self.shared.limit.load(Ordering::Relaxed);
+            let room = usize::try_from(limit.saturating_sub(pos)).unwrap_or(usize::MAX);
+            if room == 0 {
+                self.shared.hit_limit.store(true, Ordering::Relaxed);
+                break;
+            }
+            let end = out.len().min(n.saturating_add(room));
+            let k = if self.pre_start < self.pre_end {
+                let k = (self.pre_end - self.pre_start).min(end - n);
+                out[n..n + k].copy_from_slice(&self.prefix[self.pre_start..self.pre_start + k]);
+                self.pre_start += k;
+                k
+            } else {
+                match self.inner.read(&mut out[n..end]) {
+                    Ok(0) => break,
+                    Ok(k) => k,
+                    Err(e) if e.kind() == io::ErrorKind::Interrupted => continue,
+                    Err(e) => return Err(e),
+                }
+            };
+            self.shared.pos.fetch_add(k as u64, Ordering::Relaxed);
+            n += k;
+        }
+        Ok(n)
     }
 
     /// The next byte, consumed; `None` at the end of input.

@@ -179,7 +179,29 @@ impl<R: BufRead> PnmDecoder<R> {
             width: self.width,
             height: self.height,
             decoder_bytes: (self.scaled.len() * 2 + self.grey.len()) as u64,
+            whole_image: false,
         }
+    }
+
+    /// Reads rows `y..` into `out` in one piece when the raster is those rows' bytes as they are (binary
+    /// PGM, maxval 255: every byte is a valid sample and its own grey level); `false` (nothing read)
+    /// otherwise.
+    pub(crate) fn read_raw_rows(&mut self, y: u32, out: &mut [u8]) -> Result<bool, String> {
+        if !(self.family == Family::Pgm && self.binary && self.maxval == 255) {
+            return Ok(false);
+        }
+        let n = self.src.read_bulk(out).map_err(|e| io_error(&e))?;
+        if n < out.len() {
+            let w = self.width as usize;
+            return Err(format!(
+                "truncated PGM: the raster ends at row {}, column {} of a {}x{} image",
+                y as usize + n / w,
+                n % w,
+                self.width,
+                self.height
+            ));
+        }
+        Ok(true)
     }
 
     /// Decodes row `y` into `out` (width bytes).
@@ -284,6 +306,14 @@ impl<R: BufRead> PnmDecoder<R> {
                 ));
             }
             let n = buf.len().min(out.len() - x);
+            if self.maxval == 255 {
+                // Every byte is a valid sample and its own grey level: a copy (maps larger than memory
+                // stream at the disk's speed).
+                out[x..x + n].copy_from_slice(&buf[..n]);
+                self.src.consume(n);
+                x += n;
+                continue;
+            }
             for (i, (o, &v)) in out[x..x + n].iter_mut().zip(&buf[..n]).enumerate() {
                 if u32::from(v) > self.maxval {
                     return Err(format!(
@@ -469,14 +499,15 @@ fn scale_table(maxval: u32) -> Vec<u16> {
         .collect()
 }
 
-/// Bytes of a binary raster.
+/// Bytes of a binary raster; `u64::MAX` when they do not fit (no file is that long: it reads as truncated).
 fn raster_bytes(family: Family, width: u32, height: u32, wide: bool) -> u64 {
     let (w, h) = (u64::from(width), u64::from(height));
-    match family {
-        Family::Pbm => w.div_ceil(8) * h,
-        Family::Pgm => w * h * if wide { 2 } else { 1 },
-        Family::Ppm => w * h * if wide { 6 } else { 3 },
-    }
+    let per_px = match family {
+        Family::Pbm => return w.div_ceil(8).saturating_mul(h),
+        Family::Pgm => 1 + u64::from(wide),
+        Family::Ppm => 3 * (1 + u64::from(wide)),
+    };
+    w.saturating_mul(h).saturating_mul(per_px)
 }
 
 /// Most bytes a header (comments included) may take.

@@ -182,6 +182,7 @@ impl<R: BufRead> PngDecoder<R> {
             width: self.width,
             height: self.height,
             decoder_bytes: self.decoder_bytes,
+            whole_image: self.interlaced,
         }
     }
 

@@ -13,6 +13,7 @@
 //! are all the next one needs.
 
 use crate::cpu::gaussian_blur::reflect101;
+use crate::stream::Rows;
 
 /// The reflected index of `i` in `0..n` (BORDER_REFLECT_101, as the reference).
 #[inline(always)]
@@ -44,7 +45,7 @@ pub(super) fn kernel_supported(kernel: [u32; 3]) -> bool {
 
 /// The rolling pipeline of one band. Rows must be asked for in increasing order, one after the other.
 pub(super) struct TensorRows<'a> {
-    img: &'a [u8],
+    img: Rows<'a>,
     w: usize,
     h: usize,
     kernel: [u16; 3],
@@ -62,16 +63,11 @@ pub(super) struct TensorRows<'a> {
 }
 
 impl<'a> TensorRows<'a> {
-    /// A pipeline over the `w` x `h` image `img` whose first score row will be `first`.
-    pub(super) fn new(
-        img: &'a [u8],
-        w: usize,
-        h: usize,
-        kernel: [u32; 3],
-        score: TensorScore,
-        first: usize,
-    ) -> Self {
+    /// A pipeline over the map rows `img` (holding the rows score row `first` on needs) whose first
+    /// score row will be `first`.
+    pub(super) fn new(img: Rows<'a>, kernel: [u32; 3], score: TensorScore, first: usize) -> Self {
         debug_assert!(kernel_supported(kernel));
+        let (w, h) = (img.width(), img.height());
         TensorRows {
             img,
             w,
@@ -101,7 +97,7 @@ impl<'a> TensorRows<'a> {
     #[inline(always)]
     fn blur_row(&mut self, r: usize) {
         let w = self.w;
-        let [ra, rc, rb] = self.neighbours(r).map(|y| &self.img[y * w..(y + 1) * w]);
+        let [ra, rc, rb] = self.neighbours(r).map(|y| self.img.row(y));
         let [k0, k1, k2] = self.kernel;
         // Vertical pass: at most 256 * 255, a u16.
         let vert = &mut self.vert[1..=w];

@@ -6,6 +6,7 @@
 //! score is the reference's by construction. On maps most rows have no hit at all.
 
 use crate::cpu::trajkovic::full_res_score;
+use crate::stream::Rows;
 
 /// Marks no row (a cache tag).
 const NONE: usize = usize::MAX;
@@ -13,7 +14,7 @@ const NONE: usize = usize::MAX;
 /// The lazy Trajkovic scorer of one band. Rows may be asked for in any order (caches are tagged), but
 /// ascending order reuses the low-resolution rows.
 pub(super) struct TrajkovicRows<'a> {
-    img: &'a [u8],
+    img: Rows<'a>,
     w: usize,
     h: usize,
     /// Low-resolution size.
@@ -37,7 +38,8 @@ pub(super) struct TrajkovicRows<'a> {
 
 impl<'a> TrajkovicRows<'a> {
     /// A scorer over the `w` x `h` image `img` with thresholds `t1`, `t2`.
-    pub(super) fn new(img: &'a [u8], w: usize, h: usize, t1: u32, t2: u32) -> Self {
+    pub(super) fn new(img: Rows<'a>, t1: u32, t2: u32) -> Self {
+        let (w, h) = (img.width(), img.height());
         let (lw, lh) = (w.div_ceil(2), h.div_ceil(2));
         let clamp = |t: u32| t.min(i32::MAX as u32) as i32;
         TrajkovicRows {
@@ -65,7 +67,7 @@ impl<'a> TrajkovicRows<'a> {
         if self.lw < 3 || self.lh < 3 || y == 0 || y + 1 >= h {
             return;
         }
-        let row = |r: usize| &self.img[r * w..(r + 1) * w];
+        let row = |r: usize| self.img.row(r);
         let (up, mid, down) = (row(y - 1), row(y), row(y + 1));
         let t2 = self.t2;
         let hit = &mut self.hit[..w];
@@ -92,7 +94,7 @@ impl<'a> TrajkovicRows<'a> {
         self.ensure_pass(hi);
         let (p_lo, p_hi) = (&self.pass[lo % 2].1, &self.pass[hi % 2].1);
         let img = self.img;
-        let f = |x: i64, y: i64| i64::from(img[y as usize * w + x as usize]);
+        let f = |x: i64, y: i64| i64::from(img.row(y as usize)[x as usize]);
         const CHUNK: usize = 32;
         for (k, chunk) in self.hit[..w].chunks(CHUNK).enumerate() {
             if chunk.iter().fold(0, |any, &h| any | h) == 0 {
@@ -118,10 +120,7 @@ impl<'a> TrajkovicRows<'a> {
         }
         let (w, h) = (self.w, self.h);
         let (r0, r1) = (2 * v, (2 * v + 1).min(h - 1));
-        let (a, b) = (
-            &self.img[r0 * w..(r0 + 1) * w],
-            &self.img[r1 * w..(r1 + 1) * w],
-        );
+        let (a, b) = (self.img.row(r0), self.img.row(r1));
         let pairs = &mut self.pairs[..w];
         for x in 0..w {
             pairs[x] = u16::from(a[x]) + u16::from(b[x]);

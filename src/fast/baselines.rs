@@ -19,10 +19,10 @@ use rayon::prelude::*;
 
 use super::baseline_tensor::{kernel_supported, TensorRows, TensorScore};
 use super::baseline_trajkovic::TrajkovicRows;
-use crate::backend::Keypoint;
-use crate::baselines::{self, Baseline, BaselineParams, ExactParams};
+use crate::baselines::{self, Baseline, BaselineParams, Candidate, ExactParams};
 use crate::error::Result;
 use crate::map::MapImage;
+use crate::stream::Rows;
 
 /// Rows per band at least: a band recomputes a few rows of halo (up to three above and below).
 const MIN_BAND_ROWS: usize = 32;
@@ -37,17 +37,13 @@ enum Scorer<'a> {
 }
 
 impl<'a> Scorer<'a> {
-    /// A scorer whose first row will be `first` (rows then follow one by one).
-    fn new(kind: Baseline, image: &'a MapImage, p: &ExactParams, first: usize) -> Self {
-        let (w, h) = (image.width() as usize, image.height() as usize);
-        let tensor =
-            |score| Scorer::Tensor(TensorRows::new(image.pixels(), w, h, p.blur, score, first));
+    /// A scorer whose first row will be `first` (rows then follow one by one), reading `rows`.
+    fn new(kind: Baseline, rows: Rows<'a>, p: &ExactParams, first: usize) -> Self {
+        let tensor = |score| Scorer::Tensor(TensorRows::new(rows, p.blur, score, first));
         match kind {
             Baseline::Harris => tensor(TensorScore::Harris { kn: p.kn, kd: p.kd }),
             Baseline::ShiTomasi => tensor(TensorScore::ShiTomasi),
-            Baseline::Trajkovic => {
-                Scorer::Trajkovic(TrajkovicRows::new(image.pixels(), w, h, p.t1, p.t2))
-            }
+            Baseline::Trajkovic => Scorer::Trajkovic(TrajkovicRows::new(rows, p.t1, p.t2)),
         }
     }
 
@@ -71,7 +67,7 @@ pub fn covers(kind: Baseline, p: &ExactParams) -> bool {
     supported(kind, p)
 }
 
-/// Rows per band for a map `h` rows high.
+/// Rows per band for `h` rows.
 fn band_rows(h: usize) -> usize {
     let threads = rayon::current_num_threads().max(1);
     h.div_ceil(threads * BANDS_PER_THREAD).max(MIN_BAND_ROWS)
@@ -87,12 +83,12 @@ pub fn scores(kind: Baseline, image: &MapImage, params: &ExactParams) -> Vec<i64
     let mut out = vec![0i64; image.len()];
     out.par_chunks_mut(band * w)
         .enumerate()
-        .for_each(|(b, rows)| score_band(kind, image, params, b * band, rows));
+        .for_each(|(b, rows)| score_band(kind, Rows::of(image), params, b * band, rows));
     out
 }
 
 /// The scores of the rows from `y0` on that `out` holds.
-fn score_band(kind: Baseline, image: &MapImage, p: &ExactParams, y0: usize, out: &mut [i64]) {
+fn score_band(kind: Baseline, image: Rows, p: &ExactParams, y0: usize, out: &mut [i64]) {
     #[cfg(target_arch = "x86_64")]
     if std::arch::is_x86_feature_detected!("avx2") {
         // SAFETY: the CPU has AVX2, checked just above; that is the only requirement of this call.
@@ -110,7 +106,7 @@ fn score_band(kind: Baseline, image: &MapImage, p: &ExactParams, y0: usize, out:
 #[target_feature(enable = "avx2")]
 unsafe fn score_band_avx2(
     kind: Baseline,
-    image: &MapImage,
+    image: Rows,
     p: &ExactParams,
     y0: usize,
     out: &mut [i64],
@@ -120,62 +116,48 @@ unsafe fn score_band_avx2(
 
 /// See [`score_band`]; inlined into each instruction-set variant.
 #[inline(always)]
-fn score_band_impl(kind: Baseline, image: &MapImage, p: &ExactParams, y0: usize, out: &mut [i64]) {
-    let w = image.width() as usize;
+fn score_band_impl(kind: Baseline, image: Rows, p: &ExactParams, y0: usize, out: &mut [i64]) {
+    let w = image.width();
     let mut scorer = Scorer::new(kind, image, p, y0);
     for (i, row) in out.chunks_exact_mut(w).enumerate() {
         scorer.row(y0 + i, row);
     }
 }
 
-/// The keypoints of `kind`, identical to the reference's score map followed by [`baselines::select`].
-pub fn keypoints(
+/// The candidates of rows `core` of a window and the window's part of the map's maximum (see
+/// [`band_candidates`]), `None` when the fast path does not cover `params` (the caller takes the
+/// reference's route). `known_max` is the largest maximum of the windows before (`i64::MIN` for none):
+/// candidates that fail against it may be left out.
+pub fn window_candidates(
     kind: Baseline,
-    image: &MapImage,
+    rows: Rows,
+    core: (usize, usize),
     params: &BaselineParams,
-) -> Result<Vec<Keypoint>> {
+    known_max: i64,
+) -> Result<Option<(Vec<Candidate>, i64)>> {
     let exact = params.exact()?;
     if !supported(kind, &exact) {
-        let s = baselines::cpu_scores(kind, image, &exact);
-        return Ok(
-            baselines::select(kind, &s, image.width(), image.height(), params)
-                .into_iter()
-                .map(|(x, y, v)| Keypoint::scored(x, y, v))
-                .collect(),
-        );
+        return Ok(None);
     }
-    let h = image.height() as usize;
-    let band = band_rows(h);
+    let band = band_rows(core.1 - core.0);
     let q = params.quality_ppm();
-    let known_max = AtomicI64::new(i64::MIN);
-    let bands: Vec<(Vec<Candidate>, i64)> = (0..h.div_ceil(band))
+    let known_max = AtomicI64::new(known_max);
+    let bands: Vec<(Vec<Candidate>, i64)> = (core.0..core.1)
+        .step_by(band)
+        .collect::<Vec<_>>()
         .into_par_iter()
-        .map(|b| {
-            let y0 = b * band;
-            band_candidates(kind, image, &exact, (y0, (y0 + band).min(h)), q, &known_max)
+        .map(|y0| {
+            let y1 = (y0 + band).min(core.1);
+            band_candidates(kind, rows, &exact, (y0, y1), q, &known_max)
         })
         .collect();
-    // Stands for the reference's `scores.iter().max()` (see `band_candidates`).
     let max = bands.iter().map(|b| b.1).max().unwrap_or(0);
-    let passes = |v: i64| i128::from(v) * 1_000_000 > q * i128::from(max);
-    let cands = bands.into_iter().flat_map(|b| b.0);
-    let out: Vec<Candidate> = match kind {
-        Baseline::Harris => cands.filter(|c| passes(c.2)).collect(),
-        Baseline::Trajkovic => cands.collect(),
-        Baseline::ShiTomasi => {
-            let w = image.width() as usize;
-            let cands = cands.filter(|c| passes(c.2)).collect();
-            greedy_min_distance(cands, w, h, params)
-        }
-    };
-    Ok(out
-        .into_iter()
-        .map(|(x, y, v)| Keypoint::scored(x, y, v))
-        .collect())
+    let mut out = Vec::with_capacity(bands.iter().map(|b| b.0.len()).sum());
+    for b in bands {
+        out.extend(b.0);
+    }
+    Ok(Some((out, max)))
 }
-
-/// A keypoint candidate (x, y, score).
-type Candidate = (u32, u32, i64);
 
 /// The candidates of rows `y0..y1` in (y, x) order, and the largest local maximum above the floor in those
 /// rows (0 if none): the band's part of the map's maximum.
@@ -193,7 +175,7 @@ type Candidate = (u32, u32, i64);
 /// and keeps its value, and any neighbour zeroed was at most the threshold, below the pixel.
 fn band_candidates(
     kind: Baseline,
-    image: &MapImage,
+    image: Rows,
     p: &ExactParams,
     (y0, y1): (usize, usize),
     q: i128,
@@ -215,7 +197,7 @@ fn band_candidates(
 #[target_feature(enable = "avx2")]
 unsafe fn band_candidates_avx2(
     kind: Baseline,
-    image: &MapImage,
+    image: Rows,
     p: &ExactParams,
     rows: (usize, usize),
     q: i128,
@@ -228,13 +210,13 @@ unsafe fn band_candidates_avx2(
 #[inline(always)]
 fn band_candidates_impl(
     kind: Baseline,
-    image: &MapImage,
+    image: Rows,
     p: &ExactParams,
     (y0, y1): (usize, usize),
     q: i128,
     known_max: &AtomicI64,
 ) -> (Vec<Candidate>, i64) {
-    let (w, h) = (image.width() as usize, image.height() as usize);
+    let (w, h) = (image.width(), image.height());
     // Score rows y0 - 1..=y1 (those in the map): the band's rows and their neighbours.
     let (s0, s1) = (y0.saturating_sub(1), (y1 + 1).min(h));
     let mut scorer = Scorer::new(kind, image, p, s0);
@@ -327,72 +309,6 @@ fn emit_row(
     row_max
 }
 
-/// goodFeaturesToTrack's greedy pass over the candidates (the reference's `select_shi_tomasi` from its
-/// sort on): strongest first, ties the later pixel first; each kept unless a kept one lies closer than the
-/// minimum distance; at most `max_corners`; then in (y, x) order.
-///
-/// The reference looks for kept points in the 3x3 cells (of the minimum distance's size) around a
-/// candidate, on a full grid of cells: a vector per cell, as many as the map has pixels for small
-/// distances. Here cells are grouped into blocks of at least 8 pixels square, each block a list of its
-/// kept points threaded through one array, and a candidate examines exactly the same points: those of the
-/// blocks that overlap its 3x3 cells, filtered to those cells.
-fn greedy_min_distance(
-    cands: Vec<Candidate>,
-    w: usize,
-    h: usize,
-    params: &BaselineParams,
-) -> Vec<Candidate> {
-    let mut cand: Vec<(i64, usize)> = cands
-        .into_iter()
-        .map(|(x, y, v)| (v, y as usize * w + x as usize))
-        .collect();
-    cand.sort_unstable_by(|a, b| b.cmp(a));
-    let min_d2 = params.min_distance * params.min_distance;
-    let cell = params.min_distance.max(1.0).ceil() as usize;
-    let (gw, gh) = (w.div_ceil(cell), h.div_ceil(cell));
-    let per_block = 8usize.div_ceil(cell);
-    let (bw, bh) = (gw.div_ceil(per_block), gh.div_ceil(per_block));
-    // First kept point of each block, and per kept point (x, y, next in its block); NONE ends a list.
-    // (At most w h < 2^32 points are kept: u32 indices hold them, and NONE is none of them.)
-    const NONE: u32 = u32::MAX;
-    let mut head = vec![NONE; bw * bh];
-    let mut kept: Vec<(usize, usize, u32)> = Vec::new();
-    let mut out = Vec::new();
-    for (v, i) in cand {
-        if params.max_corners.is_some_and(|m| out.len() >= m) {
-            break;
-        }
-        let (x, y) = (i % w, i / w);
-        let (cx, cy) = (x / cell, y / cell);
-        let (gx0, gx1) = (cx.saturating_sub(1), (cx + 1).min(gw - 1));
-        let (gy0, gy1) = (cy.saturating_sub(1), (cy + 1).min(gh - 1));
-        let near = (gy0 / per_block..=gy1 / per_block).any(|by| {
-            (gx0 / per_block..=gx1 / per_block).any(|bx| {
-                let mut k = head[by * bw + bx];
-                while k != NONE {
-                    let (px, py, next) = kept[k as usize];
-                    let in_cells =
-                        (gx0..=gx1).contains(&(px / cell)) && (gy0..=gy1).contains(&(py / cell));
-                    let (dx, dy) = (px as f64 - x as f64, py as f64 - y as f64);
-                    if in_cells && dx * dx + dy * dy < min_d2 {
-                        return true;
-                    }
-                    k = next;
-                }
-                false
-            })
-        });
-        if !near {
-            let b = (cy / per_block) * bw + cx / per_block;
-            kept.push((x, y, head[b]));
-            head[b] = (kept.len() - 1) as u32;
-            out.push((x as u32, y as u32, v));
-        }
-    }
-    out.sort_unstable_by_key(|&(x, y, _)| (y, x));
-    out
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -415,14 +331,16 @@ mod tests {
                 let reference = baselines::cpu_scores(kind, &image, &exact);
                 let mut scores = vec![0; w * h];
                 for (b, rows) in scores.chunks_mut(40 * w).enumerate() {
-                    score_band_impl(kind, &image, &exact, 40 * b, rows);
+                    score_band_impl(kind, Rows::of(&image), &exact, 40 * b, rows);
                 }
                 assert!(scores == reference, "{kind:?}");
                 let known = AtomicI64::new(i64::MIN);
                 let q = params.quality_ppm();
                 let bands: Vec<_> = [(0, 30), (30, 31), (31, h)]
                     .into_iter()
-                    .map(|rows| band_candidates_impl(kind, &image, &exact, rows, q, &known))
+                    .map(|rows| {
+                        band_candidates_impl(kind, Rows::of(&image), &exact, rows, q, &known)
+                    })
                     .collect();
                 let expected = baselines::select(kind, &reference, w as u32, h as u32, &params);
                 let max = bands.iter().map(|b| b.1).max().unwrap();
@@ -436,7 +354,7 @@ mod tests {
                     .collect();
                 match kind {
                     Baseline::ShiTomasi => {
-                        assert_eq!(greedy_min_distance(got, w, h, &params), expected)
+                        assert_eq!(baselines::greedy_min_distance(got, w, h, &params), expected)
                     }
                     _ => assert_eq!(got, expected, "{kind:?}"),
                 }

@@ -10,11 +10,12 @@
 
 use rayon::prelude::*;
 
-use super::bitplanes::{ogm_sets, plane_row, words, ValueSet};
+use super::bitplanes::{ogm_sets, plane_rows2, words, ValueSet};
 use crate::backend::Keypoint;
 use crate::map::MapImage;
 use crate::rules::RuleTable;
 use crate::states::ClassTable;
+use crate::stream::Rows;
 
 /// Rows per band at least: the rows above and below a band are classified twice, so bands are long.
 const MIN_BAND_ROWS: usize = 64;
@@ -36,7 +37,19 @@ pub fn ogm_corners(
     rules: &RuleTable,
     unknown_as_occupied: bool,
 ) -> Vec<Keypoint> {
-    let (w, h) = (image.width() as usize, image.height() as usize);
+    let core = (0, image.height() as usize);
+    ogm_corners_rows(Rows::of(image), core, classes, rules, unknown_as_occupied)
+}
+
+/// [`ogm_corners`] of rows `core` of a window of rows (which holds the rows above and below the core
+/// that the map has).
+pub fn ogm_corners_rows(
+    rows: Rows,
+    core: (usize, usize),
+    classes: &ClassTable,
+    rules: &RuleTable,
+    unknown_as_occupied: bool,
+) -> Vec<Keypoint> {
     let Some(min_bits) = rules.min_accepted_bits() else {
         return Vec::new();
     };
@@ -47,17 +60,20 @@ pub fn ogm_corners(
         table: rules.as_bytes(),
         min_bits,
     };
-    if w == 0 || h == 0 {
+    let n = core.1.saturating_sub(core.0);
+    if n == 0 {
         return Vec::new();
     }
     let threads = rayon::current_num_threads().max(1);
-    // About eight bands per thread balances uneven maps; never shorter than MIN_BAND_ROWS.
-    let band = h.div_ceil(threads * 8).max(MIN_BAND_ROWS);
-    let bands: Vec<Vec<Keypoint>> = (0..h.div_ceil(band))
+    // About eight bands per thread balances uneven maps; never shorter than MIN_BAND_ROWS, or on wide
+    // maps than a megapixel (a streamed window of a wide map is only a few hundred rows).
+    let min_rows = MIN_BAND_ROWS.min(((1usize << 20) / rows.width()).max(4));
+    let band = n.div_ceil(threads * 8).max(min_rows);
+    let bands: Vec<Vec<Keypoint>> = (0..n.div_ceil(band))
         .into_par_iter()
         .map(|b| {
-            let y0 = b * band;
-            corners_in_band(image.pixels(), w, h, y0, (y0 + band).min(h), &plan)
+            let y0 = core.0 + b * band;
+            corners_in_band(rows, y0, (y0 + band).min(core.1), &plan)
         })
         .collect();
     let mut out = Vec::with_capacity(bands.iter().map(Vec::len).sum());
@@ -68,23 +84,38 @@ pub fn ogm_corners(
 }
 
 /// The keypoints of rows `y0..y1`, in (y, x) order.
-fn corners_in_band(
-    px: &[u8],
-    w: usize,
-    h: usize,
-    y0: usize,
-    y1: usize,
-    plan: &Plan,
-) -> Vec<Keypoint> {
+fn corners_in_band(px: Rows, y0: usize, y1: usize, plan: &Plan) -> Vec<Keypoint> {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("bmi1") {
+        // SAFETY: the CPU has AVX2 and BMI1, checked just above; that is the only requirement.
+        return unsafe { corners_in_band_avx2(px, y0, y1, plan) };
+    }
+    corners_in_band_impl(px, y0, y1, plan)
+}
+
+/// [`corners_in_band_impl`] compiled for AVX2 and BMI1 (wider compares, one-instruction bit scans).
+///
+/// # Safety
+/// The CPU must have AVX2 and BMI1.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,bmi1")]
+unsafe fn corners_in_band_avx2(px: Rows, y0: usize, y1: usize, plan: &Plan) -> Vec<Keypoint> {
+    corners_in_band_impl(px, y0, y1, plan)
+}
+
+/// See [`corners_in_band`]; inlined into each instruction-set variant.
+#[inline(always)]
+fn corners_in_band_impl(px: Rows, y0: usize, y1: usize, plan: &Plan) -> Vec<Keypoint> {
+    let (w, h) = (px.width(), px.height());
     let n = words(w);
     // Three rows of planes, indexed by row mod 3; rows outside the map stay all zero (nothing blocks).
     let mut free = vec![vec![0u64; n]; 3];
     let mut block = vec![vec![0u64; n]; 3];
-    let row = |y: usize| &px[y * w..(y + 1) * w];
+    let row = |y: usize| px.row(y);
     let load = |y: usize, free: &mut [Vec<u64>], block: &mut [Vec<u64>]| {
         if y < h {
-            plane_row(&plan.free, row(y), &mut free[y % 3]);
-            plane_row(&plan.blocking, row(y), &mut block[y % 3]);
+            let (f, b) = (&mut free[y % 3], &mut block[y % 3]);
+            plane_rows2(&plan.free, &plan.blocking, row(y), f, b);
         } else {
             free[y % 3].fill(0);
             block[y % 3].fill(0);

@@ -80,7 +80,7 @@ impl GpuBackend {
 
     /// Uploads the tile's rectangle, rows padded to whole words, through the staging ring; the copy is
     /// submitted at once and runs before the passes submitted after it.
-    fn upload_band(&mut self, image: &MapImage, t: &tiles::Tile) -> Result<wgpu::Buffer> {
+    fn upload_band(&mut self, image: Rows, t: &tiles::Tile) -> Result<wgpu::Buffer> {
         let (i, staging, _) =
             self.ring
                 .stage_band(&self.device, image, t, t.stride() as usize * 4, &[], 0)?;
@@ -97,12 +97,12 @@ impl GpuBackend {
     }
 
     /// The score region of tile `t`: its core grown by one pixel within the map, map coordinates.
-    pub(super) fn score_region(image: &MapImage, t: &tiles::Tile) -> [u32; 4] {
+    pub(super) fn score_region(image: Rows, t: &tiles::Tile) -> [u32; 4] {
         [
             t.core[0].saturating_sub(1),
             t.core[1].saturating_sub(1),
-            (t.core[2] + 1).min(image.width()),
-            (t.core[3] + 1).min(image.height()),
+            (t.core[2] + 1).min(image.width() as u32),
+            (t.core[3] + 1).min(image.height() as u32),
         ]
     }
 
@@ -111,7 +111,7 @@ impl GpuBackend {
     pub(super) fn encode_scores(
         &mut self,
         kind: Baseline,
-        image: &MapImage,
+        image: Rows,
         p: &ExactParams,
         t: &tiles::Tile,
     ) -> Result<(wgpu::CommandEncoder, wgpu::Buffer)> {
@@ -128,8 +128,8 @@ impl GpuBackend {
             ));
         }
         let base = BParams {
-            map_w: image.width(),
-            map_h: image.height(),
+            map_w: image.width() as u32,
+            map_h: image.height() as u32,
             origin_x: t.buf[0],
             origin_y: t.buf[1],
             buf_w: bw,
@@ -234,10 +234,10 @@ impl GpuBackend {
         t: &tiles::Tile,
         out: &mut [i64],
     ) -> Result<()> {
-        let region = Self::score_region(image, t);
+        let region = Self::score_region(Rows::of(image), t);
         let rw = (region[2] - region[0]) as usize;
         let rh = (region[3] - region[1]) as usize;
-        let (encoder, scores) = self.encode_scores(kind, image, p, t)?;
+        let (encoder, scores) = self.encode_scores(kind, Rows::of(image), p, t)?;
         let raw_scores = self.submit_and_read(encoder, &scores, (rw * rh) as u64 * 8, true)?;
         let w = image.width() as usize;
         let (cx0, cw) = (t.core[0] as usize, (t.core[2] - t.core[0]) as usize);

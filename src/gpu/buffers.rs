@@ -13,7 +13,7 @@ use rayon::prelude::*;
 
 use super::tiles::Tile;
 use crate::error::{Error, Result};
-use crate::map::MapImage;
+use crate::stream::Rows;
 
 /// A reusable buffer that grows (to the next power of two, within `cap`) when a call needs more.
 pub(super) struct Slot {
@@ -91,22 +91,23 @@ impl Ring {
     }
 
     /// The next staging buffer, once the GPU is done with it, holding `head` (small parameter data) at
-    /// offset 0 and then, from offset `rows_at`, the rows of tile `t` of `image`, each padded with zeros to
+    /// offset 0 and then, from offset `rows_at`, the rows of tile `t` of the map rows `image`, each padded with zeros to
     /// `pitch` bytes and copied in parallel. Returns its index and the buffer, unmapped and ready to be
     /// copied from, and the band's bytes; call [`Ring::recycle`] on the encoder that copies it.
     pub fn stage_band(
         &mut self,
         device: &wgpu::Device,
-        image: &MapImage,
+        image: Rows,
         t: &Tile,
         pitch: usize,
         head: &[u8],
         rows_at: usize,
     ) -> Result<(usize, wgpu::Buffer, u64)> {
-        let iw = image.width() as usize;
+        let iw = image.width();
+        let first = t.buf[1] as usize - image.first();
         let rows: Vec<RowCopy> = (0..t.buf_h() as usize)
             .map(|r| RowCopy {
-                src: (t.buf[1] as usize + r) * iw + t.buf[0] as usize,
+                src: (first + r) * iw + t.buf[0] as usize,
                 dst: r * pitch,
                 len: t.buf_w() as usize,
                 pitch,

@@ -35,6 +35,7 @@ use crate::error::{Error, Result};
 use crate::map::MapImage;
 use crate::rules::RuleTable;
 use crate::states::ClassTable;
+use crate::stream::Rows;
 
 /// Workgroup size of the baseline, coarsening and scoring kernels.
 const WORKGROUP: u32 = 256;
@@ -274,21 +275,22 @@ impl GpuBackend {
         &self.adapter
     }
 
-    /// The baseline tiles of `image`: within the binding limit at the largest buffer's bytes per pixel.
-    fn baseline_plan(&self, image: &MapImage) -> Result<Vec<tiles::Tile>> {
-        let (w, h) = (image.width(), image.height());
+    /// The baseline tiles of rows `core` of a `w` x `h` map: within the binding limit at the largest
+    /// buffer's bytes per pixel.
+    fn baseline_plan(&self, w: u32, h: u32, core: (usize, usize)) -> Result<Vec<tiles::Tile>> {
+        let (y0, y1) = (core.0 as u32, core.1 as u32);
         // Within one binding at the largest buffer's bytes per pixel, and a band of raw pixels within the
         // staging budget.
         let max_px =
             (self.max_binding / BASELINE_BYTES_PER_PX).min(self.options.max_tile_bytes.max(1));
-        let (tw, th) = tiles::tile_size_halo(w, h, max_px, BASELINE_HALO, self.options.tile)
+        let (tw, th) = tiles::tile_size_halo(w, y1 - y0, max_px, BASELINE_HALO, self.options.tile)
             .ok_or_else(|| {
                 Error::Unavailable(format!(
                     "{}'s buffer limit ({} bytes) is too small for any tile",
                     self.adapter.name, self.max_binding
                 ))
             })?;
-        Ok(tiles::plan(w, h, tw, th, BASELINE_HALO))
+        Ok(tiles::plan_rows(w, h, y0, y1, tw, th, BASELINE_HALO))
     }
 
     /// Begins a detection call: fails with a device error left from before, and clears the statistics.
@@ -462,7 +464,8 @@ impl Backend for GpuBackend {
         params: &ExactParams,
     ) -> Result<Vec<i64>> {
         self.start_call()?;
-        let plan = self.baseline_plan(image)?;
+        let plan =
+            self.baseline_plan(image.width(), image.height(), (0, image.height() as usize))?;
         self.stats.tiles = plan.len();
         let mut out = vec![0i64; image.len()];
         for t in &plan {
@@ -470,29 +473,6 @@ impl Backend for GpuBackend {
         }
         self.check()?;
         Ok(out)
-    }
-
-    /// The baselines selected from the device's candidates ([`GpuBackend::baseline_candidates`]): only
-    /// the candidates cross to the host, not the score map.
-    fn baseline_keypoints(
-        &mut self,
-        kind: Baseline,
-        image: &MapImage,
-        params: &crate::baselines::BaselineParams,
-    ) -> Result<Vec<Keypoint>> {
-        let exact = params.exact()?;
-        let (candidates, max) = self.baseline_candidates(kind, image, &exact)?;
-        Ok(crate::baselines::select_candidates(
-            kind,
-            &candidates,
-            max,
-            image.width(),
-            image.height(),
-            params,
-        )
-        .into_iter()
-        .map(|(x, y, score)| Keypoint::scored(x, y, score))
-        .collect())
     }
 
     fn name(&self) -> String {
@@ -530,9 +510,39 @@ impl Backend for GpuBackend {
         rules: &RuleTable,
         unknown_as_occupied: bool,
     ) -> Result<Vec<Keypoint>> {
+        let core = (0, image.height() as usize);
+        self.detect_rows(Rows::of(image), core, classes, rules, unknown_as_occupied)
+    }
+
+    fn detect_rows(
+        &mut self,
+        rows: Rows,
+        core: (usize, usize),
+        classes: &ClassTable,
+        rules: &RuleTable,
+        unknown_as_occupied: bool,
+    ) -> Result<Vec<Keypoint>> {
         self.start_call()?;
-        let out = self.ogm_detect(image, classes, rules, unknown_as_occupied)?;
+        let out = self.ogm_detect(rows, core, classes, rules, unknown_as_occupied)?;
         self.check()?;
         Ok(out)
+    }
+
+    /// The device's candidates of the core's rows ([`GpuBackend::baseline_candidates_rows`]): only the
+    /// candidates cross to the host, not the score map.
+    fn baseline_rows(
+        &mut self,
+        kind: Baseline,
+        rows: Rows,
+        core: (usize, usize),
+        params: &crate::baselines::BaselineParams,
+        _known_max: i64,
+    ) -> Result<(Vec<crate::baselines::Candidate>, i64)> {
+        self.baseline_candidates_rows(kind, rows, core, &params.exact()?)
+    }
+
+    /// Windows of 16 MiB: the device keeps its own tiles, the host only the windows.
+    fn window_bytes(&self, _options: &DetectOptions) -> u64 {
+        16 << 20
     }
 }

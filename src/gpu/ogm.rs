@@ -306,7 +306,7 @@ impl GpuBackend {
     /// buffer's index.
     fn encode_tile(
         &mut self,
-        image: &MapImage,
+        image: Rows,
         t: &tiles::Tile,
         slot: usize,
         p: OgmParams,
@@ -381,7 +381,7 @@ impl GpuBackend {
     /// scratch (0 when none did).
     fn ogm_pass(
         &mut self,
-        image: &MapImage,
+        image: Rows,
         plan: &[tiles::Tile],
         slab_y0: u32,
         call: &Call,
@@ -480,21 +480,24 @@ impl GpuBackend {
         Ok((word(0), word(1)))
     }
 
-    /// Every keypoint of `image`, in (y, x) order: slab by slab, each slab's tiles in passes over a window
+    /// Every keypoint of rows `core` of the map rows `image` (which hold a row above and below the core
+    /// where the map has them), in (y, x) order: slab by slab, each slab's tiles in passes over a window
     /// of the list (one pass unless the list outgrows the keypoint buffer), rerun with more scratch when a
     /// workgroup overflowed its own.
     pub(super) fn ogm_detect(
         &mut self,
-        image: &MapImage,
+        image: Rows,
+        core: (usize, usize),
         classes: &ClassTable,
         rules: &RuleTable,
         unknown_as_occupied: bool,
     ) -> Result<Vec<Keypoint>> {
-        let (w, h) = (image.width(), image.height());
+        let (w, h) = (image.width() as u32, image.height() as u32);
         let Some(min_bits) = rules.min_accepted_bits() else {
             return Ok(Vec::new());
         };
-        if w == 0 || h == 0 {
+        let (core0, core1) = (core.0 as u32, core.1 as u32);
+        if w == 0 || core1 <= core0 {
             return Ok(Vec::new());
         }
         let (free_set, blk_set) = ogm_sets(classes, unknown_as_occupied);
@@ -524,8 +527,8 @@ impl GpuBackend {
         let mut out = Vec::new();
         let mut side_by_side = false;
         let slab = self.ogm_slab(w);
-        for slab_y0 in (0..h).step_by(slab as usize) {
-            let slab_y1 = slab_y0.saturating_add(slab).min(h);
+        for slab_y0 in (core0..core1).step_by(slab as usize) {
+            let slab_y1 = slab_y0.saturating_add(slab).min(core1);
             let mut start = 0u32;
             loop {
                 let plan = self.ogm_plan(w, h, slab_y0, slab_y1)?;

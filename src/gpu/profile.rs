@@ -15,7 +15,7 @@ impl GpuBackend {
         for (i, t) in plan.iter().enumerate() {
             let (ring_i, staging, bytes) = self.ring.stage_band(
                 &self.device,
-                image,
+                Rows::of(image),
                 t,
                 t.ogm_pitch() as usize,
                 &[],

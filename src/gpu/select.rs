@@ -103,8 +103,22 @@ impl GpuBackend {
         image: &MapImage,
         p: &ExactParams,
     ) -> Result<(Candidates, i64)> {
+        let core = (0, image.height() as usize);
+        self.baseline_candidates_rows(kind, Rows::of(image), core, p)
+    }
+
+    /// [`GpuBackend::baseline_candidates`] of rows `core` of a window of a map (which holds the rows
+    /// around the core the map has, up to [`crate::stream::HALO`]): the candidates of those rows and their
+    /// largest score.
+    pub fn baseline_candidates_rows(
+        &mut self,
+        kind: Baseline,
+        image: Rows,
+        core: (usize, usize),
+        p: &ExactParams,
+    ) -> Result<(Candidates, i64)> {
         self.start_call()?;
-        let plan = self.baseline_plan(image)?;
+        let plan = self.baseline_plan(image.width() as u32, image.height() as u32, core)?;
         self.stats.tiles = plan.len();
         let mut all = Vec::new();
         let mut max = i64::MIN;
@@ -113,7 +127,10 @@ impl GpuBackend {
             max = max.max(m);
             all.extend(found);
         }
-        if plan.iter().any(|t| t.core[2] - t.core[0] < image.width()) {
+        if plan
+            .iter()
+            .any(|t| ((t.core[2] - t.core[0]) as usize) < image.width())
+        {
             all.sort_unstable_by_key(|&(x, y, _)| (y, x));
         }
         self.check()?;
@@ -125,7 +142,7 @@ impl GpuBackend {
     fn select_tile(
         &mut self,
         kind: Baseline,
-        image: &MapImage,
+        image: Rows,
         p: &ExactParams,
         t: &tiles::Tile,
     ) -> Result<(i64, Candidates)> {
@@ -153,8 +170,8 @@ impl GpuBackend {
             core_y0: t.core[1],
             core_w: cw,
             core_h: ch,
-            map_w: image.width(),
-            map_h: image.height(),
+            map_w: image.width() as u32,
+            map_h: image.height() as u32,
             groups_x: gx,
             n_items: n as u32,
             out_start: 0,

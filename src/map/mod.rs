@@ -4,6 +4,7 @@
 
 mod find;
 mod ros_grid;
+mod rows;
 mod save;
 mod yaml;
 
@@ -18,6 +19,7 @@ use crate::memory::Budget;
 
 pub use find::{find_maps, map_name, output_names, FoundMaps};
 pub use ros_grid::{grid_image, GridThresholds, GRID_FREE, GRID_OCCUPIED, GRID_UNKNOWN};
+pub use rows::{DecoderRows, MapRows};
 pub use save::{save_names, yaml_text};
 use yaml::read_yaml;
 pub use yaml::{
@@ -393,6 +395,8 @@ impl OccupancyMap {
         };
         let dec = open_image(&image_path, &Budget::default())?;
         let (w, h) = (dec.header().width, dec.header().height);
+        // Its callers hold maps whole: a map too large for that is refused now, not when its turn comes.
+        crate::decode::check_in_memory(w, h).map_err(|m| Error::input(&image_path, m))?;
         if let Some(g) = georef {
             g.check_finite(w, h).map_err(|m| Error::input(path, m))?;
         }
@@ -460,8 +464,22 @@ pub fn load_image_within(
 
 /// The image file at `path` (a regular file), its header read.
 fn open_image(path: &Path, budget: &Budget) -> Result<Decoder<BufReader<std::fs::File>>> {
+    open_image_with(path, budget, 1 << 16)
+}
+
+/// [`open_image`] reading `buffer` bytes at a time (a streamed map reads megabytes: fewer system calls).
+fn open_image_with(
+    path: &Path,
+    budget: &Budget,
+    buffer: usize,
+) -> Result<Decoder<BufReader<std::fs::File>>> {
     let (file, len) = files::open_regular(path)?;
-    let reader = BufReader::with_capacity(1 << 16, file);
+    #[cfg(target_os = "linux")]
+    if buffer > 1 << 16 {
+        // Read front to back once: a larger read-ahead. Only advice; a failure changes nothing.
+        let _ = rustix::fs::fadvise(&file, 0, None, rustix::fs::Advice::Sequential);
+    }
+    let reader = BufReader::with_capacity(buffer, file);
     Decoder::new(reader, Some(len), kind_hint(path), budget.limit())
         .map_err(|m| Error::input(path, m))
 }
@@ -474,6 +492,7 @@ fn decode_rows<R: std::io::BufRead>(
     check: Option<SizeCheck>,
 ) -> Result<(MapImage, Vec<String>)> {
     let (w, h) = (dec.header().width, dec.header().height);
+    crate::decode::check_in_memory(w, h).map_err(Error::invalid)?;
     if let Some(check) = check {
         check(w, h)?;
     }

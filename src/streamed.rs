@@ -1,0 +1,123 @@
+//! A map detected from its file in constant memory: rows streamed through the detector
+//! ([`Detector::detect_streamed`]), keypoints written as they come, and the overlay drawn downsampled on
+//! the way.
+
+use std::io::Write;
+
+use crate::detector::{Detector, Streamed};
+use crate::error::{Error, Result};
+use crate::map::MapRows;
+use crate::memory::Budget;
+use crate::output::{About, Format, KeypointWriter};
+
+use crate::overlay::{overlay_bytes, OverlayCanvas};
+use crate::states::ClassTable;
+
+/// Checks that streaming `map` through `detector` (with an overlay when `overlay`) fits `budget`, making its
+/// windows smaller when that is enough: the windows in flight and the backend's buffers for one, the
+/// decoder's buffers (a whole frame for an interlaced PNG, which cannot be read row by row), and the
+/// overlay's downsampled picture. The keypoints
+/// come on top, 24 bytes each for the baselines (which select them at the end) and none for the OGM
+/// detector (written as they come).
+pub fn check_streamed_budget(
+    detector: &mut Detector,
+    map: &MapRows,
+    overlay: bool,
+    budget: &Budget,
+) -> Result<()> {
+    let (w, h) = map.size();
+    let overlay = if overlay { overlay_bytes(w, h) } else { 0 };
+    let need = |d: &Detector| {
+        d.streamed_bytes(w, h)
+            .saturating_add(map.decoder_bytes())
+            .saturating_add(overlay)
+    };
+    // A tight limit gets smaller windows (down to a megabyte, or the fewest rows), not a refusal: the
+    // keypoints are the same for every window size.
+    while need(detector) > budget.limit() && detector.window_bytes() > 1 << 20 {
+        let smaller = detector.window_bytes() / 2;
+        detector.set_window_bytes(Some(smaller));
+    }
+    let need = need(detector);
+    if map.holds_whole_image() && need > budget.limit() {
+        return Err(Error::input(
+            &map.image_path,
+            format!(
+                "an interlaced (Adam7) PNG cannot be read row by row: decoding this {w}x{h} image holds all of it ({} bytes), above the memory limit of {} bytes; save it without interlacing",
+                map.decoder_bytes(),
+                budget.limit()
+            ),
+        ));
+    }
+    budget
+        .check(format_args!("streaming a {w}x{h} map"), need)
+        .map_err(|e| match e {
+            Error::Input {
+                path: None,
+                message,
+            } => Error::input(map.source_path(), message),
+            other => other,
+        })
+}
+
+/// One keypoint file written while streaming.
+pub struct Output<'a> {
+    /// Where it goes.
+    pub out: &'a mut dyn Write,
+    /// In which format.
+    pub format: Format,
+    /// Its name in messages.
+    pub name: String,
+}
+
+/// Streams `map` through `detector`, writing its keypoints to every one of `outputs` as they come, and
+/// drawing the map and its keypoints on `canvas` when given.
+pub fn detect_to(
+    detector: &mut Detector,
+    map: &mut MapRows,
+    outputs: &mut [Output],
+    canvas: Option<&mut OverlayCanvas>,
+) -> Result<Streamed> {
+    let (w, h) = map.size();
+    let about = About {
+        map: Some(map.source_path().display().to_string()),
+        width: w,
+        height: h,
+        georef: map.georef,
+        options: detector.options(),
+        backend: detector.backend_name(),
+        angle_deg: None,
+    };
+    let classes = ClassTable::new(&map.thresholds);
+    let mut writers = Vec::with_capacity(outputs.len());
+    for o in outputs.iter_mut() {
+        let name = o.name.clone();
+        let w = KeypointWriter::begin(&mut *o.out, o.format, &about)
+            .map_err(|e| Error::output(&name, e))?;
+        writers.push((w, name));
+    }
+    // Both callbacks draw on the canvas (rows, then marks), one at a time.
+    let canvas = std::cell::RefCell::new(canvas);
+    let done = detector.detect_streamed(
+        &mut map.source,
+        &classes,
+        &mut |k| {
+            if let Some(c) = canvas.borrow_mut().as_deref_mut() {
+                c.mark(k);
+            }
+            for (w, name) in writers.iter_mut() {
+                w.push(k).map_err(|e| Error::output(&*name, e))?;
+            }
+            Ok(())
+        },
+        &mut |rows, core| {
+            if let Some(c) = canvas.borrow_mut().as_deref_mut() {
+                c.add_rows(rows, core);
+            }
+        },
+    )?;
+    for (w, name) in writers {
+        w.end().map_err(|e| Error::output(&name, e))?;
+    }
+    Ok(done)
+}
