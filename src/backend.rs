@@ -157,8 +157,9 @@ pub trait Backend: Send {
     }
 
     /// The OGM keypoints of rows `core` of a window of a map, sorted by (y, x); `rows` holds the rows around
-    /// the core the map has (at least one for the OGM detector, [`crate::stream::HALO`] for the baselines). By default the window is detected as an image
-    /// of its own ([`Backend::detect`]) and the core's rows kept.
+    /// the core the map has (at least one for the OGM detector, [`crate::stream::HALO`] for the baselines).
+    /// By default the window is detected as an image of its own ([`Backend::detect`]) and the core's rows
+    /// kept.
     fn detect_rows(
         &mut self,
         rows: Rows,
@@ -187,9 +188,7 @@ pub trait Backend: Send {
         known_max: i64,
     ) -> Result<(Vec<Candidate>, i64)> {
         let _ = known_max;
-        let image = rows.image()?;
-        let scores = self.baseline_scores(kind, &image, &params.exact()?)?;
-        Ok(window_maxima(&scores, rows, core))
+        maxima_of_window_scores(self, kind, rows, core, params)
     }
 
     /// Pixels a window of a streamed map should hold ([`crate::stream::WindowPlan`]): small enough that
@@ -246,6 +245,19 @@ pub fn in_core(found: Vec<Keypoint>, first: usize, core: (usize, usize)) -> Vec<
             (core.0..core.1).contains(&y).then_some(k)
         })
         .collect()
+}
+
+/// [`Backend::baseline_rows`] by the default route: the window's score map ([`Backend::baseline_scores`] of
+/// the window as an image of its own), searched on the host ([`window_maxima`]).
+pub fn maxima_of_window_scores<B: Backend + ?Sized>(
+    backend: &mut B,
+    kind: Baseline,
+    rows: Rows,
+    core: (usize, usize),
+    params: &BaselineParams,
+) -> Result<(Vec<Candidate>, i64)> {
+    let scores = backend.baseline_scores(kind, &rows.image()?, &params.exact()?)?;
+    Ok(window_maxima(&scores, rows, core))
 }
 
 /// The positive 3x3 local maxima of rows `core` of a window's score map (`scores`: one per pixel of

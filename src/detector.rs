@@ -167,7 +167,8 @@ impl Detector {
     /// keypoints, not by the map, and the keypoints are those of [`Detector::detect_image`] on the whole
     /// map, bit for bit, in the same order. They go to `sink` in (y, x) order: window by window for the OGM
     /// detector (without `max_corners`), at the end (in chunks of 65536) for the baselines, whose thresholds
-    /// need the map's maximum, and with `max_corners`. `on_rows` sees each window's rows and core first (to draw a downsampled picture).
+    /// need the map's maximum, and with `max_corners`. `on_rows` sees each window's rows and core first (to
+    /// draw a downsampled picture).
     ///
     /// The robust detector turns the whole map to its walls and is refused: it needs the map in memory.
     pub fn detect_streamed(
@@ -206,9 +207,7 @@ impl Detector {
     /// How [`Detector::detect_streamed`] cuts a map `width` wide into windows: about
     /// [`Backend::window_bytes`] of pixels each, or what [`Detector::set_window_bytes`] set.
     pub fn window_plan(&self, width: u32) -> WindowPlan {
-        let bytes = self
-            .window_bytes
-            .unwrap_or_else(|| self.backend.window_bytes(&self.options));
+        let bytes = self.window_bytes();
         let halo = match self.options.detector {
             DetectorKind::Ogm => crate::stream::OGM_HALO,
             _ => crate::stream::HALO,
@@ -276,10 +275,7 @@ impl Detector {
                     }
                 })?;
                 if let Some(n) = max_corners {
-                    let kept = strongest(held, n, DetectorKind::Ogm)?;
-                    if !kept.is_empty() {
-                        sink(&kept)?;
-                    }
+                    sink_strongest(held, n, DetectorKind::Ogm, sink)?;
                 }
                 Ok(warnings)
             }
@@ -303,23 +299,33 @@ impl Detector {
                         .map(|&(x, y, v)| Keypoint::scored(x, y, v))
                         .collect()
                 };
-                let found = match max_corners {
-                    Some(n) => strongest(scored(&found), n, options.detector)?,
+                match max_corners {
+                    Some(n) => sink_strongest(scored(&found), n, options.detector, sink)?,
+                    // In chunks: a second list of all the keypoints would double the peak on huge maps.
                     None => {
-                        // In chunks: a second list of all the keypoints would double the peak on huge maps.
                         for chunk in found.chunks(SINK_CHUNK) {
                             sink(&scored(chunk))?;
                         }
-                        Vec::new()
                     }
-                };
-                if !found.is_empty() {
-                    sink(&found)?;
                 }
                 Ok(warnings)
             }
         }
     }
+}
+
+/// Hands the `n` strongest of `found` ([`strongest`]) to `sink`, unless there are none.
+fn sink_strongest(
+    found: Vec<Keypoint>,
+    n: usize,
+    kind: DetectorKind,
+    sink: &mut dyn FnMut(&[Keypoint]) -> Result<()>,
+) -> Result<()> {
+    let kept = strongest(found, n, kind)?;
+    if kept.is_empty() {
+        return Ok(());
+    }
+    sink(&kept)
 }
 
 /// Something that calls its argument on every window of a map and returns the source's warnings.

@@ -9,16 +9,15 @@ use crate::error::{Error, Result};
 use crate::map::MapRows;
 use crate::memory::Budget;
 use crate::output::{About, Format, KeypointWriter};
-
 use crate::overlay::{overlay_bytes, OverlayCanvas};
 use crate::states::ClassTable;
 
 /// Checks that streaming `map` through `detector` (with an overlay when `overlay`) fits `budget`, making its
 /// windows smaller when that is enough: the windows in flight and the backend's buffers for one, the
 /// decoder's buffers (a whole frame for an interlaced PNG, which cannot be read row by row), and the
-/// overlay's downsampled picture. The keypoints
-/// come on top, 24 bytes each for the baselines (which select them at the end) and none for the OGM
-/// detector (written as they come).
+/// overlay's downsampled picture. The keypoints come on top: for the baselines, which select them at the
+/// end, their candidates (16 bytes each) and the selection's lists; none for the OGM detector, whose
+/// keypoints are written as they come.
 pub fn check_streamed_budget(
     detector: &mut Detector,
     map: &MapRows,

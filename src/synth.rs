@@ -110,10 +110,12 @@ pub const STREAM_TILE: u32 = 1024;
 /// (65536 x 65536 is 4 GiB). The rows of [`OfficeRows::with_tile`] with tiles of 8192.
 pub fn office_map_parallel(width: u32, height: u32, seed: u64) -> Result<MapImage> {
     check_office_size(width, height)?;
-    let mut rows = OfficeRows::with_tile(width, height, seed, PARALLEL_TILE)?;
-    let mut px = vec![0u8; width as usize * height as usize];
-    for row in px.chunks_exact_mut(width as usize) {
-        rows.next_row(row)?;
+    let rows = OfficeRows::with_tile(width, height, seed, PARALLEL_TILE)?;
+    let w = width as usize;
+    let mut px = vec![0u8; w * height as usize];
+    // Each strip drawn straight into its rows of the map: no strip buffer beside it.
+    for (ty, &(y0, y1)) in rows.ys.iter().enumerate() {
+        rows.draw_strip(ty, &mut px[y0 as usize * w..y1 as usize * w])?;
     }
     MapImage::new(width, height, px)
 }
@@ -181,9 +183,35 @@ impl OfficeRows {
         u64::from(tall) * (u64::from(self.width) + drawn * u64::from(wide))
     }
 
+    /// Draws strip `ty` (its rows, `width` bytes each) into `out`, as many offices at a time as there are
+    /// threads.
+    fn draw_strip(&self, ty: usize, out: &mut [u8]) -> Result<()> {
+        use rayon::prelude::*;
+        let (y0, y1) = self.ys[ty];
+        let w = self.width as usize;
+        let places: Vec<(usize, (u32, u32))> = self.xs.iter().copied().enumerate().collect();
+        for group in places.chunks(rayon::current_num_threads().max(1)) {
+            let offices: Vec<MapImage> = group
+                .par_iter()
+                .map(|&(tx, (x0, x1))| {
+                    let s = self.seed
+                        ^ (((ty as u64) << 32) | tx as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15);
+                    office_map(x1 - x0, y1 - y0, s)
+                })
+                .collect::<Result<_>>()?;
+            for (t, &(_, (x0, _))) in offices.iter().zip(group) {
+                let tw = t.width() as usize;
+                for (r, row) in t.pixels().chunks_exact(tw).enumerate() {
+                    let at = r * w + x0 as usize;
+                    out[at..at + tw].copy_from_slice(row);
+                }
+            }
+        }
+        Ok(())
+    }
+
     /// Writes the next row into `out` (`width` bytes).
     pub fn next_row(&mut self, out: &mut [u8]) -> Result<()> {
-        use rayon::prelude::*;
         let y = self.next;
         if y >= self.height {
             return Err(Error::Internal("read past the last row".into()));
@@ -195,27 +223,10 @@ impl OfficeRows {
             .unwrap_or(0);
         let (y0, y1) = self.ys[ty];
         if self.strip_i != ty {
-            let w = self.width as usize;
-            let seed = self.seed;
-            let tiles: Vec<MapImage> = self
-                .xs
-                .par_iter()
-                .enumerate()
-                .map(|(tx, &(x0, x1))| {
-                    let s = seed
-                        ^ (((ty as u64) << 32) | tx as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15);
-                    office_map(x1 - x0, y1 - y0, s)
-                })
-                .collect::<Result<_>>()?;
-            self.strip.clear();
-            self.strip.resize((y1 - y0) as usize * w, 0);
-            for (t, &(x0, _)) in tiles.iter().zip(&self.xs) {
-                let tw = t.width() as usize;
-                for (r, row) in t.pixels().chunks_exact(tw).enumerate() {
-                    let at = r * w + x0 as usize;
-                    self.strip[at..at + tw].copy_from_slice(row);
-                }
-            }
+            let mut strip = std::mem::take(&mut self.strip);
+            strip.resize((y1 - y0) as usize * self.width as usize, 0);
+            self.draw_strip(ty, &mut strip)?;
+            self.strip = strip;
             self.strip_i = ty;
         }
         let w = self.width as usize;

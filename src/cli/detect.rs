@@ -64,8 +64,9 @@ pub(super) fn run(a: DetectArgs, budget: &Budget) -> Result<()> {
     if a.opts.options().detector != DetectorKind::OgmRobust {
         return run_streamed(&a, format, budget);
     }
-    // The robust detector holds the map in memory. The map before the backend, so a bad map is the only message; the map, the backend's buffers and
-    // the overlay are counted from the header, before the pixels are read.
+    // The robust detector holds the map in memory. The map before the backend, so a bad map is the only
+    // message; the map, the backend's buffers and the overlay are counted from the header, before the
+    // pixels are read.
     let map = OccupancyMap::load_within(path, budget, &|w, h| a.extra_bytes(w, h))?;
     for w in &map.warnings {
         ogm_corners::say!("ogm-corners: warning: {w}");
@@ -117,51 +118,42 @@ fn run_streamed(a: &DetectArgs, format: Format, budget: &Budget) -> Result<()> {
     streamed::check_streamed_budget(&mut detector, &map, a.overlay.is_some(), budget)?;
     let (w, h) = map.size();
     let mut canvas = a.overlay.as_ref().map(|_| OverlayCanvas::new(w, h));
-    let done = match &a.output {
-        Some(out) => {
-            let mut file = AtomicFile::create(out)?;
-            let mut outputs = [streamed::Output {
-                out: &mut file,
-                format,
-                name: out.display().to_string(),
-            }];
-            let done = streamed::detect_to(&mut detector, &mut map, &mut outputs, canvas.as_mut())?;
-            file.flush().map_err(|e| Error::output(out, e))?;
-            // Written before the keypoint file is renamed into place: a failed overlay leaves neither.
-            if let (Some(png), Some(c)) = (&a.overlay, canvas.as_mut()) {
-                c.write(png, &[])?;
-            }
-            file.commit()?;
-            done
-        }
-        None => {
-            let stdout = std::io::stdout();
-            let mut out = PipeOut {
-                inner: std::io::BufWriter::new(stdout.lock()),
-                closed: false,
-            };
-            let mut outputs = [streamed::Output {
-                out: &mut out,
-                format,
-                name: "<stdout>".into(),
-            }];
-            let done = streamed::detect_to(&mut detector, &mut map, &mut outputs, canvas.as_mut())
-                .and_then(|d| {
-                    out.flush()
-                        .map(|()| d)
-                        .map_err(|e| Error::output("<stdout>", e))
-                });
-            let done = match done {
-                // `| head`: the reader has what it wanted.
-                Err(_) if out.closed => return Ok(()),
-                other => other?,
-            };
-            if let (Some(png), Some(c)) = (&a.overlay, canvas.as_mut()) {
-                c.write(png, &[])?;
-            }
-            done
-        }
+    // A file is written beside its target and renamed when complete; standard output as it comes.
+    let mut file = a.output.as_deref().map(AtomicFile::create).transpose()?;
+    let stdout = std::io::stdout();
+    let mut pipe = PipeOut {
+        inner: std::io::BufWriter::new(stdout.lock()),
+        closed: false,
     };
+    let (out, name): (&mut dyn Write, String) = match (&mut file, &a.output) {
+        (Some(f), Some(o)) => (f, o.display().to_string()),
+        _ => (&mut pipe, "<stdout>".into()),
+    };
+    let mut outputs = [streamed::Output {
+        out,
+        format,
+        name: name.clone(),
+    }];
+    let done = streamed::detect_to(&mut detector, &mut map, &mut outputs, canvas.as_mut())
+        .and_then(|d| {
+            let [o] = &mut outputs;
+            o.out
+                .flush()
+                .map(|()| d)
+                .map_err(|e| Error::output(&name, e))
+        });
+    let done = match done {
+        // `| head`: the reader has what it wanted.
+        Err(_) if pipe.closed => return Ok(()),
+        other => other?,
+    };
+    // The overlay before the keypoint file is renamed into place: a failed overlay leaves neither.
+    if let (Some(png), Some(c)) = (&a.overlay, canvas.as_mut()) {
+        c.write(png, &[])?;
+    }
+    if let Some(f) = file {
+        f.commit()?;
+    }
     for w in &done.warnings {
         ogm_corners::say!("ogm-corners: warning: {w}");
     }

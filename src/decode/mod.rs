@@ -235,9 +235,7 @@ pub fn decode_bytes(
         .map_err(|_| format!("cannot allocate {n} bytes for a {w}x{h} image"))?;
     pixels.resize(n, 0);
     if n > 0 {
-        for row in pixels.chunks_exact_mut(w as usize) {
-            dec.read_row(row)?;
-        }
+        dec.read_rows(&mut pixels)?;
     }
     let warnings = dec.finish()?;
     Ok((w, h, pixels, warnings))

@@ -306,14 +306,6 @@ impl<R: BufRead> PnmDecoder<R> {
                 ));
             }
             let n = buf.len().min(out.len() - x);
-            if self.maxval == 255 {
-                // Every byte is a valid sample and its own grey level: a copy (maps larger than memory
-                // stream at the disk's speed).
-                out[x..x + n].copy_from_slice(&buf[..n]);
-                self.src.consume(n);
-                x += n;
-                continue;
-            }
             for (i, (o, &v)) in out[x..x + n].iter_mut().zip(&buf[..n]).enumerate() {
                 if u32::from(v) > self.maxval {
                     return Err(format!(

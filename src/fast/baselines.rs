@@ -151,6 +151,7 @@ pub fn window_candidates(
             band_candidates(kind, rows, &exact, (y0, y1), q, &known_max)
         })
         .collect();
+    // Stands for the reference's `scores.iter().max()` (see `band_candidates`).
     let max = bands.iter().map(|b| b.1).max().unwrap_or(0);
     let mut out = Vec::with_capacity(bands.iter().map(|b| b.0.len()).sum());
     for b in bands {

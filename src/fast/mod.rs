@@ -13,7 +13,8 @@ pub mod coarsen;
 pub mod ogm;
 
 use crate::backend::{
-    reference_working_bytes, window_maxima, Backend, DetectOptions, DetectorKind, Keypoint,
+    maxima_of_window_scores, reference_working_bytes, Backend, DetectOptions, DetectorKind,
+    Keypoint,
 };
 use crate::baselines::{Baseline, BaselineParams, Candidate, ExactParams};
 use crate::error::Result;
@@ -89,10 +90,8 @@ impl Backend for FastCpuBackend {
         if let Some(found) = baselines::window_candidates(kind, rows, core, params, known_max)? {
             return Ok(found);
         }
-        // Kernels the fast path does not cover: the reference's scores of the window.
-        let exact = params.exact()?;
-        let scores = crate::baselines::cpu_scores(kind, &rows.image()?, &exact);
-        Ok(window_maxima(&scores, rows, core))
+        // Kernels the fast path does not cover: the default route (whose scores the reference computes).
+        maxima_of_window_scores(self, kind, rows, core, params)
     }
 
     /// 32 MiB: the fast path keeps only a few rows per thread beside the window; larger windows split

@@ -180,9 +180,18 @@ impl MapImage {
 
     /// The image as a binary PGM (P5, maxval 255) into `out`.
     pub fn write_pgm_to(&self, out: &mut dyn std::io::Write) -> std::io::Result<()> {
-        write!(out, "P5\n{} {}\n255\n", self.width, self.height)?;
+        write_pgm_header(out, self.width, self.height)?;
         out.write_all(self.pixels())
     }
+}
+
+/// The header of a binary PGM (P5, maxval 255) of `width` x `height`; the raster follows it.
+pub fn write_pgm_header(
+    out: &mut dyn std::io::Write,
+    width: u32,
+    height: u32,
+) -> std::io::Result<()> {
+    write!(out, "P5\n{width} {height}\n255\n")
 }
 
 /// Refuses a zero-size map or a pixel count other than `width * height`.
@@ -501,9 +510,7 @@ fn decode_rows<R: std::io::BufRead>(
         .saturating_add(extra(w, h));
     budget.check(format_args!("a {w}x{h} map"), need)?;
     let mut pixels = vec![0u8; w as usize * h as usize];
-    for row in pixels.chunks_exact_mut(w as usize) {
-        dec.read_row(row).map_err(Error::invalid)?;
-    }
+    dec.read_rows(&mut pixels).map_err(Error::invalid)?;
     let warnings = dec.finish().map_err(Error::invalid)?;
     Ok((MapImage::new(w, h, pixels)?, warnings))
 }

@@ -184,13 +184,13 @@ impl RowSource for crate::synth::OfficeRows {
 }
 
 /// Writes the rows of `source` as a binary PGM (P5, maxval 255) to `path`, atomically
-/// ([`crate::files::AtomicFile`]), holding one row at a time.
+/// ([`crate::files::AtomicFile`]), holding about a megabyte of rows at a time.
 pub fn write_pgm(path: &std::path::Path, source: &mut dyn RowSource) -> Result<()> {
     use std::io::Write;
     let (w, h) = (source.width(), source.height());
     let mut file = crate::files::AtomicFile::create(path)?;
     let io = |e: std::io::Error| Error::output(path, e);
-    write!(file, "P5\n{w} {h}\n255\n").map_err(io)?;
+    crate::map::write_pgm_header(&mut file, w, h).map_err(io)?;
     // Whole rows a megabyte or so at a time: few calls, bounded memory.
     let rows = (((1usize << 20) / w as usize).max(1)).min(h as usize);
     let mut buf = vec![0u8; rows * w as usize];
