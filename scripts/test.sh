@@ -51,6 +51,18 @@ python_env() {
     "$venv/bin/pip" install -q --disable-pip-version-check "$@"
 }
 
+# Headless Chromium and its WebDriver, for the HTML report tests (tests/browser): installed when missing. A
+# machine where they cannot be installed skips those tests loudly (and fails under CI=true).
+if ! command -v chromium >/dev/null 2>&1 || ! command -v chromedriver >/dev/null 2>&1; then
+    echo "scripts/test.sh: installing chromium and chromium-driver (the HTML report tests)" >&2
+    sudo=""
+    if [ "$(id -u)" != 0 ]; then sudo="sudo"; fi
+    export DEBIAN_FRONTEND=noninteractive
+    if ! { $sudo apt-get update -qq && $sudo apt-get install -y -qq --no-install-recommends chromium chromium-driver >/dev/null; }; then
+        echo "scripts/test.sh: NOTE: could not install chromium; the browser tests will say SKIPPED (and fail under CI=true)" >&2
+    fi
+fi
+
 # OpenCV (for the Harris / Shi-Tomasi agreement test).
 python_env target/opencv-venv "import cv2, numpy" opencv-python-headless numpy
 # The Python package's build tool (its metadata check) and test tools (rosbags: the ROS bag example, no ROS
@@ -76,3 +88,9 @@ cp target/debug/lib_core.so python/ogm_corners/_core.abi3.so
 }
 PYTHONPATH="$PWD/python" OGM_CORNERS_BIN="$PWD/target/debug/ogm-corners" \
     "$pyvenv/bin/python" -m pytest python/tests -q -p no:cacheprovider
+
+# The HTML reports (`--html DIR`) in a real browser: headless Chromium loads each page from file://, the
+# tables' row counts are checked against the command's JSON, every picture must load, a column is sorted
+# by a click; screenshots go to target/browser/.
+OGM_CORNERS_BIN="$PWD/target/debug/ogm-corners" \
+    "$pyvenv/bin/python" -m pytest tests/browser -q -p no:cacheprovider

@@ -49,6 +49,7 @@ pub mod merge;
 pub mod output;
 pub mod overlay;
 pub mod plot;
+pub mod report;
 pub mod robust;
 pub mod rules;
 pub mod states;

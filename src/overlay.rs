@@ -53,6 +53,7 @@ pub fn render_overlay_at(map: &MapImage, keypoints: &[Keypoint], s: u32, d: u32)
 /// The map as an overlay draws it, filled row by row as a streamed detection reads them: each pixel the
 /// darkest of its block of `d` x `d` map pixels ([`overlay_shrink`]), so a huge map's overlay needs only
 /// its own small picture in memory.
+#[derive(Clone)]
 pub struct OverlayCanvas {
     width: u32,
     height: u32,
@@ -115,25 +116,51 @@ impl OverlayCanvas {
     /// The picture enlarged by `s` (>= 1), each marked cell (and each of `keypoints`) filled with its rule's
     /// colour and circled so that it stands out at any zoom.
     pub fn render_at(&mut self, keypoints: &[Keypoint], s: u32) -> RgbImage {
+        self.render_scaled(keypoints, f64::from(s.max(1)))
+    }
+
+    /// The picture enlarged to fit `max_w` x `max_h` (by a zoom that need not be an integer; cells stay
+    /// crisp squares of nearest-neighbour pixels), as [`OverlayCanvas::render_at`] marks it. A canvas
+    /// larger than the box is drawn at zoom 1: shrink it with [`OverlayCanvas::with_shrink`] first
+    /// ([`fit_shrink`]).
+    pub fn render_fit(&mut self, keypoints: &[Keypoint], max_w: u32, max_h: u32) -> RgbImage {
+        let (cw, ch) = (self.width.div_ceil(self.d), self.height.div_ceil(self.d));
+        let f = fit_zoom(cw, ch, max_w, max_h);
+        self.render_scaled(keypoints, f)
+    }
+
+    /// The picture enlarged by `f` (>= 1, any real zoom): output pixel (x, y) shows cell
+    /// (floor(x / f), floor(y / f)); marks as [`OverlayCanvas::render_at`] draws them, the ring's radius
+    /// growing with the zoom up to 18 pixels.
+    fn render_scaled(&mut self, keypoints: &[Keypoint], f: f64) -> RgbImage {
         self.mark(keypoints);
-        let (s, d) = (s.max(1), self.d);
-        let cw = self.width.div_ceil(d);
-        let (w, h) = (cw * s, self.height.div_ceil(d) * s);
-        let mut img = RgbImage::from_fn(w, h, |x, y| {
-            let v = self.grey[((y / s) * cw + x / s) as usize];
-            Rgb([v, v, v])
-        });
-        let radius = (2 * s + 2) as i64;
+        let (f, d) = (f.max(1.0), self.d);
+        let (cw, ch) = (self.width.div_ceil(d), self.height.div_ceil(d));
+        let (w, h) = (scaled(cw, f), scaled(ch, f));
+        let cell = |p: u32, n: u32| ((f64::from(p) / f) as u32).min(n - 1);
+        let xs: Vec<u32> = (0..w).map(|x| cell(x, cw)).collect();
+        let mut img = RgbImage::new(w, h);
+        for y in 0..h {
+            let row = &self.grey[(cell(y, ch) * cw) as usize..][..cw as usize];
+            for (x, &cx) in xs.iter().enumerate() {
+                let v = row[cx as usize];
+                img.put_pixel(x as u32, y, Rgb([v, v, v]));
+            }
+        }
+        let radius = ((2.0 * f + 2.0).round() as i64).min(18);
+        let edge = |c: u32, n: u32| ((f64::from(c) * f) as u32).min(n);
         for &(ky, kx, rule) in &self.marks {
             let colour = rule_colour(rule);
-            for dy in 0..s {
-                for dx in 0..s {
-                    img.put_pixel(kx * s + dx, ky * s + dy, colour);
+            let (x0, y0) = (edge(kx, w), edge(ky, h));
+            let (x1, y1) = (edge(kx + 1, w).max(x0 + 1), edge(ky + 1, h).max(y0 + 1));
+            for y in y0..y1.min(h) {
+                for x in x0..x1.min(w) {
+                    img.put_pixel(x, y, colour);
                 }
             }
             // Centre of the enlarged cell, in doubled coordinates so that even zooms stay symmetric.
-            let cx2 = (2 * kx * s + s) as i64;
-            let cy2 = (2 * ky * s + s) as i64;
+            let cx2 = ((2.0 * f64::from(kx) + 1.0) * f).round() as i64;
+            let cy2 = ((2.0 * f64::from(ky) + 1.0) * f).round() as i64;
             ring(&mut img, cx2, cy2, radius, colour);
         }
         img
@@ -143,6 +170,39 @@ impl OverlayCanvas {
     pub fn write(&mut self, path: &Path, keypoints: &[Keypoint]) -> Result<()> {
         crate::files::write_png(path, &self.render(keypoints))
     }
+}
+
+/// Pixels of `n` cells at zoom `f`.
+fn scaled(n: u32, f: f64) -> u32 {
+    ((f64::from(n) * f).round() as u32).max(1)
+}
+
+/// The largest zoom (>= 1) at which `w` x `h` fits `max_w` x `max_h`.
+pub fn fit_zoom(w: u32, h: u32, max_w: u32, max_h: u32) -> f64 {
+    let f = (f64::from(max_w) / f64::from(w.max(1))).min(f64::from(max_h) / f64::from(h.max(1)));
+    // A hair under, so that rounding never makes the picture a pixel larger than the box.
+    (f * (1.0 - 1e-12)).max(1.0)
+}
+
+/// The integer shrink that brings `w` x `h` within `max_w` x `max_h` (1 when it fits).
+pub fn fit_shrink(w: u32, h: u32, max_w: u32, max_h: u32) -> u32 {
+    w.div_ceil(max_w.max(1))
+        .max(h.div_ceil(max_h.max(1)))
+        .max(1)
+}
+
+/// [`render_overlay`] filling `max_w` x `max_h`: shrunk by [`fit_shrink`] (darkest of each block) when
+/// larger, then enlarged by [`fit_zoom`], any real factor, nearest neighbour.
+pub fn render_overlay_fit(
+    map: &MapImage,
+    keypoints: &[Keypoint],
+    max_w: u32,
+    max_h: u32,
+) -> RgbImage {
+    let d = fit_shrink(map.width(), map.height(), max_w, max_h);
+    let mut canvas = OverlayCanvas::with_shrink(map.width(), map.height(), d);
+    canvas.add_rows(Rows::of(map), (0, map.height() as usize));
+    canvas.render_fit(keypoints, max_w, max_h)
 }
 
 /// A one-pixel-wide circle of `radius` around the doubled-coordinate centre (cx2 / 2, cy2 / 2).

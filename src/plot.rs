@@ -203,6 +203,59 @@ pub fn line(
     }
 }
 
+/// The part of `img` that is not `background`, with `margin` pixels around it (all of it when it is all
+/// background): what a picture of a map shows once the unknown around it is cut away.
+pub fn crop_to_content(img: &RgbImage, background: Rgb<u8>, margin: u32) -> RgbImage {
+    let (w, h) = img.dimensions();
+    let (mut x0, mut y0, mut x1, mut y1) = (w, h, 0, 0);
+    for (x, y, p) in img.enumerate_pixels() {
+        if *p != background {
+            (x0, y0, x1, y1) = (x0.min(x), y0.min(y), x1.max(x + 1), y1.max(y + 1));
+        }
+    }
+    if x1 <= x0 {
+        return img.clone();
+    }
+    let (x0, y0) = (x0.saturating_sub(margin), y0.saturating_sub(margin));
+    let (x1, y1) = ((x1 + margin).min(w), (y1 + margin).min(h));
+    image::imageops::crop_imm(img, x0, y0, x1 - x0, y1 - y0).to_image()
+}
+
+/// `img` scaled to fit `max_w` x `max_h` (aspect kept) by any real factor: enlarged by nearest neighbour
+/// (pixels stay crisp squares), shrunk by keeping the highest-`rank`ed pixel of each block (ties: the
+/// first), so thin walls and conflicts survive what plain sampling would drop.
+pub fn fit_image(img: &RgbImage, max_w: u32, max_h: u32, rank: impl Fn(Rgb<u8>) -> u8) -> RgbImage {
+    let (w, h) = (img.width().max(1), img.height().max(1));
+    let f = (f64::from(max_w) / f64::from(w)).min(f64::from(max_h) / f64::from(h));
+    let (ow, oh) = (
+        ((f64::from(w) * f).round() as u32).clamp(1, max_w.max(1)),
+        ((f64::from(h) * f).round() as u32).clamp(1, max_h.max(1)),
+    );
+    // Output pixel p covers source [start(p), start(p + 1)), at least one pixel.
+    let span = |p: u32, out: u32, n: u32| {
+        let s = |q: u32| ((u64::from(q) * u64::from(n)) / u64::from(out)) as u32;
+        let a = s(p).min(n - 1);
+        (a, s(p + 1).clamp(a + 1, n))
+    };
+    let xs: Vec<(u32, u32)> = (0..ow).map(|x| span(x, ow, w)).collect();
+    RgbImage::from_fn(ow, oh, |x, y| {
+        let (y0, y1) = span(y, oh, h);
+        let (x0, x1) = xs[x as usize];
+        let mut best = *img.get_pixel(x0, y0);
+        let mut best_rank = rank(best);
+        for yy in y0..y1 {
+            for xx in x0..x1 {
+                let p = *img.get_pixel(xx, yy);
+                let r = rank(p);
+                if r > best_rank {
+                    (best, best_rank) = (p, r);
+                }
+            }
+        }
+        best
+    })
+}
+
 /// One series of a line plot.
 pub struct Series {
     /// Legend label.
@@ -302,4 +355,55 @@ pub fn line_plot(
         draw_text(&mut img, r as i64 - 144, ly, &s.label, 1, black);
     }
     img
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fit_image_fills_the_box_and_keeps_what_ranks_high() {
+        // Enlarged by a non-integer factor: 10x4 into 100x100 is 100x40, cells crisp.
+        let mut small = RgbImage::from_pixel(10, 4, Rgb([255, 255, 255]));
+        small.put_pixel(3, 1, Rgb([255, 0, 0]));
+        let big = fit_image(&small, 100, 100, |_| 0);
+        assert_eq!(big.dimensions(), (100, 40));
+        let red: Vec<(u32, u32)> = big
+            .enumerate_pixels()
+            .filter(|p| p.2 .0 == [255, 0, 0])
+            .map(|p| (p.0, p.1))
+            .collect();
+        assert_eq!(red.len(), 100, "one source pixel is a 10x10 block");
+        assert!(red
+            .iter()
+            .all(|&(x, y)| (30..40).contains(&x) && (10..20).contains(&y)));
+        // 7x3 into 20x20: zoom 20/7, not an integer; the picture spans the box's width exactly.
+        assert_eq!(fit_image(&small, 20, 20, |_| 0).width(), 20);
+        // Shrunk 10x: a one-pixel line survives when it ranks high, is lost when it does not.
+        let mut wide = RgbImage::from_pixel(1000, 50, Rgb([255, 255, 255]));
+        for x in 0..1000 {
+            wide.put_pixel(x, 23, Rgb([0, 0, 0]));
+        }
+        let dark = |p: Rgb<u8>| 255 - p.0[0];
+        let kept = fit_image(&wide, 100, 100, dark);
+        assert_eq!(kept.dimensions(), (100, 5));
+        assert!((0..100).all(|x| kept.get_pixel(x, 2).0 == [0, 0, 0]));
+        let plain = fit_image(&wide, 100, 100, |_| 0);
+        assert!((0..100).all(|x| plain.get_pixel(x, 2).0 == [255, 255, 255]));
+    }
+
+    #[test]
+    fn crop_to_content_cuts_the_background_away() {
+        let mut img = RgbImage::from_pixel(50, 40, Rgb([150, 150, 150]));
+        img.put_pixel(10, 20, Rgb([0, 0, 0]));
+        img.put_pixel(30, 25, Rgb([0, 0, 0]));
+        let c = crop_to_content(&img, Rgb([150, 150, 150]), 2);
+        assert_eq!(c.dimensions(), (25, 10));
+        assert_eq!(c.get_pixel(2, 2).0, [0, 0, 0]);
+        let blank = RgbImage::from_pixel(5, 5, Rgb([150, 150, 150]));
+        assert_eq!(
+            crop_to_content(&blank, Rgb([150, 150, 150]), 2).dimensions(),
+            (5, 5)
+        );
+    }
 }

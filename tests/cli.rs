@@ -1017,3 +1017,104 @@ fn eval_annotations_plot_draws_each_annotated_map() {
         "marked points ringed"
     );
 }
+
+/// The `data-rows` of table `id` on a report page, and the number of `<tr>` in its body.
+fn report_rows(page: &str, id: &str) -> (usize, usize) {
+    let start = page
+        .find(&format!("<table class=\"report\" id=\"{id}\" data-rows=\""))
+        .unwrap_or_else(|| panic!("no table {id}"));
+    let table = &page[start..];
+    let table = &table[..table.find("</table>").unwrap()];
+    let n: usize = table
+        .split("data-rows=\"")
+        .nth(1)
+        .unwrap()
+        .split('"')
+        .next()
+        .unwrap()
+        .parse()
+        .unwrap();
+    let body = &table[table.find("<tbody>").unwrap()..];
+    (n, body.matches("<tr").count())
+}
+
+/// `--html` without a browser: the pages are written with their tables and pictures (the browser test,
+/// tests/browser, checks them in Chromium), two maps given with `--html` are placed as many maps, and the
+/// annotated `eval` page holds the recall rows and a picture per annotated map.
+#[test]
+fn html_reports_hold_their_tables_and_pictures() {
+    let d = tmpdir("html");
+    let office = d.join("office.pgm");
+    let o = run(&[
+        "bench",
+        "--size",
+        "300x200",
+        "--seed",
+        "5",
+        "--write-map",
+        office.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let room = room_pgm(&d);
+    // Two maps with --html: the many-map page, one row per map.
+    let html = d.join("merge-html");
+    let o = run(&[
+        "merge",
+        office.to_str().unwrap(),
+        room.to_str().unwrap(),
+        "--html",
+        html.to_str().unwrap(),
+        "--format",
+        "json",
+    ]);
+    // Nothing can be placed together here: exit 3 (declined), the page written all the same.
+    assert_eq!(o.status.code(), Some(3), "{}", stderr(&o));
+    assert!(html.join("index.html").is_file(), "{}", stderr(&o));
+    let page = fs::read_to_string(html.join("index.html")).unwrap();
+    assert_eq!(report_rows(&page, "maps"), (2, 2));
+    assert_eq!(report_rows(&page, "pairs"), (1, 1));
+    for src in page
+        .split("<img src=\"")
+        .skip(1)
+        .map(|s| s.split('"').next().unwrap())
+    {
+        assert!(html.join(src).is_file(), "{src} missing");
+    }
+    // eval --annotations --html: a row per detector run on the map, then the pooled rows.
+    let marks = d.join("marks.json");
+    fs::write(&marks, r#"{"maps": {"office": [[20, 20], [100, 50]]}}"#).unwrap();
+    let html = d.join("eval-html");
+    let o = run(&[
+        "eval",
+        "--backend",
+        "cpu",
+        "--annotations",
+        marks.to_str().unwrap(),
+        office.to_str().unwrap(),
+        "--format",
+        "json",
+        "--html",
+        html.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let rows: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    let n = rows.as_array().unwrap().len();
+    let page = fs::read_to_string(html.join("index.html")).unwrap();
+    assert_eq!(report_rows(&page, "recall"), (n, n));
+    assert!(html.join("office-marked.png").is_file());
+    assert!(page.contains("<img src=\"office-marked.png\""));
+    // A folder that is a file: a one-line error, exit 2.
+    let o = run(&[
+        "merge-eval",
+        "--synthetic",
+        "--html",
+        office.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("is a file, not a folder"),
+        "{}",
+        stderr(&o)
+    );
+    fs::remove_dir_all(&d).unwrap();
+}

@@ -11,6 +11,7 @@ use ogm_corners::backend::reference_working_bytes;
 use ogm_corners::compare::{self, CompareRecord};
 use ogm_corners::files;
 use ogm_corners::memory::Budget;
+use ogm_corners::report::{self, Figure, Report};
 use ogm_corners::{
     Baseline, BaselineParams, DetectOptions, DetectorKind, OccupancyMap, Result, RuleSet,
 };
@@ -32,6 +33,10 @@ pub(super) struct CompareArgs {
     /// Format of the table on standard output.
     #[arg(long, value_enum, default_value = "md")]
     format: TableFormat,
+    /// Also write an HTML report into DIR: `index.html` (the table, sortable by a click on a column, and
+    /// each map's contact sheet), opened from disk, no server.
+    #[arg(long, value_name = "DIR")]
+    html: Option<PathBuf>,
     /// Timed runs per measurement (after one warm-up), at most 1000; medians are reported.
     #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..=1000))]
     repeat: u32,
@@ -63,6 +68,21 @@ pub(super) fn run(a: CompareArgs, budget: &Budget) -> Result<()> {
     for s in &sheets {
         inputs.claim_output(s, "--out")?;
     }
+    let html_sheets: Vec<String> = match &a.html {
+        Some(dir) => {
+            inputs.claim_output(&dir.join(report::INDEX), "--html")?;
+            names
+                .iter()
+                .enumerate()
+                .map(|(i, n)| {
+                    let file = report::file_name(i, n, "-contact-sheet");
+                    inputs.claim_output(&dir.join(&file), "--html")?;
+                    Ok(file)
+                })
+                .collect::<Result<_>>()?
+        }
+        None => Vec::new(),
+    };
     // The same measurement as `bench` (backends checked to agree keypoint for keypoint).
     let mut runner = Runner::new(
         "compare",
@@ -72,8 +92,13 @@ pub(super) fn run(a: CompareArgs, budget: &Budget) -> Result<()> {
         BaselineParams::default(),
     )?;
     files::create_dir(&a.out)?;
+    let mut page = match &a.html {
+        Some(dir) => Some(Report::create(dir, "ogm-corners compare")?),
+        None => None,
+    };
+    let mut figures = Vec::new();
     let mut rows = Vec::new();
-    for ((p, name), sheet_path) in maps.iter().zip(&names).zip(&sheets) {
+    for (i, ((p, name), sheet_path)) in maps.iter().zip(&names).zip(&sheets).enumerate() {
         let map = OccupancyMap::load_within(p, budget, &extra)?;
         let bm = BenchMap::from_file(p, map);
         let name = name.clone();
@@ -99,10 +124,32 @@ pub(super) fn run(a: CompareArgs, budget: &Budget) -> Result<()> {
             });
             found.push((m.kind, m.keypoints));
         }
-        files::write_png(sheet_path, &compare::contact_sheet(&name, &bm.map, &found))?;
+        let sheet = compare::contact_sheet(&name, &bm.map, &found);
+        files::write_png(sheet_path, &sheet)?;
         ogm_corners::say!("ogm-corners: wrote {}", sheet_path.display());
+        if let Some(page) = &mut page {
+            let caption = vec![name.clone(), p.display().to_string()];
+            let figure = page.picture(&html_sheets[i], &sheet, caption)?;
+            figures.push(Figure {
+                id: Some(compare::sheet_anchor(&name)),
+                ..figure
+            });
+        }
     }
     let md = compare::markdown(&rows);
     files::write_atomic(&table_path, |out| out.write_all(md.as_bytes()))?;
+    if let Some(mut page) = page {
+        page.text(format!(
+            "{} maps, {} timed runs per measurement after a warm-up (medians). Click a column to sort.",
+            maps.len(),
+            a.repeat
+        ));
+        page.table(compare::html_table(&rows));
+        page.heading("Contact sheets: each detector's keypoints on the explored part of each map");
+        page.legend(&compare::rule_legend_rgb());
+        page.figures_at(figures, 900);
+        let index = page.finish()?;
+        ogm_corners::say!("ogm-corners: wrote {}", index.display());
+    }
     write_stdout(|out| compare::write_table(out, a.format.into(), &rows))
 }

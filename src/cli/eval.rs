@@ -7,10 +7,15 @@ use clap::Args;
 use ogm_corners::backend::reference_working_bytes;
 use ogm_corners::eval::{self, MAX_TRIALS};
 use ogm_corners::files;
+use ogm_corners::map::output_names;
 use ogm_corners::memory::Budget;
+use ogm_corners::report::{self, Report};
 use ogm_corners::{DetectOptions, Error, OccupancyMap, Result};
 
 use super::{detector_on, write_stdout, BackendArg, TableFormat, ALL_DETECTORS};
+
+/// The suffix of a map's contact sheet in an `--html` folder.
+const SHEET_SUFFIX: &str = "-keypoints";
 
 #[derive(Args, Debug)]
 pub(super) struct EvalArgs {
@@ -42,6 +47,11 @@ pub(super) struct EvalArgs {
     /// and recall at a budget of 1x and 3x the marked points (strongest first), per map and pooled.
     #[arg(long, value_name = "FILE")]
     annotations: Option<PathBuf>,
+    /// Also write an HTML report into DIR: `index.html` with the table (sortable by a click on a column),
+    /// the plots, and each map's keypoints per detector (with --annotations: the marked points against the
+    /// paper's and the robust detector's keypoints); opened from disk, no server.
+    #[arg(long, value_name = "DIR")]
+    html: Option<PathBuf>,
     #[command(flatten)]
     robust: super::RobustArgs,
 }
@@ -68,9 +78,33 @@ pub(super) fn run(a: EvalArgs, budget: &Budget) -> Result<()> {
             })
             .max()
             .unwrap_or(0);
-        eval::evaluate_bytes(w, h).saturating_add(worst)
+        eval::evaluate_bytes(w, h)
+            .saturating_add(worst)
+            .saturating_add(ogm_corners::compare::SHEET_BYTES)
     };
     let (maps, mut inputs) = super::map_inputs(&a.maps, budget, &extra)?;
+    // Maps are named by their first distinctive path component, made unique.
+    let names = output_names(&maps);
+    if let Some(dir) = &a.html {
+        inputs.claim_output(&dir.join(report::INDEX), "--html")?;
+        let files: Vec<String> = if a.annotations.is_some() {
+            maps.iter()
+                .map(|p| {
+                    let stem = p.file_stem().and_then(|s| s.to_str()).unwrap_or("");
+                    eval::annotations::marked_sheet_file(stem)
+                })
+                .collect()
+        } else {
+            let sheets = names.iter().enumerate();
+            sheets
+                .map(|(i, n)| report::file_name(i, n, SHEET_SUFFIX))
+                .chain(eval::PLOT_FILES.iter().map(|f| f.to_string()))
+                .collect()
+        };
+        for file in files {
+            inputs.claim_output(&dir.join(file), "--html")?;
+        }
+    }
     if let Some(dir) = &a.plot {
         if a.annotations.is_some() {
             for p in &maps {
@@ -90,16 +124,21 @@ pub(super) fn run(a: EvalArgs, budget: &Budget) -> Result<()> {
         ..DetectOptions::default()
     };
     let mut detector = detector_on(a.backend, base)?;
+    let mut page = match &a.html {
+        Some(dir) => Some(Report::create(dir, "ogm-corners eval")?),
+        None => None,
+    };
     if let Some(file) = &a.annotations {
-        return annotated(&a, file, &maps, &mut detector, &base, budget);
+        return annotated(&a, file, &maps, &mut detector, &base, budget, page);
     }
     let mut rows = Vec::new();
+    let mut figures = Vec::new();
     // One map in memory at a time.
-    for p in &maps {
+    for (i, (p, name)) in maps.iter().zip(&names).enumerate() {
         let map = OccupancyMap::load_within(p, budget, &extra)?;
         rows.extend(eval::evaluate(
             &mut detector,
-            &p.display().to_string(),
+            name,
             &map.image,
             &ALL_DETECTORS,
             &base,
@@ -107,6 +146,45 @@ pub(super) fn run(a: EvalArgs, budget: &Budget) -> Result<()> {
             a.seed,
             a.tolerance,
         )?);
+        if let Some(page) = &mut page {
+            // What each detector finds on the map as it is, for a person to judge the numbers by.
+            let mut found = Vec::new();
+            for &kind in &ALL_DETECTORS {
+                detector.set_options(DetectOptions {
+                    detector: kind,
+                    ..base
+                });
+                found.push((kind, detector.detect(&map)?.keypoints));
+            }
+            let sheet = ogm_corners::compare::contact_sheet(name, &map, &found);
+            let file = report::file_name(i, name, SHEET_SUFFIX);
+            figures.push(page.picture(
+                &file,
+                &sheet,
+                vec![name.clone(), p.display().to_string()],
+            )?);
+        }
+    }
+    if let Some(mut page) = page {
+        page.text(format!(
+            "{} maps; {} trials per random condition (seed {}), match tolerance {} px. Click a column to sort.",
+            maps.len(),
+            a.trials,
+            a.seed,
+            a.tolerance
+        ));
+        page.table(eval::html_table(&rows));
+        page.heading("Repeatability against noise and rotation, averaged over the maps");
+        let plots = eval::repeatability_plots(&rows)
+            .into_iter()
+            .map(|(file, picture)| page.picture(file, &picture, vec![file.to_string()]))
+            .collect::<Result<Vec<_>>>()?;
+        page.figures_at(plots, 600);
+        page.heading("Each detector's keypoints on each map");
+        page.legend(&ogm_corners::compare::rule_legend_rgb());
+        page.figures_at(figures, 900);
+        let index = page.finish()?;
+        ogm_corners::say!("ogm-corners: wrote {}", index.display());
     }
     if let Some(dir) = &a.plot {
         files::create_dir(dir)?;
@@ -127,10 +205,12 @@ fn annotated(
     detector: &mut ogm_corners::Detector,
     base: &DetectOptions,
     budget: &Budget,
+    mut page: Option<Report>,
 ) -> Result<()> {
     use ogm_corners::eval::annotations::{pooled, recall, write_table, Annotations};
     let marks = Annotations::load(file)?;
     let mut rows = Vec::new();
+    let mut figures = Vec::new();
     for p in maps {
         let name = p.file_stem().and_then(|s| s.to_str()).unwrap_or("");
         let Some(points) = marks.points(name) else {
@@ -153,7 +233,7 @@ fn annotated(
                 })
                 .max()
                 .unwrap_or(0)
-                .saturating_add(if a.plot.is_some() {
+                .saturating_add(if a.plot.is_some() || page.is_some() {
                     ogm_corners::eval::annotations::MARKED_SHEET_BYTES
                 } else {
                     0
@@ -185,13 +265,24 @@ fn annotated(
                 _ => {}
             }
         }
+        if a.plot.is_none() && page.is_none() {
+            continue;
+        }
+        let sheet =
+            ogm_corners::eval::annotations::marked_sheet(name, &map, points, &paper, &robust);
         if let Some(dir) = &a.plot {
             files::create_dir(dir)?;
             let path = dir.join(ogm_corners::eval::annotations::marked_sheet_file(name));
-            let sheet =
-                ogm_corners::eval::annotations::marked_sheet(name, &map, points, &paper, &robust);
             files::write_png(&path, &sheet)?;
             ogm_corners::say!("ogm-corners: wrote {}", path.display());
+        }
+        if let Some(page) = &mut page {
+            let file = ogm_corners::eval::annotations::marked_sheet_file(name);
+            figures.push(page.picture(
+                &file,
+                &sheet,
+                vec![name.to_string(), p.display().to_string()],
+            )?);
         }
     }
     if rows.is_empty() {
@@ -205,5 +296,17 @@ fn annotated(
     }
     let total = pooled(&rows);
     rows.extend(total);
+    if let Some(mut page) = page {
+        page.text(format!(
+            "Marked points from {}; rows per map, then pooled over the maps (green). Click a column to sort.",
+            file.display()
+        ));
+        page.table(ogm_corners::eval::annotations::html_table(&rows));
+        page.heading("The marked points (green rings) against the paper's and the robust detector's keypoints");
+        page.legend(&ogm_corners::compare::rule_legend_rgb());
+        page.figures_at(figures, 900);
+        let index = page.finish()?;
+        ogm_corners::say!("ogm-corners: wrote {}", index.display());
+    }
     write_stdout(|out| write_table(out, a.format.into(), &rows))
 }

@@ -40,6 +40,11 @@ pub(super) struct MergeArgs {
     /// robot, for `known_init_poses: true`) as a rosparam yaml.
     #[arg(long, value_name = "YAML")]
     pub(super) init_poses: Option<PathBuf>,
+    /// Place every map at once (also for two) and write an HTML report into DIR: `index.html` with every
+    /// map's pose (maps left out first), every pair's verdict, each group's picture with its maps'
+    /// colours, and each map alone (sortable tables; opened from disk, no server).
+    #[arg(long, value_name = "DIR")]
+    pub(super) html: Option<PathBuf>,
     /// Output format of the verdict.
     #[arg(long, value_enum, default_value = "text")]
     pub(super) format: super::TextOrJson,
@@ -64,7 +69,8 @@ pub(super) fn run(a: MergeArgs, budget: &Budget) -> Result<()> {
     let pair = a.maps.len() == 2
         && a.maps.iter().all(|p| !p.is_dir())
         && a.poses.is_none()
-        && a.init_poses.is_none();
+        && a.init_poses.is_none()
+        && a.html.is_none();
     if !pair {
         return super::merge_many::run(a, budget);
     }

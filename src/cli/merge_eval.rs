@@ -10,7 +10,8 @@ use ogm_corners::merge::eval;
 use ogm_corners::merge::global::eval as global_eval;
 use ogm_corners::merge::global::GlobalOptions;
 use ogm_corners::merge::pairs::PairSet;
-use ogm_corners::merge::MergeOptions;
+use ogm_corners::merge::report::PairsPage;
+use ogm_corners::merge::{MergeOptions, Rigid};
 use ogm_corners::{Error, OccupancyMap, Result};
 
 use super::write_stdout;
@@ -55,6 +56,12 @@ pub(super) struct MergeEvalArgs {
     /// Maps in the synthetic set of `--global`.
     #[arg(long, default_value_t = 50, value_parser = clap::value_parser!(u32).range(2..=400))]
     set_size: u32,
+    /// Also write an HTML report into DIR (pair runs: a pair file or --synthetic): `index.html` with every
+    /// pair's verdict, score, overlap, errors against the truth and runner-up (sortable; wrong accepts and
+    /// missed pairs first), and each pair's two maps overlaid at the estimate (and, when it is wrong, at
+    /// the truth); opened from disk, no server.
+    #[arg(long, value_name = "DIR", conflicts_with_all = ["ablation", "global"])]
+    html: Option<PathBuf>,
     /// Output: a summary table, or every pair's record as JSON.
     #[arg(long, value_enum, default_value = "md")]
     format: super::TextOrJsonMd,
@@ -76,6 +83,19 @@ pub(super) fn run(a: MergeEvalArgs, budget: &Budget) -> Result<()> {
             "--save-pairs writes synthetic pairs (--synthetic) or the synthetic set (--global without a pair file)",
         ));
     }
+    let mut page = match &a.html {
+        Some(dir) => Some(PairsPage::create(dir)?),
+        None => None,
+    };
+    // Each pair drawn as it is run, when there is a page.
+    let mut on_pair = |i: usize,
+                       r: &eval::PairRecord,
+                       ma: &OccupancyMap,
+                       mb: &OccupancyMap,
+                       truth: Option<Rigid>| match &mut page {
+        Some(p) => p.add(i, r, ma, mb, truth),
+        None => Ok(()),
+    };
     let (rows, prep_ms) = match (&a.pairs, &a.synthetic) {
         (Some(pairs), _) => {
             let set = PairSet::load(pairs)?;
@@ -86,7 +106,7 @@ pub(super) fn run(a: MergeEvalArgs, budget: &Budget) -> Result<()> {
                 })?;
                 return write_table(a.format, &rows, |out| eval::write_ablation(out, &rows));
             }
-            eval::run(&set, &maps, &MergeOptions::default())?
+            eval::run_with(&set, &maps, &MergeOptions::default(), &mut on_pair)?
         }
         (None, sources) => {
             let given = sources.as_deref().unwrap_or(&[]);
@@ -121,9 +141,13 @@ pub(super) fn run(a: MergeEvalArgs, budget: &Budget) -> Result<()> {
                 negatives: given.is_empty(),
                 save: a.save_pairs.clone(),
             };
-            eval::run_synthetic(&sources, &run, &MergeOptions::default())?
+            eval::run_synthetic_with(&sources, &run, &MergeOptions::default(), &mut on_pair)?
         }
     };
+    if let Some(page) = page {
+        let index = page.finish(&rows, prep_ms)?;
+        ogm_corners::say!("ogm-corners: wrote {}", index.display());
+    }
     write_table(a.format, &rows, |out| {
         eval::write_summary(out, &rows, prep_ms)
     })

@@ -68,6 +68,9 @@ pub(super) fn run(a: MergeArgs, budget: &Budget) -> Result<()> {
             inputs.claim_output(p, what)?;
         }
     }
+    if let Some(dir) = &a.html {
+        inputs.claim_output(&dir.join(ogm_corners::report::INDEX), "--html")?;
+    }
     // A missing output folder is found now, not after the work.
     for p in [&yaml_out, &pgm_out, &a.overlay, &a.poses, &a.init_poses]
         .into_iter()
@@ -142,6 +145,10 @@ pub(super) fn run(a: MergeArgs, budget: &Budget) -> Result<()> {
         staged.write(p, |out| out.write_all(text.as_bytes()))?;
     }
     staged.commit()?;
+    if let Some(dir) = &a.html {
+        let index = ogm_corners::merge::global::page::write(dir, &many)?;
+        ogm_corners::say!("ogm-corners: wrote {}", index.display());
+    }
     write_stdout(|out| match a.format {
         super::TextOrJson::Json => {
             serde_json::to_writer_pretty(&mut *out, &doc)?;

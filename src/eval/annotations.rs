@@ -212,6 +212,46 @@ pub fn marked_sheet_file(name: &str) -> String {
     format!("{name}-marked.png")
 }
 
+/// The rows as the `--html` page's table (`id="recall"`), the pooled rows in bold colours.
+pub fn html_table(rows: &[RecallRecord]) -> crate::report::Table {
+    use crate::report::{Cell, Table};
+    let mut t = Table::new(
+        "recall",
+        "Hand-marked corners found: recall within 5 and 10 px, and at a budget of the strongest 1x and 3x as many keypoints as marked points",
+        &[
+            ("map", false),
+            ("detector", false),
+            ("marked", true),
+            ("keypoints", true),
+            ("within 5 px %", true),
+            ("within 10 px %", true),
+            ("5 px, 1x %", true),
+            ("5 px, 3x %", true),
+            ("10 px, 1x %", true),
+            ("10 px, 3x %", true),
+        ],
+    );
+    for r in rows {
+        let pct = |h: Option<usize>| Cell::opt(h.map(|h| 100.0 * r.rate(h)), 1);
+        t.row_with(
+            vec![
+                Cell::text(&r.map),
+                Cell::text(r.detector),
+                Cell::int(r.marked as i128),
+                Cell::int(r.keypoints as i128),
+                pct(Some(r.hits_5)),
+                pct(Some(r.hits_10)),
+                pct(r.hits_5_budget_1x),
+                pct(r.hits_5_budget_3x),
+                pct(r.hits_10_budget_1x),
+                pct(r.hits_10_budget_3x),
+            ],
+            (r.map == "all").then_some("good"),
+        );
+    }
+    t
+}
+
 /// Writes the rows (per map, then the pooled rows) as Markdown, CSV or JSON.
 pub fn write_table(
     out: &mut dyn Write,

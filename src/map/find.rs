@@ -201,16 +201,69 @@ pub fn output_names(maps: &[PathBuf]) -> Vec<String> {
         .collect()
 }
 
-/// A short name for a map file: its stem, or its folder's name when the stem is the generic `map`.
+/// Path components too generic to name a map by: ROS packages keep `map.yaml` in a `map` or `maps` folder.
+const GENERIC_NAMES: [&str; 2] = ["map", "maps"];
+
+fn is_generic(s: &str) -> bool {
+    GENERIC_NAMES.iter().any(|g| g.eq_ignore_ascii_case(s))
+}
+
+/// A short name for a map file: its first distinctive path component, from the file up. The stem, unless
+/// it is a generic `map`; then the nearest folder that is not `map` or `maps` (TurtleBot3's
+/// `turtlebot3_navigation2/map/map.yaml` is `turtlebot3_navigation2`). A relative path is read from the
+/// current folder, so `map.yaml` alone is named by the folder it is in.
 pub fn map_name(p: &Path) -> String {
     let stem = p.file_stem().and_then(|s| s.to_str()).unwrap_or("map");
-    match (
-        stem,
-        p.parent()
-            .and_then(|d| d.file_name())
-            .and_then(|d| d.to_str()),
-    ) {
-        ("map", Some(dir)) => dir.to_string(),
-        _ => stem.to_string(),
+    if !is_generic(stem) {
+        return stem.to_string();
+    }
+    let parent = p.parent().unwrap_or(Path::new(""));
+    let parent = if parent.as_os_str().is_empty() {
+        Path::new(".")
+    } else {
+        parent
+    };
+    // Canonical, so `..` and links name the folder the map is really in.
+    let dir = std::fs::canonicalize(parent)
+        .or_else(|_| std::path::absolute(parent))
+        .unwrap_or_else(|_| parent.to_path_buf());
+    dir.components()
+        .rev()
+        .filter_map(|c| match c {
+            std::path::Component::Normal(s) => s.to_str(),
+            _ => None,
+        })
+        .find(|s| !is_generic(s))
+        .unwrap_or(stem)
+        .to_string()
+}
+
+#[cfg(test)]
+mod name_tests {
+    use super::*;
+
+    #[test]
+    fn maps_are_named_by_their_first_distinctive_component() {
+        let n = |s: &str| map_name(Path::new(s));
+        assert_eq!(
+            n("/x/turtlebot3_navigation2/map/map.yaml"),
+            "turtlebot3_navigation2"
+        );
+        assert_eq!(n("/x/brsu-c069/map.yaml"), "brsu-c069");
+        assert_eq!(n("/x/maps/tiz_01/map.yaml"), "tiz_01");
+        assert_eq!(n("/x/maps/willow-full.pgm"), "willow-full");
+        assert_eq!(n("/x/Maps/MAP.pgm"), "x");
+        let dir = tempfile::tempdir().unwrap();
+        let inner = dir.path().join("lab_7").join("maps");
+        std::fs::create_dir_all(&inner).unwrap();
+        assert_eq!(
+            map_name(&inner.join("..").join("maps").join("map.yaml")),
+            "lab_7"
+        );
+        let names = output_names(&[
+            PathBuf::from("/a/site/map/map.yaml"),
+            PathBuf::from("/b/site/maps/map.pgm"),
+        ]);
+        assert_eq!(names, ["site", "site-2"]);
     }
 }

@@ -184,13 +184,16 @@ pub const OVERLAY_COLOURS: [(&str, [u8; 3]); 6] = [
     ),
 ];
 
+/// Colour of the merge overlay where neither map knows anything.
+pub const OVERLAY_UNKNOWN: image::Rgb<u8> = image::Rgb([150, 150, 150]);
+
 /// The picture of a merge: both maps on the merged canvas in the [`OVERLAY_COLOURS`], so a person sees at
 /// a glance whether walls line up (black), or one map's walls cross the other's free space (magenta).
 pub fn overlay(a: &OccupancyMap, b: &OccupancyMap, t: &Rigid) -> Result<image::RgbImage> {
     let placed = Placed::new(a, b, t)?;
     let canvas = placed.canvas;
     let c = |i: usize| image::Rgb(OVERLAY_COLOURS[i].1);
-    let unknown = image::Rgb([150, 150, 150]);
+    let unknown = OVERLAY_UNKNOWN;
     Ok(image::RgbImage::from_fn(
         canvas.width() as u32,
         canvas.height() as u32,

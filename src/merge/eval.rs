@@ -11,6 +11,7 @@ use super::align::{align_prepared, Alignment, MergeOptions, Prepared};
 use super::hypotheses::Hypotheses;
 use super::pairs::{PairSet, TruePair};
 use super::synthetic::{synthetic_pair, SyntheticSpec};
+use super::transform::Rigid;
 use crate::backend::DetectorKind;
 use crate::baselines::Baseline;
 use crate::error::Result;
@@ -54,24 +55,40 @@ pub fn map_path(maps: &Path, name: &str) -> std::path::PathBuf {
         .unwrap_or_else(|| maps.join(format!("{name}.png")))
 }
 
+/// Sees each pair as it is run: its index, its record, A (the reference map), B (the moved map), and the
+/// true transform of B's pixels to A's when known. How `--html` draws the pairs without holding them.
+pub type OnPair<'a> =
+    dyn FnMut(usize, &PairRecord, &OccupancyMap, &OccupancyMap, Option<Rigid>) -> Result<()> + 'a;
+
 /// Runs the merger on every pair and negative of `set`, maps read from `maps/<NAME>.png` (or `.pgm`,
 /// `.yaml`), each map prepared once.
 pub fn run(set: &PairSet, maps: &Path, options: &MergeOptions) -> Result<(Vec<PairRecord>, f64)> {
-    let mut prepared: HashMap<String, Prepared> = HashMap::new();
+    run_with(set, maps, options, &mut |_, _, _, _, _| Ok(()))
+}
+
+/// [`run`], showing each pair to `on_pair` as it is done.
+pub fn run_with(
+    set: &PairSet,
+    maps: &Path,
+    options: &MergeOptions,
+    on_pair: &mut OnPair,
+) -> Result<(Vec<PairRecord>, f64)> {
+    let mut prepared: HashMap<String, (OccupancyMap, Prepared)> = HashMap::new();
     let mut prep_ms = 0.0;
-    let mut get = |name: &str, prepared: &mut HashMap<String, Prepared>| -> Result<()> {
-        if !prepared.contains_key(name) {
-            let map = OccupancyMap::load(map_path(maps, name))?;
-            let t = Instant::now();
-            let p = match options.hypotheses.detector() {
-                Some(d) => Prepared::with_corners(&map, d)?,
-                None => Prepared::new(&map),
-            };
-            prepared.insert(name.to_string(), p);
-            prep_ms += t.elapsed().as_secs_f64() * 1e3;
-        }
-        Ok(())
-    };
+    let mut get =
+        |name: &str, prepared: &mut HashMap<String, (OccupancyMap, Prepared)>| -> Result<()> {
+            if !prepared.contains_key(name) {
+                let map = OccupancyMap::load(map_path(maps, name))?;
+                let t = Instant::now();
+                let p = match options.hypotheses.detector() {
+                    Some(d) => Prepared::with_corners(&map, d)?,
+                    None => Prepared::new(&map),
+                };
+                prepared.insert(name.to_string(), (map, p));
+                prep_ms += t.elapsed().as_secs_f64() * 1e3;
+            }
+            Ok(())
+        };
     let mut out = Vec::new();
     let jobs = set
         .pairs
@@ -86,7 +103,7 @@ pub fn run(set: &PairSet, maps: &Path, options: &MergeOptions) -> Result<(Vec<Pa
         get(&src, &mut prepared)?;
         get(&dst, &mut prepared)?;
         let t = Instant::now();
-        let alignment = align_prepared(&prepared[&dst], &prepared[&src], options)?;
+        let alignment = align_prepared(&prepared[&dst].1, &prepared[&src].1, options)?;
         let ms = t.elapsed().as_secs_f64() * 1e3;
         let accurate_candidates = match truth {
             Some(p) => alignment
@@ -103,7 +120,7 @@ pub fn run(set: &PairSet, maps: &Path, options: &MergeOptions) -> Result<(Vec<Pa
             }
             None => (false, 0.0, 0.0),
         };
-        out.push(PairRecord {
+        let record = PairRecord {
             building: truth.map_or("negative".to_string(), |p| p.building.clone()),
             negative: truth.is_none(),
             accepted: alignment.accepted,
@@ -115,7 +132,15 @@ pub fn run(set: &PairSet, maps: &Path, options: &MergeOptions) -> Result<(Vec<Pa
             alignment,
             ms,
             accurate_candidates,
-        });
+        };
+        on_pair(
+            out.len(),
+            &record,
+            &prepared[&record.dst].0,
+            &prepared[&record.src].0,
+            truth.map(TruePair::truth),
+        )?;
+        out.push(record);
     }
     let n = prepared.len().max(1) as f64;
     Ok((out, prep_ms / n))
@@ -129,6 +154,16 @@ pub fn run_synthetic(
     sources: &[(String, OccupancyMap)],
     run: &SyntheticRun,
     options: &MergeOptions,
+) -> Result<(Vec<PairRecord>, f64)> {
+    run_synthetic_with(sources, run, options, &mut |_, _, _, _, _| Ok(()))
+}
+
+/// [`run_synthetic`], showing each pair to `on_pair` as it is done.
+pub fn run_synthetic_with(
+    sources: &[(String, OccupancyMap)],
+    run: &SyntheticRun,
+    options: &MergeOptions,
+    on_pair: &mut OnPair,
 ) -> Result<(Vec<PairRecord>, f64)> {
     let SyntheticRun {
         overlaps,
@@ -185,7 +220,7 @@ pub fn run_synthetic(
                     .iter()
                     .map(|c| truth.accurate(&c.transform))
                     .collect();
-                out.push(PairRecord {
+                let record = PairRecord {
                     src: label.clone(),
                     dst: label,
                     building: group.clone(),
@@ -197,7 +232,9 @@ pub fn run_synthetic(
                     alignment,
                     ms,
                     accurate_candidates,
-                });
+                };
+                on_pair(out.len(), &record, &pair.a, &pair.b, Some(truth.truth()))?;
+                out.push(record);
                 if save.is_some() {
                     saved.push(truth);
                 }
@@ -218,7 +255,7 @@ pub fn run_synthetic(
                 let t = Instant::now();
                 let alignment = align_prepared(&pa, &pb, options)
                     .unwrap_or_else(|e| super::align::declined(&format!("refused: {e}")));
-                out.push(PairRecord {
+                let record = PairRecord {
                     src: format!("{nb}/{:.0}/b", 100.0 * overlap),
                     dst: format!("{na}/{:.0}/a", 100.0 * overlap),
                     building: "negative".to_string(),
@@ -230,7 +267,9 @@ pub fn run_synthetic(
                     alignment,
                     ms: t.elapsed().as_secs_f64() * 1e3,
                     accurate_candidates: Vec::new(),
-                });
+                };
+                on_pair(out.len(), &record, a, b, None)?;
+                out.push(record);
             }
         }
     }

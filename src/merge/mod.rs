@@ -24,6 +24,7 @@ pub mod mosaic;
 pub mod pair;
 pub mod pairs;
 mod prepare;
+pub mod report;
 mod score;
 pub mod synthetic;
 pub mod transform;

@@ -21,6 +21,7 @@
 pub mod eval;
 pub mod graph;
 mod merged;
+pub mod page;
 pub mod posegraph;
 pub mod report;
 

@@ -1,0 +1,301 @@
+//! Static HTML reports (`--html DIR` of `compare`, `eval`, `merge-eval` and `merge` of many maps): one
+//! self-contained page, `DIR/index.html`, with inline CSS and a little vanilla JavaScript (tables sorted by
+//! a click on a column), and PNG pictures beside it. No server, no network: it opens from `file://`.
+//!
+//! Pictures are written as they are made (each atomically, [`crate::files::write_png`]) so a report of
+//! hundreds of pairs holds one picture at a time; the page is written last, atomically, so a reader sees
+//! the previous page or the whole new one.
+
+mod html;
+
+use std::path::{Path, PathBuf};
+
+use image::RgbImage;
+
+use crate::error::Result;
+use crate::files;
+
+pub use html::escape;
+
+/// The page's file in a report folder.
+pub const INDEX: &str = "index.html";
+
+/// A report being written into a folder.
+pub struct Report {
+    dir: PathBuf,
+    title: String,
+    blocks: Vec<Block>,
+}
+
+/// One part of the page, in order.
+enum Block {
+    Heading(String),
+    Text(String),
+    Table(Table),
+    Figures(Vec<Figure>, u32),
+    Legend(Vec<(String, [u8; 3])>),
+}
+
+/// A picture on the page.
+pub struct Figure {
+    /// Its file, relative to the page.
+    pub src: String,
+    /// Caption lines under it (the first in bold).
+    pub caption: Vec<String>,
+    /// Anchor a table row links to.
+    pub id: Option<String>,
+    /// Size, pixels (the page reserves it before the picture loads).
+    pub size: (u32, u32),
+    /// A class for the frame: `bad` (red) or `good` (green).
+    pub class: Option<&'static str>,
+}
+
+/// A table, sortable by any column in the browser.
+pub struct Table {
+    id: String,
+    caption: String,
+    columns: Vec<(String, bool)>,
+    rows: Vec<Row>,
+}
+
+/// A table row.
+pub struct Row {
+    cells: Vec<Cell>,
+    class: Option<&'static str>,
+}
+
+/// A table cell: its text, and the key it sorts by when that is not the text (numbers shown rounded or
+/// with units, missing values).
+#[derive(Clone, Debug)]
+pub struct Cell {
+    text: String,
+    key: Option<String>,
+    class: Option<&'static str>,
+    link: Option<String>,
+}
+
+impl Cell {
+    /// Text, sorted as text.
+    pub fn text(s: impl Into<String>) -> Self {
+        Cell {
+            text: s.into(),
+            key: None,
+            class: None,
+            link: None,
+        }
+    }
+
+    /// An integer.
+    pub fn int(n: impl Into<i128>) -> Self {
+        Cell::text(n.into().to_string())
+    }
+
+    /// A number shown with `decimals` places, sorted by its full value.
+    pub fn num(v: f64, decimals: usize) -> Self {
+        Cell {
+            key: Some(format!("{v}")),
+            ..Cell::text(format!("{v:.decimals$}"))
+        }
+    }
+
+    /// A number or `-` (sorted last).
+    pub fn opt(v: Option<f64>, decimals: usize) -> Self {
+        match v {
+            Some(v) if v.is_finite() => Cell::num(v, decimals),
+            _ => Cell {
+                key: Some(String::new()),
+                ..Cell::text("-")
+            },
+        }
+    }
+
+    /// Shown as `text`, sorted by `key`.
+    pub fn keyed(text: impl Into<String>, key: f64) -> Self {
+        Cell {
+            key: Some(format!("{key}")),
+            ..Cell::text(text)
+        }
+    }
+
+    /// With a class: `bad` (red), `good` (green), `warn` (amber).
+    pub fn class(self, class: &'static str) -> Self {
+        Cell {
+            class: Some(class),
+            ..self
+        }
+    }
+
+    /// A link (an anchor on the page, `#id`, or a file beside it).
+    pub fn link(self, href: impl Into<String>) -> Self {
+        Cell {
+            link: Some(href.into()),
+            ..self
+        }
+    }
+}
+
+impl Table {
+    /// A table `id` (unique on the page) with a caption and columns `(label, numeric)`.
+    pub fn new(id: &str, caption: impl Into<String>, columns: &[(&str, bool)]) -> Self {
+        Table {
+            id: id.to_string(),
+            caption: caption.into(),
+            columns: columns.iter().map(|&(l, n)| (l.to_string(), n)).collect(),
+            rows: Vec::new(),
+        }
+    }
+
+    /// Adds a row (one cell a column).
+    pub fn row(&mut self, cells: Vec<Cell>) {
+        self.row_with(cells, None);
+    }
+
+    /// Adds a row highlighted with `class` (`bad`, `good`, `warn`).
+    pub fn row_with(&mut self, cells: Vec<Cell>, class: Option<&'static str>) {
+        debug_assert_eq!(cells.len(), self.columns.len(), "table {}", self.id);
+        self.rows.push(Row { cells, class });
+    }
+
+    /// Rows so far.
+    pub fn len(&self) -> usize {
+        self.rows.len()
+    }
+
+    /// Whether it has no rows.
+    pub fn is_empty(&self) -> bool {
+        self.rows.is_empty()
+    }
+}
+
+impl Report {
+    /// A report titled `title` written into `dir` (made when missing).
+    pub fn create(dir: &Path, title: impl Into<String>) -> Result<Self> {
+        files::create_dir(dir)?;
+        Ok(Report {
+            dir: dir.to_path_buf(),
+            title: title.into(),
+            blocks: Vec::new(),
+        })
+    }
+
+    /// The page's path.
+    pub fn index(&self) -> PathBuf {
+        self.dir.join(INDEX)
+    }
+
+    /// A section heading.
+    pub fn heading(&mut self, text: impl Into<String>) {
+        self.blocks.push(Block::Heading(text.into()));
+    }
+
+    /// A paragraph of text.
+    pub fn text(&mut self, text: impl Into<String>) {
+        self.blocks.push(Block::Text(text.into()));
+    }
+
+    /// A table.
+    pub fn table(&mut self, table: Table) {
+        self.blocks.push(Block::Table(table));
+    }
+
+    /// A legend of colour swatches.
+    pub fn legend(&mut self, entries: &[(&str, [u8; 3])]) {
+        self.blocks.push(Block::Legend(
+            entries.iter().map(|&(l, c)| (l.to_string(), c)).collect(),
+        ));
+    }
+
+    /// Writes `picture` as `name` (a plain file name, `.png`) beside the page now, and returns it as a
+    /// figure to place with [`Report::figures`].
+    pub fn picture(
+        &mut self,
+        name: &str,
+        picture: &RgbImage,
+        caption: Vec<String>,
+    ) -> Result<Figure> {
+        files::write_png(&self.dir.join(name), picture)?;
+        Ok(Figure {
+            src: name.to_string(),
+            caption,
+            id: None,
+            size: (picture.width(), picture.height()),
+            class: None,
+        })
+    }
+
+    /// A grid of figures, as many a row as fit at 360 pixels or more each.
+    pub fn figures(&mut self, figures: Vec<Figure>) {
+        self.figures_at(figures, 360);
+    }
+
+    /// A grid of figures, as many a row as fit at `min_width` pixels or more each (wide contact sheets).
+    pub fn figures_at(&mut self, figures: Vec<Figure>, min_width: u32) {
+        if !figures.is_empty() {
+            self.blocks.push(Block::Figures(figures, min_width));
+        }
+    }
+
+    /// Writes the page (atomically) and returns its path.
+    pub fn finish(self) -> Result<PathBuf> {
+        let path = self.index();
+        let page = html::page(&self.title, &self.blocks);
+        files::write_atomic(&path, |out| out.write_all(page.as_bytes()))?;
+        Ok(path)
+    }
+}
+
+/// A picture's file name for a label: letters, digits, `-` and `_` kept, anything else `_`, with `n` (an
+/// index unique in the report) in front so that labels that differ only in dropped characters stay apart.
+pub fn file_name(n: usize, label: &str, suffix: &str) -> String {
+    let clean: String = label
+        .chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '-' || c == '_' {
+                c
+            } else {
+                '_'
+            }
+        })
+        .take(60)
+        .collect();
+    format!("{n:03}-{clean}{suffix}.png")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_page_holds_tables_figures_and_escaped_text() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut r = Report::create(dir.path(), "a <report> & more").unwrap();
+        let mut t = Table::new("t", "caption", &[("name", false), ("value", true)]);
+        t.row(vec![Cell::text("<b>"), Cell::num(1.26, 1)]);
+        t.row_with(vec![Cell::text("x"), Cell::opt(None, 1)], Some("bad"));
+        assert_eq!(t.len(), 2);
+        r.table(t);
+        let pic = RgbImage::from_pixel(3, 2, image::Rgb([1, 2, 3]));
+        let f = r.picture("p.png", &pic, vec!["first".into()]).unwrap();
+        assert_eq!(f.size, (3, 2));
+        r.figures(vec![f]);
+        r.legend(&[("walls", [0, 0, 0])]);
+        let path = r.finish().unwrap();
+        let page = std::fs::read_to_string(&path).unwrap();
+        assert!(page.contains("<h1>a &lt;report&gt; &amp; more</h1>"));
+        assert!(page.contains(r#"<table class="report" id="t" data-rows="2">"#));
+        assert!(page.contains(r#"<td data-key="1.26">1.3</td>"#));
+        assert!(page.contains(r#"<tr class="bad"><td class="t">x</td><td data-key="">-</td></tr>"#));
+        assert!(page.contains("&lt;b&gt;"));
+        assert!(page.contains(r#"<img src="p.png""#));
+        assert!(page.contains("rgb(0,0,0)"));
+        // No network: nothing is fetched from anywhere but the folder.
+        assert!(!page.contains("http://") && !page.contains("https://"));
+        assert!(dir.path().join("p.png").is_file());
+    }
+
+    #[test]
+    fn file_names_are_plain_and_unique() {
+        assert_eq!(file_name(7, "a b/c.yaml", "-x"), "007-a_b_c_yaml-x.png");
+        assert_ne!(file_name(1, "a/b", ""), file_name(2, "a/b", ""));
+    }
+}
