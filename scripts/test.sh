@@ -53,7 +53,15 @@ python_env() {
 
 # Headless Chromium and its WebDriver, for the HTML report tests (tests/browser): installed when missing. A
 # machine where they cannot be installed skips those tests loudly (and fails under CI=true).
-if ! command -v chromium >/dev/null 2>&1 || ! command -v chromedriver >/dev/null 2>&1; then
+have_browser() {
+    command -v chromedriver >/dev/null 2>&1 || [ -n "${CHROMEDRIVER_BIN:-}" ] || return 1
+    [ -n "${CHROMIUM_BIN:-}" ] && return 0
+    for b in chromium chromium-browser google-chrome google-chrome-stable; do
+        command -v "$b" >/dev/null 2>&1 && return 0
+    done
+    return 1
+}
+if ! have_browser; then
     echo "scripts/test.sh: installing chromium and chromium-driver (the HTML report tests)" >&2
     sudo=""
     if [ "$(id -u)" != 0 ]; then sudo="sudo"; fi

@@ -210,17 +210,22 @@ pub fn labelled_sheet(
         let mut panel = canvas.clone().render_fit(&shifted, PANEL, ph);
         let radius = ((3.0 * f + 3.0).round() as i64).clamp(6, 27);
         for &(mx, my) in marks {
-            // The mark's cell in the panel's canvas, and its centre in doubled panel coordinates.
-            let (cx, cy) = (
-                (mx - f64::from(x0)) / f64::from(d),
-                (my - f64::from(y0)) / f64::from(d),
+            // The marked pixel's centre in doubled panel coordinates: the crop's pixel (mx - x0) spans
+            // [mx - x0, mx - x0 + 1), a canvas cell d of them, a cell the panel's pixels over its cells.
+            let (zx, zy) = (
+                f64::from(panel.width()) / f64::from(cw.div_ceil(d)),
+                f64::from(panel.height()) / f64::from(ch.div_ceil(d)),
             );
-            if cx < -0.5 || cy < -0.5 {
+            let (px2, py2) = (
+                2.0 * (mx - f64::from(x0)) + 1.0,
+                2.0 * (my - f64::from(y0)) + 1.0,
+            );
+            if px2 < 0.0 || py2 < 0.0 {
                 continue;
             }
             let (cx2, cy2) = (
-                ((2.0 * cx + 1.0) * f).round() as i64,
-                ((2.0 * cy + 1.0) * f).round() as i64,
+                (px2 / f64::from(d) * zx).round() as i64,
+                (py2 / f64::from(d) * zy).round() as i64,
             );
             crate::overlay::ring(&mut panel, cx2, cy2, radius, MARK_COLOUR);
         }
@@ -293,7 +298,7 @@ pub fn html_table(rows: &[CompareRecord]) -> crate::report::Table {
         "Keypoints and median times (ms) per map and detector; the same keypoints on every backend (checked)",
         &[
             ("map", false),
-            ("size (Mpx)", true),
+            ("size", true),
             ("detector", false),
             ("keypoints", true),
             ("CPU end-to-end", true),
@@ -304,6 +309,7 @@ pub fn html_table(rows: &[CompareRecord]) -> crate::report::Table {
         ],
     );
     for r in rows {
+        // Sorted by pixels.
         let mpx = f64::from(r.width) * f64::from(r.height) / 1e6;
         t.row(vec![
             Cell::text(&r.map).link(format!("#{}", sheet_anchor(&r.map))),

@@ -129,38 +129,45 @@ impl OverlayCanvas {
         self.render_scaled(keypoints, f)
     }
 
-    /// The picture enlarged by `f` (>= 1, any real zoom): output pixel (x, y) shows cell
-    /// (floor(x / f), floor(y / f)); marks as [`OverlayCanvas::render_at`] draws them, the ring's radius
-    /// growing with the zoom up to 18 pixels.
+    /// The picture enlarged by `f` (>= 1, any real zoom) to round(cells x `f`) pixels a side: output pixel
+    /// (x, y) shows cell (x * cells / pixels, y * ...), in integers, so every cell, the last included, gets
+    /// its pixels; marks as [`OverlayCanvas::render_at`] draws them, filling exactly their cell's pixels,
+    /// the ring's radius growing with the zoom up to 18 pixels.
     fn render_scaled(&mut self, keypoints: &[Keypoint], f: f64) -> RgbImage {
         self.mark(keypoints);
         let (f, d) = (f.max(1.0), self.d);
         let (cw, ch) = (self.width.div_ceil(d), self.height.div_ceil(d));
         let (w, h) = (scaled(cw, f), scaled(ch, f));
-        let cell = |p: u32, n: u32| ((f64::from(p) / f) as u32).min(n - 1);
-        let xs: Vec<u32> = (0..w).map(|x| cell(x, cw)).collect();
+        // Pixel p of `out` shows cell p * n / out; cell c starts at pixel ceil(c * out / n).
+        let cell = |p: u32, n: u32, out: u32| (u64::from(p) * u64::from(n) / u64::from(out)) as u32;
+        let start = |c: u32, n: u32, out: u32| {
+            (u64::from(c) * u64::from(out))
+                .div_ceil(u64::from(n))
+                .min(u64::from(out)) as u32
+        };
+        let xs: Vec<u32> = (0..w).map(|x| cell(x, cw, w)).collect();
         let mut img = RgbImage::new(w, h);
         for y in 0..h {
-            let row = &self.grey[(cell(y, ch) * cw) as usize..][..cw as usize];
+            let row = &self.grey[(cell(y, ch, h) * cw) as usize..][..cw as usize];
             for (x, &cx) in xs.iter().enumerate() {
                 let v = row[cx as usize];
                 img.put_pixel(x as u32, y, Rgb([v, v, v]));
             }
         }
         let radius = ((2.0 * f + 2.0).round() as i64).min(18);
-        let edge = |c: u32, n: u32| ((f64::from(c) * f) as u32).min(n);
         for &(ky, kx, rule) in &self.marks {
+            if kx >= cw || ky >= ch {
+                continue;
+            }
             let colour = rule_colour(rule);
-            let (x0, y0) = (edge(kx, w), edge(ky, h));
-            let (x1, y1) = (edge(kx + 1, w).max(x0 + 1), edge(ky + 1, h).max(y0 + 1));
-            for y in y0..y1.min(h) {
-                for x in x0..x1.min(w) {
+            for y in start(ky, ch, h)..start(ky + 1, ch, h) {
+                for x in start(kx, cw, w)..start(kx + 1, cw, w) {
                     img.put_pixel(x, y, colour);
                 }
             }
             // Centre of the enlarged cell, in doubled coordinates so that even zooms stay symmetric.
-            let cx2 = ((2.0 * f64::from(kx) + 1.0) * f).round() as i64;
-            let cy2 = ((2.0 * f64::from(ky) + 1.0) * f).round() as i64;
+            let cx2 = (f64::from(2 * kx + 1) * f64::from(w) / f64::from(cw)).round() as i64;
+            let cy2 = (f64::from(2 * ky + 1) * f64::from(h) / f64::from(ch)).round() as i64;
             ring(&mut img, cx2, cy2, radius, colour);
         }
         img
@@ -172,9 +179,9 @@ impl OverlayCanvas {
     }
 }
 
-/// Pixels of `n` cells at zoom `f`.
+/// Pixels of `n` cells at zoom `f` (at least one a cell; none for no cells).
 fn scaled(n: u32, f: f64) -> u32 {
-    ((f64::from(n) * f).round() as u32).max(1)
+    ((f64::from(n) * f).round() as u32).max(n.min(1))
 }
 
 /// The largest zoom (>= 1) at which `w` x `h` fits `max_w` x `max_h`.
@@ -237,4 +244,71 @@ pub fn overlay_bytes(width: u32, height: u32) -> u64 {
 /// Renders and writes the overlay as a PNG, atomically ([`crate::files::write_atomic`]).
 pub fn write_overlay(path: &Path, map: &MapImage, keypoints: &[Keypoint]) -> Result<()> {
     crate::files::write_png(path, &render_overlay(map, keypoints))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A map of `w` x `h` free pixels with a wall on its last row and last column.
+    fn walled(w: u32, h: u32) -> MapImage {
+        let mut m = MapImage::filled(w, h, 254).unwrap();
+        let px = m.pixels_mut();
+        for x in 0..w as usize {
+            px[(h as usize - 1) * w as usize + x] = 0;
+        }
+        for y in 0..h as usize {
+            px[y * w as usize + w as usize - 1] = 0;
+        }
+        m
+    }
+
+    #[test]
+    fn a_fitted_overlay_fills_its_box_and_keeps_the_last_row_and_column() {
+        // 533x200 into 300x300: shrunk by 2 to 267x100 cells, enlarged by 300/267 (not an integer). Where
+        // pixels are taken as floor(x / zoom), rows 198-199 of the map never reach the picture.
+        for (w, h, bw, bh) in [(533, 200, 300, 300), (100, 37, 560, 400), (7, 5, 300, 300)] {
+            let pic = render_overlay_fit(&walled(w, h), &[], bw, bh);
+            let (pw, ph) = pic.dimensions();
+            assert!(pw <= bw && ph <= bh, "{w}x{h}: {pw}x{ph} over {bw}x{bh}");
+            assert!(
+                pw >= bw - 1 || ph >= bh - 1,
+                "{w}x{h}: {pw}x{ph} does not fill {bw}x{bh}"
+            );
+            assert!(
+                (0..pw).all(|x| pic.get_pixel(x, ph - 1).0 == [0, 0, 0]),
+                "{w}x{h}: last row"
+            );
+            assert!(
+                (0..ph).all(|y| pic.get_pixel(pw - 1, y).0 == [0, 0, 0]),
+                "{w}x{h}: last column"
+            );
+        }
+    }
+
+    #[test]
+    fn a_mark_fills_exactly_its_cells_pixels_at_any_zoom() {
+        let map = MapImage::filled(10, 4, 254).unwrap();
+        let k = Keypoint {
+            rule: 5,
+            ..Keypoint::scored(1, 2, 0)
+        };
+        let mut canvas = OverlayCanvas::with_shrink(10, 4, 1);
+        canvas.add_rows(Rows::of(&map), (0, 4));
+        // Zoom 2.5: cell column 1 is pixels 3..5 (x * 10 / 25 == 1), cell row 2 is pixels 5..8
+        // (y * 4 / 10 == 2).
+        let pic = canvas.clone().render_fit(&[k], 25, 100);
+        assert_eq!(pic.dimensions(), (25, 10));
+        let red = rule_colour(5);
+        for y in 4..9 {
+            for x in 2..6 {
+                let inside = (3..5).contains(&x) && (5..8).contains(&y);
+                // The ring (radius 7) lies well outside the cell's block and the pixels around it.
+                assert_eq!(*pic.get_pixel(x, y) == red, inside, "({x}, {y})");
+            }
+        }
+        // At whole zooms the picture is what render_at draws.
+        let whole = canvas.clone().render_fit(&[k], 30, 12);
+        assert_eq!(whole, canvas.render_at(&[k], 3));
+    }
 }

@@ -377,8 +377,20 @@ mod tests {
         assert!(red
             .iter()
             .all(|&(x, y)| (30..40).contains(&x) && (10..20).contains(&y)));
-        // 7x3 into 20x20: zoom 20/7, not an integer; the picture spans the box's width exactly.
-        assert_eq!(fit_image(&small, 20, 20, |_| 0).width(), 20);
+        // 7x3 into 20x20: zoom 20/7, not an integer; the picture spans the box's width exactly and every
+        // source pixel gets its share, the last included: pixel x shows column x * 7 / 20, so column 6 is
+        // x = 18, 19 and row 2 is y = 6, 7, 8 (of 9).
+        let mut odd = RgbImage::from_pixel(7, 3, Rgb([255, 255, 255]));
+        odd.put_pixel(6, 2, Rgb([0, 0, 255]));
+        let fitted = fit_image(&odd, 20, 20, |_| 0);
+        assert_eq!(fitted.dimensions(), (20, 9));
+        let blue: Vec<(u32, u32)> = fitted
+            .enumerate_pixels()
+            .filter(|p| p.2 .0 == [0, 0, 255])
+            .map(|p| (p.0, p.1))
+            .collect();
+        assert_eq!(blue.len(), 6, "{blue:?}");
+        assert!(blue.iter().all(|&(x, y)| x >= 18 && y >= 6));
         // Shrunk 10x: a one-pixel line survives when it ranks high, is lost when it does not.
         let mut wide = RgbImage::from_pixel(1000, 50, Rgb([255, 255, 255]));
         for x in 0..1000 {

@@ -1101,8 +1101,8 @@ fn html_reports_hold_their_tables_and_pictures() {
     let n = rows.as_array().unwrap().len();
     let page = fs::read_to_string(html.join("index.html")).unwrap();
     assert_eq!(report_rows(&page, "recall"), (n, n));
-    assert!(html.join("office-marked.png").is_file());
-    assert!(page.contains("<img src=\"office-marked.png\""));
+    assert!(html.join("000-office-marked.png").is_file());
+    assert!(page.contains("<img src=\"000-office-marked.png\""));
     // A folder that is a file: a one-line error, exit 2.
     let o = run(&[
         "merge-eval",

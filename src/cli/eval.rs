@@ -5,17 +5,19 @@ use std::path::PathBuf;
 use clap::Args;
 
 use ogm_corners::backend::reference_working_bytes;
+use ogm_corners::eval::report::{self, EvalPage};
 use ogm_corners::eval::{self, MAX_TRIALS};
 use ogm_corners::files;
 use ogm_corners::map::output_names;
 use ogm_corners::memory::Budget;
-use ogm_corners::report::{self, Report};
 use ogm_corners::{DetectOptions, Error, OccupancyMap, Result};
 
 use super::{detector_on, write_stdout, BackendArg, TableFormat, ALL_DETECTORS};
 
-/// The suffix of a map's contact sheet in an `--html` folder.
-const SHEET_SUFFIX: &str = "-keypoints";
+/// A map's file stem: its name in an annotation file.
+fn stem(p: &std::path::Path) -> &str {
+    p.file_stem().and_then(|s| s.to_str()).unwrap_or("")
+}
 
 #[derive(Args, Debug)]
 pub(super) struct EvalArgs {
@@ -78,37 +80,31 @@ pub(super) fn run(a: EvalArgs, budget: &Budget) -> Result<()> {
             })
             .max()
             .unwrap_or(0);
+        let sheet = if a.html.is_some() {
+            ogm_corners::compare::SHEET_BYTES
+        } else {
+            0
+        };
         eval::evaluate_bytes(w, h)
             .saturating_add(worst)
-            .saturating_add(ogm_corners::compare::SHEET_BYTES)
+            .saturating_add(sheet)
     };
     let (maps, mut inputs) = super::map_inputs(&a.maps, budget, &extra)?;
     // Maps are named by their first distinctive path component, made unique.
     let names = output_names(&maps);
+    // The annotated maps are named by their file stems, as the annotation file names them.
+    let stems: Vec<String> = maps.iter().map(|p| stem(p).to_string()).collect();
     if let Some(dir) = &a.html {
-        inputs.claim_output(&dir.join(report::INDEX), "--html")?;
-        let files: Vec<String> = if a.annotations.is_some() {
-            maps.iter()
-                .map(|p| {
-                    let stem = p.file_stem().and_then(|s| s.to_str()).unwrap_or("");
-                    eval::annotations::marked_sheet_file(stem)
-                })
-                .collect()
-        } else {
-            let sheets = names.iter().enumerate();
-            sheets
-                .map(|(i, n)| report::file_name(i, n, SHEET_SUFFIX))
-                .chain(eval::PLOT_FILES.iter().map(|f| f.to_string()))
-                .collect()
-        };
-        for file in files {
+        inputs.claim_output(&dir.join(ogm_corners::report::INDEX), "--html")?;
+        let marked = a.annotations.is_some();
+        let named = if marked { &stems } else { &names };
+        for file in report::picture_files(named, marked) {
             inputs.claim_output(&dir.join(file), "--html")?;
         }
     }
     if let Some(dir) = &a.plot {
         if a.annotations.is_some() {
-            for p in &maps {
-                let name = p.file_stem().and_then(|s| s.to_str()).unwrap_or("");
+            for name in &stems {
                 let file = eval::annotations::marked_sheet_file(name);
                 inputs.claim_output(&dir.join(file), "--plot")?;
             }
@@ -124,15 +120,11 @@ pub(super) fn run(a: EvalArgs, budget: &Budget) -> Result<()> {
         ..DetectOptions::default()
     };
     let mut detector = detector_on(a.backend, base)?;
-    let mut page = match &a.html {
-        Some(dir) => Some(Report::create(dir, "ogm-corners eval")?),
-        None => None,
-    };
+    let mut page = a.html.as_deref().map(EvalPage::create).transpose()?;
     if let Some(file) = &a.annotations {
         return annotated(&a, file, &maps, &mut detector, &base, budget, page);
     }
     let mut rows = Vec::new();
-    let mut figures = Vec::new();
     // One map in memory at a time.
     for (i, (p, name)) in maps.iter().zip(&names).enumerate() {
         let map = OccupancyMap::load_within(p, budget, &extra)?;
@@ -157,33 +149,18 @@ pub(super) fn run(a: EvalArgs, budget: &Budget) -> Result<()> {
                 found.push((kind, detector.detect(&map)?.keypoints));
             }
             let sheet = ogm_corners::compare::contact_sheet(name, &map, &found);
-            let file = report::file_name(i, name, SHEET_SUFFIX);
-            figures.push(page.picture(
-                &file,
-                &sheet,
-                vec![name.clone(), p.display().to_string()],
-            )?);
+            page.add_map(i, name, p, &sheet, false)?;
         }
     }
-    if let Some(mut page) = page {
-        page.text(format!(
-            "{} maps; {} trials per random condition (seed {}), match tolerance {} px. Click a column to sort.",
+    if let Some(page) = page {
+        let about = format!(
+            "{} maps; {} trials per random condition (seed {}), match tolerance {} px.",
             maps.len(),
             a.trials,
             a.seed,
             a.tolerance
-        ));
-        page.table(eval::html_table(&rows));
-        page.heading("Repeatability against noise and rotation, averaged over the maps");
-        let plots = eval::repeatability_plots(&rows)
-            .into_iter()
-            .map(|(file, picture)| page.picture(file, &picture, vec![file.to_string()]))
-            .collect::<Result<Vec<_>>>()?;
-        page.figures_at(plots, 600);
-        page.heading("Each detector's keypoints on each map");
-        page.legend(&ogm_corners::compare::rule_legend_rgb());
-        page.figures_at(figures, 900);
-        let index = page.finish()?;
+        );
+        let index = page.finish_repeatability(&rows, &about)?;
         ogm_corners::say!("ogm-corners: wrote {}", index.display());
     }
     if let Some(dir) = &a.plot {
@@ -205,14 +182,13 @@ fn annotated(
     detector: &mut ogm_corners::Detector,
     base: &DetectOptions,
     budget: &Budget,
-    mut page: Option<Report>,
+    mut page: Option<EvalPage>,
 ) -> Result<()> {
     use ogm_corners::eval::annotations::{pooled, recall, write_table, Annotations};
     let marks = Annotations::load(file)?;
     let mut rows = Vec::new();
-    let mut figures = Vec::new();
-    for p in maps {
-        let name = p.file_stem().and_then(|s| s.to_str()).unwrap_or("");
+    for (i, p) in maps.iter().enumerate() {
+        let name = stem(p);
         let Some(points) = marks.points(name) else {
             ogm_corners::say!(
                 "ogm-corners: note: {}: no marked points for `{name}` in {}",
@@ -277,12 +253,7 @@ fn annotated(
             ogm_corners::say!("ogm-corners: wrote {}", path.display());
         }
         if let Some(page) = &mut page {
-            let file = ogm_corners::eval::annotations::marked_sheet_file(name);
-            figures.push(page.picture(
-                &file,
-                &sheet,
-                vec![name.to_string(), p.display().to_string()],
-            )?);
+            page.add_map(i, name, p, &sheet, true)?;
         }
     }
     if rows.is_empty() {
@@ -296,16 +267,8 @@ fn annotated(
     }
     let total = pooled(&rows);
     rows.extend(total);
-    if let Some(mut page) = page {
-        page.text(format!(
-            "Marked points from {}; rows per map, then pooled over the maps (green). Click a column to sort.",
-            file.display()
-        ));
-        page.table(ogm_corners::eval::annotations::html_table(&rows));
-        page.heading("The marked points (green rings) against the paper's and the robust detector's keypoints");
-        page.legend(&ogm_corners::compare::rule_legend_rgb());
-        page.figures_at(figures, 900);
-        let index = page.finish()?;
+    if let Some(page) = page {
+        let index = page.finish_recall(&rows, file)?;
         ogm_corners::say!("ogm-corners: wrote {}", index.display());
     }
     write_stdout(|out| write_table(out, a.format.into(), &rows))

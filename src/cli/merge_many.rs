@@ -8,7 +8,7 @@ use ogm_corners::files;
 use ogm_corners::map::{save_names, yaml_text};
 use ogm_corners::memory::Budget;
 use ogm_corners::merge::align::prepared_bytes;
-use ogm_corners::merge::global::{merge_maps, report, GlobalOptions};
+use ogm_corners::merge::global::{merge_maps, page, report, GlobalOptions};
 use ogm_corners::{Error, OccupancyMap, Result};
 
 use super::merge::MergeArgs;
@@ -70,6 +70,9 @@ pub(super) fn run(a: MergeArgs, budget: &Budget) -> Result<()> {
     }
     if let Some(dir) = &a.html {
         inputs.claim_output(&dir.join(ogm_corners::report::INDEX), "--html")?;
+        for file in page::picture_files(paths.len()) {
+            inputs.claim_output(&dir.join(file), "--html")?;
+        }
     }
     // A missing output folder is found now, not after the work.
     for p in [&yaml_out, &pgm_out, &a.overlay, &a.poses, &a.init_poses]
@@ -81,6 +84,7 @@ pub(super) fn run(a: MergeArgs, budget: &Budget) -> Result<()> {
             return Err(Error::input(p, "its folder does not exist"));
         }
     }
+    let html = a.html.as_deref().map(page::create).transpose()?;
     let names: Vec<String> = paths.iter().map(|p| p.display().to_string()).collect();
     let maps = paths
         .iter()
@@ -145,8 +149,8 @@ pub(super) fn run(a: MergeArgs, budget: &Budget) -> Result<()> {
         staged.write(p, |out| out.write_all(text.as_bytes()))?;
     }
     staged.commit()?;
-    if let Some(dir) = &a.html {
-        let index = ogm_corners::merge::global::page::write(dir, &many)?;
+    if let Some(html) = html {
+        let index = page::write(html, &many)?;
         ogm_corners::say!("ogm-corners: wrote {}", index.display());
     }
     write_stdout(|out| match a.format {

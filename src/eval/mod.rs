@@ -5,6 +5,7 @@
 //! divided by the smaller of the two counts in that region.
 
 pub mod annotations;
+pub mod report;
 
 use std::io::{self, Write};
 

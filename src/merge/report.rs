@@ -73,9 +73,9 @@ pub fn anchor(i: usize) -> String {
     format!("pair-{i}")
 }
 
-/// The table (`id="pairs"`), rows in [`page_order`], each linked to its picture. `pictures` says
-/// whether the pictures are on the page.
-pub fn html_table(rows: &[PairRecord], pictures: bool) -> Table {
+/// The table (`id="pairs"`), rows in [`page_order`], each pair that `drawn` says has a picture on the
+/// page linked to it.
+pub fn html_table(rows: &[PairRecord], drawn: &dyn Fn(usize) -> bool) -> Table {
     let mut t = Table::new(
         "pairs",
         "Every pair: B (moved) onto A (reference). Score: the acceptance rule's value minus its threshold. \
@@ -111,7 +111,7 @@ pub fn html_table(rows: &[PairRecord], pictures: bool) -> Table {
             (Some(_), false) => "no",
         };
         let mut number = Cell::int(i as i128);
-        if pictures {
+        if drawn(i) {
             number = number.link(format!("#{}", anchor(i)));
         }
         t.row_with(
@@ -121,7 +121,7 @@ pub fn html_table(rows: &[PairRecord], pictures: bool) -> Table {
                 Cell::text(&r.src),
                 Cell::text(&r.building),
                 Cell::keyed(outcome.label(), outcome as u8 as f64),
-                Cell::num(r.alignment.score, 3),
+                Cell::opt(Some(r.alignment.score), 3),
                 Cell::num(100.0 * r.alignment.features.inside, 1),
                 truth(r.rot_err_deg),
                 truth(r.rms_px),
@@ -152,8 +152,8 @@ pub fn overlay_rank(p: image::Rgb<u8>) -> u8 {
 /// knows and fitted into [`PAIR_PICTURE`] pixels a side (enlarged by nearest neighbour, or shrunk keeping
 /// walls and conflicts).
 pub fn pair_picture(a: &OccupancyMap, b: &OccupancyMap, t: &Rigid) -> Result<RgbImage> {
-    let full = overlay(a, b, t)?;
-    let full = crate::plot::crop_to_content(&full, super::compose::OVERLAY_UNKNOWN, 4);
+    // The full-size overlay dropped as soon as it is cut.
+    let full = crate::plot::crop_to_content(&overlay(a, b, t)?, super::compose::OVERLAY_UNKNOWN, 4);
     Ok(crate::plot::fit_image(
         &full,
         PAIR_PICTURE,
@@ -205,6 +205,8 @@ pub fn legend() -> Vec<(&'static str, [u8; 3])> {
 pub struct PairsPage {
     report: Report,
     figures: Vec<(usize, Vec<Figure>)>,
+    /// Pairs whose picture could not be drawn (a canvas over the overlay's size limit), and why.
+    missing: Vec<(usize, String)>,
 }
 
 impl PairsPage {
@@ -213,11 +215,14 @@ impl PairsPage {
         Ok(PairsPage {
             report: Report::create(dir, "ogm-corners merge-eval")?,
             figures: Vec::new(),
+            missing: Vec::new(),
         })
     }
 
     /// Draws pair `i` (A the reference map, B the moved one): the overlay at the estimate, and, when the
-    /// estimate is not the truth, the overlay at the truth beside it.
+    /// estimate is not the truth, the overlay at the truth beside it. A pair whose overlay cannot be drawn
+    /// (its canvas over [`overlay`]'s size limit: a far-off estimate) is listed without a picture; the run
+    /// goes on. Only a failure to write a picture is an error.
     pub fn add(
         &mut self,
         i: usize,
@@ -227,14 +232,24 @@ impl PairsPage {
         truth: Option<Rigid>,
     ) -> Result<()> {
         let outcome = Outcome::of(r);
-        let picture = pair_picture(a, b, &r.alignment.transform)?;
+        let picture = match pair_picture(a, b, &r.alignment.transform) {
+            Ok(p) => p,
+            Err(e) => {
+                self.missing.push((i, e.to_string()));
+                return Ok(());
+            }
+        };
         let name = crate::report::file_name(i, "pair", "");
         let mut figure = self.report.picture(&name, &picture, caption(i, r))?;
         figure.id = Some(anchor(i));
         figure.class = Some(outcome.class()).filter(|c| *c != "warn");
         let mut figures = vec![figure];
-        if let Some(t) = truth.filter(|_| !r.accurate) {
-            let picture = pair_picture(a, b, &t)?;
+        // The truth's overlay is drawn when it can be (see above).
+        if let Some(picture) = truth
+            .filter(|_| !r.accurate)
+            .and_then(|t| pair_picture(a, b, &t).ok().map(|p| (t, p)))
+        {
+            let (t, picture) = picture;
             let name = crate::report::file_name(i, "pair", "-truth");
             let lines = vec![
                 format!("#{i} at the true pose"),
@@ -252,7 +267,10 @@ impl PairsPage {
         let count = |o: Outcome| rows.iter().filter(|r| Outcome::of(r) == o).count();
         let positives = rows.iter().filter(|r| !r.negative).count();
         self.report.text(format!(
-            "{} pairs ({} of one place, {} of different places): {} merged, {} wrong accepts, {} declined              with the right pose among the candidates, {} declined otherwise, {} different places              declined. Maps prepared in {:.0} ms on average. Click a column to sort; a pair's number leads              to its picture.",
+            "{} pairs ({} of one place, {} of different places): {} merged, {} wrong accepts, {} declined \
+             with a right pose among the candidates, {} declined otherwise, {} different places declined. \
+             Maps prepared in {:.0} ms on average. Click a column to sort; a pair's number leads to its \
+             picture (a pair whose picture could not be drawn has none: {}).",
             rows.len(),
             positives,
             rows.len() - positives,
@@ -261,9 +279,23 @@ impl PairsPage {
             count(Outcome::DeclinedFound),
             count(Outcome::Declined),
             count(Outcome::NegativeDeclined),
-            prep_ms
+            prep_ms,
+            self.missing.len()
         ));
-        self.report.table(html_table(rows, true));
+        let drawn: std::collections::HashSet<usize> =
+            self.figures.iter().map(|(i, _)| *i).collect();
+        self.report.table(html_table(rows, &|i| drawn.contains(&i)));
+        if !self.missing.is_empty() {
+            let mut t = Table::new(
+                "undrawn",
+                "Pairs without a picture, and why",
+                &[("#", true), ("why", false)],
+            );
+            for (i, why) in &self.missing {
+                t.row(vec![Cell::int(*i as i128), Cell::text(why)]);
+            }
+            self.report.table(t);
+        }
         self.report.heading(
             "The pairs, wrong accepts and missed pairs first: A and B overlaid at the estimate",
         );
@@ -327,8 +359,42 @@ mod tests {
             ]
         );
         assert_eq!(page_order(&rows), [3, 5, 4, 2, 0, 1]);
-        let t = html_table(&rows, true);
+        let t = html_table(&rows, &|_| true);
         assert_eq!(t.len(), rows.len());
+    }
+
+    #[test]
+    fn a_shrunk_overlay_keeps_conflicts_then_walls_then_free_space() {
+        let rank = |i: usize| overlay_rank(image::Rgb(OVERLAY_COLOURS[i].1));
+        // Conflict > walls of both > A only > B only > free in both > free in one > unknown.
+        let order = [5, 2, 0, 1, 3, 4];
+        assert!(order.windows(2).all(|w| rank(w[0]) > rank(w[1])));
+        assert!(rank(4) > overlay_rank(super::super::compose::OVERLAY_UNKNOWN));
+    }
+
+    #[test]
+    fn a_pair_that_cannot_be_drawn_is_listed_without_a_picture() {
+        use crate::map::MapImage;
+        use crate::states::FREE;
+        // Two long corridors crossed at 90 degrees: the canvas would be far over the overlay's limit.
+        let corridor = OccupancyMap::from_image(MapImage::filled(4000, 4, FREE).unwrap());
+        let turned = Rigid {
+            theta_deg: 90.0,
+            tx: 2000.0,
+            ty: -2000.0,
+        };
+        assert!(pair_picture(&corridor, &corridor, &turned).is_err());
+        let dir = tempfile::tempdir().unwrap();
+        let mut page = PairsPage::create(dir.path()).unwrap();
+        let mut r = record(false, false, false, &[false]);
+        r.alignment.transform = turned;
+        page.add(0, &r, &corridor, &corridor, Some(Rigid::IDENTITY))
+            .unwrap();
+        let index = page.finish(&[r], 1.0).unwrap();
+        let html = std::fs::read_to_string(index).unwrap();
+        assert!(!html.contains("href=\"#pair-0\""), "a link to no picture");
+        assert!(html.contains("id=\"undrawn\" data-rows=\"1\""));
+        assert!(!html.contains("<img"));
     }
 
     #[test]

@@ -39,6 +39,7 @@ tr.good td, td.good { background: #d9f2d9; }
 figure { margin: 0; padding: 6px; border: 2px solid #ddd; background: #fafafa; }
 figure.bad { border-color: #d33; }
 figure.good { border-color: #3a3; }
+figure.warn { border-color: #d90; }
 figure img { width: 100%; height: auto; image-rendering: pixelated; display: block; }
 figcaption { font-size: 12px; margin-top: 4px; }
 figcaption b { font-size: 13px; }
@@ -48,7 +49,7 @@ figcaption b { font-size: 13px; }
 "#;
 
 /// Sorts a table by the clicked column: numbers by `data-key` (or the text), missing values last, ties in
-/// the original order; a second click reverses.
+/// their current order; a second click reverses.
 const SCRIPT: &str = r#"
 document.querySelectorAll("table.report th").forEach(function (th) {
   th.addEventListener("click", function () {
@@ -156,13 +157,16 @@ fn write_table(s: &mut String, t: &Table) {
 
 fn write_cell(s: &mut String, c: &Cell, numeric: bool) {
     s.push_str("<td");
-    let class = match (c.class, numeric) {
-        (Some(c), _) => Some(c),
-        (None, false) => Some("t"),
-        (None, true) => None,
-    };
-    if let Some(class) = class {
-        let _ = write!(s, " class=\"{class}\"");
+    // Text columns are left-aligned (`t`), whatever other class a cell has.
+    match (c.class, numeric) {
+        (Some(c), true) => {
+            let _ = write!(s, " class=\"{c}\"");
+        }
+        (Some(c), false) => {
+            let _ = write!(s, " class=\"t {c}\"");
+        }
+        (None, false) => s.push_str(" class=\"t\""),
+        (None, true) => {}
     }
     if let Some(k) = &c.key {
         let _ = write!(s, " data-key=\"{}\"", escape(k));

@@ -46,7 +46,7 @@ pub struct Figure {
     pub id: Option<String>,
     /// Size, pixels (the page reserves it before the picture loads).
     pub size: (u32, u32),
-    /// A class for the frame: `bad` (red) or `good` (green).
+    /// A class for the frame: `bad` (red), `warn` (amber) or `good` (green).
     pub class: Option<&'static str>,
 }
 

@@ -291,11 +291,9 @@ def check_report(
 
 # ---------------------------------------------------------------------------------------------------
 # The report tests: the CLI writes a report, the page is checked against the CLI's own JSON.
-# TO BE COMPLETED BY THE RUST AUTHOR: the flags below are the planned interface; the sort columns and
-# whether pictures are expected are guesses from the JSON records' fields: set them to the real labels.
 # ---------------------------------------------------------------------------------------------------
 
-COMPARE_SORT = "keypoints"  # a column of compare::html_table (src/compare.rs, in progress)
+COMPARE_SORT = "keypoints"  # a column of compare::html_table (src/compare.rs)
 COMPARE_IMAGES = True  # the contact sheets
 EVAL_SORT = "repeatability %"
 EVAL_IMAGES = True  # the plots and the contact sheets

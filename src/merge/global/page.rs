@@ -113,10 +113,22 @@ pub fn dropped_table(many: &ManyMerge) -> Table {
     t
 }
 
-/// Writes the whole page into `dir` and returns its path.
-pub fn write(dir: &Path, many: &ManyMerge) -> Result<PathBuf> {
+/// The page's pictures in its folder for `maps` maps: at most one group per two maps, and each map.
+pub fn picture_files(maps: usize) -> Vec<String> {
+    (0..maps / 2)
+        .map(|g| file_name(g, "group", ""))
+        .chain((0..maps).map(|m| file_name(m, "map", "")))
+        .collect()
+}
+
+/// A page for `merge` in `dir` (made now, so that a bad folder is found before the work).
+pub fn create(dir: &Path) -> Result<Report> {
+    Report::create(dir, "ogm-corners merge")
+}
+
+/// Writes the whole page (made by [`create`]) and returns its path.
+pub fn write(mut page: Report, many: &ManyMerge) -> Result<PathBuf> {
     let doc = &many.report;
-    let mut page = Report::create(dir, "ogm-corners merge")?;
     let placed = doc.maps.iter().filter(|m| m.placed).count();
     page.text(format!(
         "{} maps: {} placed in {} groups, {} left out. {} pairs aligned, {} accepted by the pair test, {} of \
@@ -180,7 +192,7 @@ pub fn write(dir: &Path, many: &ManyMerge) -> Result<PathBuf> {
             &picture,
             vec![format!("#{m} {}", e.map), status],
         )?;
-        figure.class = Some(if e.placed { "good" } else { "bad" });
+        figure.class = Some(if e.placed { "good" } else { "warn" });
         figures.push(figure);
     }
     page.figures_at(figures, 240);

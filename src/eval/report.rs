@@ -1,0 +1,96 @@
+//! The `eval --html` page: the repeatability table, its plots and each map's keypoints per detector; or,
+//! with `--annotations`, the recall table and each annotated map's marked points against the keypoints.
+
+use std::path::{Path, PathBuf};
+
+use image::RgbImage;
+
+use super::EvalRecord;
+use crate::error::Result;
+use crate::report::{file_name, Figure, Report};
+
+/// The picture of map `i` named `name` on the page: its keypoints per detector (`marked`: false) or its
+/// marked points ([`super::annotations::marked_sheet`]).
+pub fn picture_file(i: usize, name: &str, marked: bool) -> String {
+    file_name(i, name, if marked { "-marked" } else { "-keypoints" })
+}
+
+/// Every picture file a page for maps `names` may write: one per map, and the plots (repeatability only).
+pub fn picture_files(names: &[String], marked: bool) -> Vec<String> {
+    let plots = super::PLOT_FILES.iter().filter(|_| !marked);
+    names
+        .iter()
+        .enumerate()
+        .map(|(i, n)| picture_file(i, n, marked))
+        .chain(plots.map(|f| f.to_string()))
+        .collect()
+}
+
+/// An `eval --html` page being written: each map's picture written as the map is done.
+pub struct EvalPage {
+    report: Report,
+    figures: Vec<Figure>,
+}
+
+impl EvalPage {
+    /// A page written into `dir` (made now, so that a bad folder is found before the work).
+    pub fn create(dir: &Path) -> Result<Self> {
+        Ok(EvalPage {
+            report: Report::create(dir, "ogm-corners eval")?,
+            figures: Vec::new(),
+        })
+    }
+
+    /// Adds map `i`'s picture ([`picture_file`]), captioned with its name and path.
+    pub fn add_map(
+        &mut self,
+        i: usize,
+        name: &str,
+        path: &Path,
+        picture: &RgbImage,
+        marked: bool,
+    ) -> Result<()> {
+        let caption = vec![name.to_string(), path.display().to_string()];
+        let file = picture_file(i, name, marked);
+        self.figures
+            .push(self.report.picture(&file, picture, caption)?);
+        Ok(())
+    }
+
+    /// Writes the repeatability page (`about`: a line on the run) and returns its path.
+    pub fn finish_repeatability(mut self, rows: &[EvalRecord], about: &str) -> Result<PathBuf> {
+        let r = &mut self.report;
+        r.text(format!("{about} Click a column to sort."));
+        r.table(super::html_table(rows));
+        r.heading("Repeatability against noise and rotation, averaged over the maps");
+        let plots = super::repeatability_plots(rows)
+            .into_iter()
+            .map(|(file, picture)| r.picture(file, &picture, vec![file.to_string()]))
+            .collect::<Result<Vec<_>>>()?;
+        r.figures_at(plots, 600);
+        r.heading("Each detector's keypoints on each map");
+        r.legend(&crate::compare::rule_legend_rgb());
+        r.figures_at(self.figures, 900);
+        self.report.finish()
+    }
+
+    /// Writes the recall page for the marked points of `source` and returns its path.
+    pub fn finish_recall(
+        mut self,
+        rows: &[super::annotations::RecallRecord],
+        source: &Path,
+    ) -> Result<PathBuf> {
+        let r = &mut self.report;
+        r.text(format!(
+            "Marked points from {}; rows per map, then pooled over the maps (green). Click a column to sort.",
+            source.display()
+        ));
+        r.table(super::annotations::html_table(rows));
+        r.heading(
+            "The marked points (green rings) against the paper's and the robust detector's keypoints",
+        );
+        r.legend(&crate::compare::rule_legend_rgb());
+        r.figures_at(self.figures, 900);
+        self.report.finish()
+    }
+}
