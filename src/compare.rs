@@ -128,18 +128,6 @@ pub fn explored_box(map: &OccupancyMap) -> (u32, u32, u32, u32) {
     )
 }
 
-/// Draws a row of colour swatches with their labels at (x, y), 14 pixels high.
-pub fn draw_legend(img: &mut RgbImage, x: i64, y: i64, entries: &[(&str, image::Rgb<u8>)]) {
-    use crate::plot::{draw_text, fill, text_width};
-    let mut x = x;
-    for (label, colour) in entries {
-        fill(img, x, y, 14, 14, image::Rgb([60, 60, 60]));
-        fill(img, x + 1, y + 1, 12, 12, *colour);
-        draw_text(img, x + 20, y, label, 2, image::Rgb([0, 0, 0]));
-        x += 20 + i64::from(text_width(label, 2)) + 18;
-    }
-}
-
 /// `text` cut to at most `width` pixels at scale 2, with `...` when cut.
 fn fit_label(text: &str, width: u32) -> String {
     let most = (width / 12) as usize;
@@ -196,7 +184,7 @@ pub fn labelled_sheet(
         2,
         black,
     );
-    draw_legend(&mut sheet, 10, i64::from(TITLE_H), &legend);
+    crate::plot::draw_legend(&mut sheet, 10, i64::from(TITLE_H), 2 * PANEL + 10, &legend);
     for (i, (label, kps)) in found.iter().enumerate() {
         let shifted: Vec<crate::Keypoint> = kps
             .iter()

@@ -203,6 +203,68 @@ pub fn line(
     }
 }
 
+/// Height of one row of a legend, pixels.
+pub const LEGEND_ROW: u32 = 22;
+
+/// Width of a legend entry: a 14-pixel swatch, its label at scale 2, a gap.
+fn legend_entry_width(label: &str) -> u32 {
+    20 + text_width(label, 2) + 18
+}
+
+/// Rows a legend of `entries` takes within `width` pixels.
+pub fn legend_rows<S: AsRef<str>>(width: u32, entries: &[(S, Rgb<u8>)]) -> u32 {
+    let (mut rows, mut x) = (1, 0);
+    for (label, _) in entries {
+        let w = legend_entry_width(label.as_ref());
+        if x > 0 && x + w > width {
+            (rows, x) = (rows + 1, 0);
+        }
+        x += w;
+    }
+    rows
+}
+
+/// Draws colour swatches with their labels from (x, y), wrapping within `width` pixels, a row
+/// [`LEGEND_ROW`] pixels high ([`legend_rows`] rows).
+pub fn draw_legend<S: AsRef<str>>(
+    img: &mut RgbImage,
+    x: i64,
+    y: i64,
+    width: u32,
+    entries: &[(S, Rgb<u8>)],
+) {
+    let (mut cx, mut cy) = (0u32, y);
+    for (label, colour) in entries {
+        let label = label.as_ref();
+        let w = legend_entry_width(label);
+        if cx > 0 && cx + w > width {
+            (cx, cy) = (0, cy + i64::from(LEGEND_ROW));
+        }
+        let lx = x + i64::from(cx);
+        fill(img, lx, cy, 14, 14, Rgb([60, 60, 60]));
+        fill(img, lx + 1, cy + 1, 12, 12, *colour);
+        draw_text(img, lx + 20, cy, label, 2, Rgb([0, 0, 0]));
+        cx += w;
+    }
+}
+
+/// `img` with a white band below it holding a legend of `entries` (the picture widened with white to
+/// 400 pixels when narrower, so that the legend stays readable): what the `merge --overlay` pictures carry.
+pub fn with_legend<S: AsRef<str>>(img: &RgbImage, entries: &[(S, Rgb<u8>)]) -> RgbImage {
+    let width = img.width().max(400);
+    let band = 10 + legend_rows(width - 20, entries) * LEGEND_ROW;
+    let mut out = RgbImage::from_pixel(width, img.height() + band, Rgb([255, 255, 255]));
+    image::imageops::overlay(&mut out, img, 0, 0);
+    draw_legend(
+        &mut out,
+        10,
+        i64::from(img.height()) + 8,
+        width - 20,
+        entries,
+    );
+    out
+}
+
 /// The part of `img` that is not `background`, with `margin` pixels around it (all of it when it is all
 /// background): what a picture of a map shows once the unknown around it is cut away.
 pub fn crop_to_content(img: &RgbImage, background: Rgb<u8>, margin: u32) -> RgbImage {
@@ -402,6 +464,30 @@ mod tests {
         assert!((0..100).all(|x| kept.get_pixel(x, 2).0 == [0, 0, 0]));
         let plain = fit_image(&wide, 100, 100, |_| 0);
         assert!((0..100).all(|x| plain.get_pixel(x, 2).0 == [255, 255, 255]));
+    }
+
+    #[test]
+    fn a_legend_wraps_and_sits_below_the_picture() {
+        let img = RgbImage::from_pixel(120, 50, Rgb([1, 2, 3]));
+        let entries = [
+            ("FIRST ENTRY", Rgb([250, 0, 0])),
+            ("SECOND ENTRY", Rgb([0, 250, 0])),
+            ("THIRD ENTRY", Rgb([0, 0, 250])),
+        ];
+        // Each entry is 20 + 11 or 12 characters of 12 px + 18: three do not fit one 380-px row.
+        assert_eq!(legend_rows(380, &entries), 2);
+        let out = with_legend(&img, &entries);
+        assert_eq!(out.width(), 400);
+        assert_eq!(out.height(), 50 + 10 + 2 * LEGEND_ROW);
+        assert_eq!(out.get_pixel(119, 49).0, [1, 2, 3], "the picture kept");
+        for (_, c) in entries {
+            let at = out
+                .enumerate_pixels()
+                .find(|p| *p.2 == c)
+                .map(|p| p.1)
+                .unwrap_or_else(|| panic!("no swatch {c:?}"));
+            assert!(at >= 50, "swatch {c:?} drawn over the picture");
+        }
     }
 
     #[test]

@@ -13,7 +13,7 @@ use ogm_corners::map::{save_names, yaml_text};
 use ogm_corners::memory::Budget;
 use ogm_corners::merge::align::prepared_bytes;
 use ogm_corners::merge::pair::{self, Verdict};
-use ogm_corners::merge::MergeOptions;
+use ogm_corners::merge::{compose, MergeOptions};
 use ogm_corners::{Error, OccupancyMap, Result};
 
 use super::write_stdout;
@@ -30,7 +30,8 @@ pub(super) struct MergeArgs {
     #[arg(short, long, value_name = "MERGED.yaml|.pgm")]
     pub(super) output: Option<PathBuf>,
     /// Write a picture of the alignment (two maps: A and B in two colours, agreement and conflicts; many:
-    /// every map's walls in its own colour). Only when merged; with many maps, per group as for `-o`.
+    /// every map's walls in its own colour), with a legend of the colours below it. Only when merged; with
+    /// many maps, per group as for `-o`.
     #[arg(long, value_name = "PNG")]
     pub(super) overlay: Option<PathBuf>,
     /// Place every map at once (also for two) and write each map's pose in its group's merged map as JSON.
@@ -152,6 +153,7 @@ pub(super) fn run(a: MergeArgs, budget: &Budget) -> Result<()> {
     }
     if let Some(png) = &a.overlay {
         let picture = pair::overlay_pair(&map_a, &map_b, &al.transform)?;
+        let picture = ogm_corners::plot::with_legend(&picture, &compose::overlay_legend());
         staged.write(png, |out| files::encode_png(out, &picture))?;
         wrote.push(png);
     }

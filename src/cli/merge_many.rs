@@ -127,7 +127,7 @@ pub(super) fn run(a: MergeArgs, budget: &Budget) -> Result<()> {
         }
         if let Some(png) = &a.overlay {
             let png = group_path(png, g);
-            let picture = many.overlay(g)?;
+            let picture = many.overlay_with_legend(g)?;
             staged.write(&png, |out| files::encode_png(out, &picture))?;
             doc.groups[g].overlay = Some(png.display().to_string());
         }

@@ -184,6 +184,23 @@ pub const OVERLAY_COLOURS: [(&str, [u8; 3]); 6] = [
     ),
 ];
 
+/// [`OVERLAY_COLOURS`] with labels short enough for the legend drawn into a picture.
+pub fn overlay_legend() -> Vec<(&'static str, image::Rgb<u8>)> {
+    let short = [
+        "WALLS OF A ONLY",
+        "WALLS OF B ONLY",
+        "WALLS OF BOTH",
+        "FREE IN BOTH",
+        "FREE IN ONE",
+        "CONFLICT: A WALL ON FREE SPACE",
+    ];
+    short
+        .into_iter()
+        .zip(OVERLAY_COLOURS)
+        .map(|(l, (_, c))| (l, image::Rgb(c)))
+        .collect()
+}
+
 /// Colour of the merge overlay where neither map knows anything.
 pub const OVERLAY_UNKNOWN: image::Rgb<u8> = image::Rgb([150, 150, 150]);
 

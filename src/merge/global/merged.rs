@@ -99,4 +99,29 @@ impl ManyMerge {
         let (ms, ps) = self.group(g);
         mosaic::overlay_many(&ms, &ps)
     }
+
+    /// Group `g`'s maps (as the report names them) and their wall colours in its picture.
+    pub fn legend(&self, g: usize) -> Vec<(&str, [u8; 3])> {
+        self.report.groups[g]
+            .maps
+            .iter()
+            .enumerate()
+            .map(|(k, m)| {
+                (
+                    m.as_str(),
+                    mosaic::MAP_COLOURS[k % mosaic::MAP_COLOURS.len()],
+                )
+            })
+            .collect()
+    }
+
+    /// [`ManyMerge::overlay`] with its [`ManyMerge::legend`] drawn below it (each map by its short name).
+    pub fn overlay_with_legend(&self, g: usize) -> Result<image::RgbImage> {
+        let entries: Vec<(String, image::Rgb<u8>)> = self
+            .legend(g)
+            .into_iter()
+            .map(|(m, c)| (crate::map::map_name(std::path::Path::new(m)), image::Rgb(c)))
+            .collect();
+        Ok(crate::plot::with_legend(&self.overlay(g)?, &entries))
+    }
 }

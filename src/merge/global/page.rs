@@ -5,7 +5,6 @@ use std::path::{Path, PathBuf};
 
 use super::merged::ManyMerge;
 use crate::error::Result;
-use crate::merge::mosaic::MAP_COLOURS;
 use crate::report::{file_name, Cell, Report, Table};
 
 /// Width of the box a group's picture is fitted into, pixels.
@@ -152,12 +151,7 @@ pub fn write(mut page: Report, many: &ManyMerge) -> Result<PathBuf> {
             entry.height,
             entry.maps.first().map_or("", String::as_str)
         ));
-        let legend: Vec<(&str, [u8; 3])> = entry
-            .maps
-            .iter()
-            .enumerate()
-            .map(|(k, m)| (m.as_str(), MAP_COLOURS[k % MAP_COLOURS.len()]))
-            .collect();
+        let legend = many.legend(g);
         page.legend(&legend);
         let full = many.overlay(g)?;
         let full = crate::plot::crop_to_content(&full, crate::merge::compose::OVERLAY_UNKNOWN, 4);
