@@ -516,35 +516,6 @@ pub fn write_table(
     out.flush()
 }
 
-/// The rows as the `--html` page's table (`id="eval"`): repeatability in percent, missing when no trial
-/// had keypoints in the shared region.
-pub fn html_table(rows: &[EvalRecord]) -> crate::report::Table {
-    use crate::report::{Cell, Table};
-    let mut t = Table::new(
-        "eval",
-        "Repeatability: keypoints found again after a known change of the map, within the tolerance (mean over the trials)",
-        &[
-            ("map", false),
-            ("detector", false),
-            ("condition", false),
-            ("level", true),
-            ("repeatability %", true),
-            ("trials", true),
-        ],
-    );
-    for r in rows {
-        t.row(vec![
-            Cell::text(&r.map),
-            Cell::text(r.detector),
-            Cell::text(r.condition),
-            Cell::num(r.level, 3),
-            Cell::opt(r.repeatability.map(|v| 100.0 * v), 1),
-            Cell::int(r.trials),
-        ]);
-    }
-    t
-}
-
 /// The files [`repeatability_plots`] makes.
 pub const PLOT_FILES: [&str; 2] = ["repeatability-noise.png", "repeatability-rotation.png"];
 

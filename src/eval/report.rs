@@ -26,6 +26,35 @@ pub fn picture_files(names: &[String], marked: bool) -> Vec<String> {
         .collect()
 }
 
+/// The rows as the `--html` page's table (`id="eval"`): repeatability in percent, missing when no trial
+/// had keypoints in the shared region.
+pub fn repeatability_table(rows: &[EvalRecord]) -> crate::report::Table {
+    use crate::report::{Cell, Table};
+    let mut t = Table::new(
+        "eval",
+        "Repeatability: keypoints found again after a known change of the map, within the tolerance (mean over the trials)",
+        &[
+            ("map", false),
+            ("detector", false),
+            ("condition", false),
+            ("level", true),
+            ("repeatability %", true),
+            ("trials", true),
+        ],
+    );
+    for r in rows {
+        t.row(vec![
+            Cell::text(&r.map),
+            Cell::text(r.detector),
+            Cell::text(r.condition),
+            Cell::num(r.level, 3),
+            Cell::opt(r.repeatability.map(|v| 100.0 * v), 1),
+            Cell::int(r.trials),
+        ]);
+    }
+    t
+}
+
 /// An `eval --html` page being written: each map's picture written as the map is done.
 pub struct EvalPage {
     report: Report,
@@ -61,7 +90,7 @@ impl EvalPage {
     pub fn finish_repeatability(mut self, rows: &[EvalRecord], about: &str) -> Result<PathBuf> {
         let r = &mut self.report;
         r.text(format!("{about} Click a column to sort."));
-        r.table(super::html_table(rows));
+        r.table(repeatability_table(rows));
         r.heading("Repeatability against noise and rotation, averaged over the maps");
         let plots = super::repeatability_plots(rows)
             .into_iter()
