@@ -8,6 +8,14 @@ if ! command -v cargo >/dev/null 2>&1; then
     exit 1
 fi
 
+# Debian packages, installed with sudo when not root; fails when apt-get does.
+apt_install() {
+    local sudo=""
+    if [ "$(id -u)" != 0 ]; then sudo="sudo"; fi
+    export DEBIAN_FRONTEND=noninteractive
+    $sudo apt-get update -qq && $sudo apt-get install -y -qq "$@" >/dev/null
+}
+
 # GPU tests run on a Vulkan adapter; with none present, install Mesa's lavapipe (a software Vulkan driver).
 have_vulkan() {
     # No `grep -q`: it would close the pipe early and pipefail would report ldconfig's SIGPIPE.
@@ -19,11 +27,7 @@ have_vulkan() {
 }
 if ! have_vulkan; then
     echo "scripts/test.sh: no Vulkan driver found; installing mesa-vulkan-drivers (lavapipe)" >&2
-    sudo=""
-    if [ "$(id -u)" != 0 ]; then sudo="sudo"; fi
-    export DEBIAN_FRONTEND=noninteractive
-    $sudo apt-get update -qq
-    $sudo apt-get install -y -qq --no-install-recommends mesa-vulkan-drivers libvulkan1 >/dev/null
+    apt_install --no-install-recommends mesa-vulkan-drivers libvulkan1
     have_vulkan || { echo "scripts/test.sh: installing lavapipe did not give a Vulkan driver" >&2; exit 1; }
 fi
 
@@ -40,11 +44,7 @@ python_env() {
     fi
     echo "scripts/test.sh: setting up $venv with $*" >&2
     if ! python3 -m venv --help >/dev/null 2>&1 || ! python3 -c "import ensurepip" 2>/dev/null; then
-        sudo=""
-        if [ "$(id -u)" != 0 ]; then sudo="sudo"; fi
-        export DEBIAN_FRONTEND=noninteractive
-        $sudo apt-get update -qq
-        $sudo apt-get install -y -qq python3-venv >/dev/null
+        apt_install python3-venv
     fi
     rm -rf "$venv"
     python3 -m venv "$venv"
@@ -63,10 +63,7 @@ have_browser() {
 }
 if ! have_browser; then
     echo "scripts/test.sh: installing chromium and chromium-driver (the HTML report tests)" >&2
-    sudo=""
-    if [ "$(id -u)" != 0 ]; then sudo="sudo"; fi
-    export DEBIAN_FRONTEND=noninteractive
-    if ! { $sudo apt-get update -qq && $sudo apt-get install -y -qq --no-install-recommends chromium chromium-driver >/dev/null; }; then
+    if ! apt_install --no-install-recommends chromium chromium-driver; then
         echo "scripts/test.sh: NOTE: could not install chromium; the browser tests will say SKIPPED (and fail under CI=true)" >&2
     fi
 fi

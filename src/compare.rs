@@ -71,11 +71,6 @@ pub fn rule_legend() -> Vec<(&'static str, image::Rgb<u8>)> {
     ]
 }
 
-/// [`rule_legend`] as the page's legend takes it.
-pub fn rule_legend_rgb() -> Vec<(&'static str, [u8; 3])> {
-    rule_legend().into_iter().map(|(l, c)| (l, c.0)).collect()
-}
-
 /// One panel per detector of the map's explored part with the keypoints marked, labelled.
 pub fn contact_sheet(
     name: &str,
@@ -108,24 +103,10 @@ pub fn contact_sheet(
 pub fn explored_box(map: &OccupancyMap) -> (u32, u32, u32, u32) {
     let classes = ClassTable::new(&map.thresholds);
     let (w, h) = (map.image.width(), map.image.height());
-    let (mut x0, mut y0, mut x1, mut y1) = (w, h, 0, 0);
-    for y in 0..h {
-        for x in 0..w {
-            if classes.state(map.image.get(x, y)) != crate::CellState::Unknown {
-                (x0, y0, x1, y1) = (x0.min(x), y0.min(y), x1.max(x + 1), y1.max(y + 1));
-            }
-        }
-    }
-    if x1 <= x0 {
-        return (0, 0, w, h);
-    }
-    let m = 8;
-    (
-        x0.saturating_sub(m),
-        y0.saturating_sub(m),
-        (x1 + m).min(w),
-        (y1 + m).min(h),
-    )
+    crate::plot::bounding_box(w, h, 8, |x, y| {
+        classes.state(map.image.get(x, y)) != crate::CellState::Unknown
+    })
+    .unwrap_or((0, 0, w, h))
 }
 
 /// `text` cut to at most `width` pixels at scale 2, with `...` when cut.
@@ -197,13 +178,13 @@ pub fn labelled_sheet(
             .collect();
         let mut panel = canvas.clone().render_fit(&shifted, PANEL, ph);
         let radius = ((3.0 * f + 3.0).round() as i64).clamp(6, 27);
+        // The marked pixel's centre in doubled panel coordinates: the crop's pixel (mx - x0) spans
+        // [mx - x0, mx - x0 + 1), a canvas cell d of them, a cell the panel's pixels over its cells.
+        let (zx, zy) = (
+            f64::from(panel.width()) / f64::from(cw.div_ceil(d)),
+            f64::from(panel.height()) / f64::from(ch.div_ceil(d)),
+        );
         for &(mx, my) in marks {
-            // The marked pixel's centre in doubled panel coordinates: the crop's pixel (mx - x0) spans
-            // [mx - x0, mx - x0 + 1), a canvas cell d of them, a cell the panel's pixels over its cells.
-            let (zx, zy) = (
-                f64::from(panel.width()) / f64::from(cw.div_ceil(d)),
-                f64::from(panel.height()) / f64::from(ch.div_ceil(d)),
-            );
             let (px2, py2) = (
                 2.0 * (mx - f64::from(x0)) + 1.0,
                 2.0 * (my - f64::from(y0)) + 1.0,
@@ -312,6 +293,57 @@ pub fn html_table(rows: &[CompareRecord]) -> crate::report::Table {
         ]);
     }
     t
+}
+
+/// The picture of map `i` named `name` on the `--html` page.
+pub fn sheet_file(i: usize, name: &str) -> String {
+    crate::report::file_name(i, name, "-contact-sheet")
+}
+
+/// A `compare --html` page being written: each map's contact sheet written as the map is done.
+pub struct ComparePage {
+    report: crate::report::Report,
+    figures: Vec<crate::report::Figure>,
+}
+
+impl ComparePage {
+    /// A page written into `dir` (made now, so that a bad folder is found before the measurements).
+    pub fn create(dir: &std::path::Path) -> crate::error::Result<Self> {
+        Ok(ComparePage {
+            report: crate::report::Report::create(dir, "ogm-corners compare")?,
+            figures: Vec::new(),
+        })
+    }
+
+    /// Adds map `i`'s contact sheet ([`sheet_file`]), anchored where its rows link ([`sheet_anchor`]).
+    pub fn add_sheet(
+        &mut self,
+        i: usize,
+        name: &str,
+        path: &std::path::Path,
+        sheet: &RgbImage,
+    ) -> crate::error::Result<()> {
+        let caption = vec![name.to_string(), path.display().to_string()];
+        let mut figure = self.report.picture(&sheet_file(i, name), sheet, caption)?;
+        figure.id = Some(sheet_anchor(name));
+        self.figures.push(figure);
+        Ok(())
+    }
+
+    /// Writes the page (`about`: a line on the run) and returns its path.
+    pub fn finish(
+        mut self,
+        rows: &[CompareRecord],
+        about: &str,
+    ) -> crate::error::Result<std::path::PathBuf> {
+        let r = &mut self.report;
+        r.text(format!("{about} Click a column to sort."));
+        r.table(html_table(rows));
+        r.heading("Contact sheets: each detector's keypoints on the explored part of each map");
+        r.legend(&rule_legend());
+        r.figures_at(self.figures, 900);
+        self.report.finish()
+    }
 }
 
 /// Writes the rows as Markdown, CSV or JSON.

@@ -211,17 +211,27 @@ fn legend_entry_width(label: &str) -> u32 {
     20 + text_width(label, 2) + 18
 }
 
-/// Rows a legend of `entries` takes within `width` pixels.
-pub fn legend_rows<S: AsRef<str>>(width: u32, entries: &[(S, Rgb<u8>)]) -> u32 {
-    let (mut rows, mut x) = (1, 0);
+/// Where each entry of a legend goes within `width` pixels: (x, row), entries wrapping to a new row when
+/// the next would pass the width.
+fn legend_layout<S: AsRef<str>>(width: u32, entries: &[(S, Rgb<u8>)]) -> Vec<(u32, u32)> {
+    let (mut row, mut x) = (0, 0);
+    let mut at = Vec::with_capacity(entries.len());
     for (label, _) in entries {
         let w = legend_entry_width(label.as_ref());
         if x > 0 && x + w > width {
-            (rows, x) = (rows + 1, 0);
+            (row, x) = (row + 1, 0);
         }
+        at.push((x, row));
         x += w;
     }
-    rows
+    at
+}
+
+/// Rows a legend of `entries` takes within `width` pixels.
+pub fn legend_rows<S: AsRef<str>>(width: u32, entries: &[(S, Rgb<u8>)]) -> u32 {
+    legend_layout(width, entries)
+        .last()
+        .map_or(1, |&(_, row)| row + 1)
 }
 
 /// Draws colour swatches with their labels from (x, y), wrapping within `width` pixels, a row
@@ -233,18 +243,11 @@ pub fn draw_legend<S: AsRef<str>>(
     width: u32,
     entries: &[(S, Rgb<u8>)],
 ) {
-    let (mut cx, mut cy) = (0u32, y);
-    for (label, colour) in entries {
-        let label = label.as_ref();
-        let w = legend_entry_width(label);
-        if cx > 0 && cx + w > width {
-            (cx, cy) = (0, cy + i64::from(LEGEND_ROW));
-        }
-        let lx = x + i64::from(cx);
-        fill(img, lx, cy, 14, 14, Rgb([60, 60, 60]));
-        fill(img, lx + 1, cy + 1, 12, 12, *colour);
-        draw_text(img, lx + 20, cy, label, 2, Rgb([0, 0, 0]));
-        cx += w;
+    for ((label, colour), (cx, row)) in entries.iter().zip(legend_layout(width, entries)) {
+        let (lx, ly) = (x + i64::from(cx), y + i64::from(row * LEGEND_ROW));
+        fill(img, lx, ly, 14, 14, Rgb([60, 60, 60]));
+        fill(img, lx + 1, ly + 1, 12, 12, *colour);
+        draw_text(img, lx + 20, ly, label.as_ref(), 2, Rgb([0, 0, 0]));
     }
 }
 
@@ -265,22 +268,42 @@ pub fn with_legend<S: AsRef<str>>(img: &RgbImage, entries: &[(S, Rgb<u8>)]) -> R
     out
 }
 
+/// The smallest box (x0, y0, x1, y1), ends exclusive, holding every (x, y) of a `w` x `h` raster that
+/// `keep` keeps, grown by `margin` within the raster; None when it keeps none.
+pub fn bounding_box(
+    w: u32,
+    h: u32,
+    margin: u32,
+    keep: impl Fn(u32, u32) -> bool,
+) -> Option<(u32, u32, u32, u32)> {
+    let (mut x0, mut y0, mut x1, mut y1) = (w, h, 0, 0);
+    for y in 0..h {
+        for x in 0..w {
+            if keep(x, y) {
+                (x0, y0, x1, y1) = (x0.min(x), y0.min(y), x1.max(x + 1), y1.max(y + 1));
+            }
+        }
+    }
+    (x1 > x0).then(|| {
+        (
+            x0.saturating_sub(margin),
+            y0.saturating_sub(margin),
+            (x1 + margin).min(w),
+            (y1 + margin).min(h),
+        )
+    })
+}
+
 /// The part of `img` that is not `background`, with `margin` pixels around it (all of it when it is all
 /// background): what a picture of a map shows once the unknown around it is cut away.
 pub fn crop_to_content(img: &RgbImage, background: Rgb<u8>, margin: u32) -> RgbImage {
     let (w, h) = img.dimensions();
-    let (mut x0, mut y0, mut x1, mut y1) = (w, h, 0, 0);
-    for (x, y, p) in img.enumerate_pixels() {
-        if *p != background {
-            (x0, y0, x1, y1) = (x0.min(x), y0.min(y), x1.max(x + 1), y1.max(y + 1));
+    match bounding_box(w, h, margin, |x, y| *img.get_pixel(x, y) != background) {
+        Some((x0, y0, x1, y1)) => {
+            image::imageops::crop_imm(img, x0, y0, x1 - x0, y1 - y0).to_image()
         }
+        None => img.clone(),
     }
-    if x1 <= x0 {
-        return img.clone();
-    }
-    let (x0, y0) = (x0.saturating_sub(margin), y0.saturating_sub(margin));
-    let (x1, y1) = ((x1 + margin).min(w), (y1 + margin).min(h));
-    image::imageops::crop_imm(img, x0, y0, x1 - x0, y1 - y0).to_image()
 }
 
 /// `img` scaled to fit `max_w` x `max_h` (aspect kept) by any real factor: enlarged by nearest neighbour

@@ -8,10 +8,10 @@ use clap::Args;
 use crate::batch::output_names;
 
 use ogm_corners::backend::reference_working_bytes;
+use ogm_corners::compare::ComparePage;
 use ogm_corners::compare::{self, CompareRecord};
 use ogm_corners::files;
 use ogm_corners::memory::Budget;
-use ogm_corners::report::{self, Figure, Report};
 use ogm_corners::{
     Baseline, BaselineParams, DetectOptions, DetectorKind, OccupancyMap, Result, RuleSet,
 };
@@ -68,21 +68,12 @@ pub(super) fn run(a: CompareArgs, budget: &Budget) -> Result<()> {
     for s in &sheets {
         inputs.claim_output(s, "--out")?;
     }
-    let html_sheets: Vec<String> = match &a.html {
-        Some(dir) => {
-            inputs.claim_output(&dir.join(report::INDEX), "--html")?;
-            names
-                .iter()
-                .enumerate()
-                .map(|(i, n)| {
-                    let file = report::file_name(i, n, "-contact-sheet");
-                    inputs.claim_output(&dir.join(&file), "--html")?;
-                    Ok(file)
-                })
-                .collect::<Result<_>>()?
+    if let Some(dir) = &a.html {
+        inputs.claim_output(&dir.join(ogm_corners::report::INDEX), "--html")?;
+        for (i, n) in names.iter().enumerate() {
+            inputs.claim_output(&dir.join(compare::sheet_file(i, n)), "--html")?;
         }
-        None => Vec::new(),
-    };
+    }
     // The same measurement as `bench` (backends checked to agree keypoint for keypoint).
     let mut runner = Runner::new(
         "compare",
@@ -92,11 +83,7 @@ pub(super) fn run(a: CompareArgs, budget: &Budget) -> Result<()> {
         BaselineParams::default(),
     )?;
     files::create_dir(&a.out)?;
-    let mut page = match &a.html {
-        Some(dir) => Some(Report::create(dir, "ogm-corners compare")?),
-        None => None,
-    };
-    let mut figures = Vec::new();
+    let mut page = a.html.as_deref().map(ComparePage::create).transpose()?;
     let mut rows = Vec::new();
     for (i, ((p, name), sheet_path)) in maps.iter().zip(&names).zip(&sheets).enumerate() {
         let map = OccupancyMap::load_within(p, budget, &extra)?;
@@ -128,27 +115,18 @@ pub(super) fn run(a: CompareArgs, budget: &Budget) -> Result<()> {
         files::write_png(sheet_path, &sheet)?;
         ogm_corners::say!("ogm-corners: wrote {}", sheet_path.display());
         if let Some(page) = &mut page {
-            let caption = vec![name.clone(), p.display().to_string()];
-            let figure = page.picture(&html_sheets[i], &sheet, caption)?;
-            figures.push(Figure {
-                id: Some(compare::sheet_anchor(&name)),
-                ..figure
-            });
+            page.add_sheet(i, &name, p, &sheet)?;
         }
     }
     let md = compare::markdown(&rows);
     files::write_atomic(&table_path, |out| out.write_all(md.as_bytes()))?;
-    if let Some(mut page) = page {
-        page.text(format!(
-            "{} maps, {} timed runs per measurement after a warm-up (medians). Click a column to sort.",
+    if let Some(page) = page {
+        let about = format!(
+            "{} maps, {} timed runs per measurement after a warm-up (medians).",
             maps.len(),
             a.repeat
-        ));
-        page.table(compare::html_table(&rows));
-        page.heading("Contact sheets: each detector's keypoints on the explored part of each map");
-        page.legend(&compare::rule_legend_rgb());
-        page.figures_at(figures, 900);
-        let index = page.finish()?;
+        );
+        let index = page.finish(&rows, &about)?;
         ogm_corners::say!("ogm-corners: wrote {}", index.display());
     }
     write_stdout(|out| compare::write_table(out, a.format.into(), &rows))

@@ -98,7 +98,7 @@ impl EvalPage {
             .collect::<Result<Vec<_>>>()?;
         r.figures_at(plots, 600);
         r.heading("Each detector's keypoints on each map");
-        r.legend(&crate::compare::rule_legend_rgb());
+        r.legend(&crate::compare::rule_legend());
         r.figures_at(self.figures, 900);
         self.report.finish()
     }
@@ -118,7 +118,7 @@ impl EvalPage {
         r.heading(
             "The marked points (green rings) against the paper's and the robust detector's keypoints",
         );
-        r.legend(&crate::compare::rule_legend_rgb());
+        r.legend(&crate::compare::rule_legend());
         r.figures_at(self.figures, 900);
         self.report.finish()
     }

@@ -237,7 +237,7 @@ pub fn overlay_many(maps: &[&OccupancyMap], poses: &[Rigid]) -> Result<image::Rg
         f.width,
         f.height,
         |x, y| match owner[y as usize * f.width as usize + x as usize] {
-            NONE => image::Rgb([150, 150, 150]),
+            NONE => super::compose::OVERLAY_UNKNOWN,
             FREE => image::Rgb([255, 255, 255]),
             k => image::Rgb(MAP_COLOURS[k as usize % MAP_COLOURS.len()]),
         },

@@ -196,8 +196,11 @@ pub fn caption(i: usize, r: &PairRecord) -> Vec<String> {
 }
 
 /// The legend of the pair pictures.
-pub fn legend() -> Vec<(&'static str, [u8; 3])> {
-    OVERLAY_COLOURS.to_vec()
+pub fn legend() -> Vec<(&'static str, image::Rgb<u8>)> {
+    OVERLAY_COLOURS
+        .iter()
+        .map(|&(l, c)| (l, image::Rgb(c)))
+        .collect()
 }
 
 /// The `merge-eval --html` page being written: each pair's pictures written as the pair is run (one

@@ -198,10 +198,13 @@ impl Report {
         self.blocks.push(Block::Table(table));
     }
 
-    /// A legend of colour swatches.
-    pub fn legend(&mut self, entries: &[(&str, [u8; 3])]) {
+    /// A legend of colour swatches (the entries the pictures' legends take, [`crate::plot::draw_legend`]).
+    pub fn legend<S: AsRef<str>>(&mut self, entries: &[(S, image::Rgb<u8>)]) {
         self.blocks.push(Block::Legend(
-            entries.iter().map(|&(l, c)| (l.to_string(), c)).collect(),
+            entries
+                .iter()
+                .map(|(l, c)| (l.as_ref().to_string(), c.0))
+                .collect(),
         ));
     }
 
@@ -278,7 +281,7 @@ mod tests {
         let f = r.picture("p.png", &pic, vec!["first".into()]).unwrap();
         assert_eq!(f.size, (3, 2));
         r.figures(vec![f]);
-        r.legend(&[("walls", [0, 0, 0])]);
+        r.legend(&[("walls", image::Rgb([0, 0, 0]))]);
         let path = r.finish().unwrap();
         let page = std::fs::read_to_string(&path).unwrap();
         assert!(page.contains("<h1>a &lt;report&gt; &amp; more</h1>"));

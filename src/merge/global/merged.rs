@@ -101,7 +101,7 @@ impl ManyMerge {
     }
 
     /// Group `g`'s maps (as the report names them) and their wall colours in its picture.
-    pub fn legend(&self, g: usize) -> Vec<(&str, [u8; 3])> {
+    pub fn legend(&self, g: usize) -> Vec<(&str, image::Rgb<u8>)> {
         self.report.groups[g]
             .maps
             .iter()
@@ -109,7 +109,7 @@ impl ManyMerge {
             .map(|(k, m)| {
                 (
                     m.as_str(),
-                    mosaic::MAP_COLOURS[k % mosaic::MAP_COLOURS.len()],
+                    image::Rgb(mosaic::MAP_COLOURS[k % mosaic::MAP_COLOURS.len()]),
                 )
             })
             .collect()
@@ -120,7 +120,7 @@ impl ManyMerge {
         let entries: Vec<(String, image::Rgb<u8>)> = self
             .legend(g)
             .into_iter()
-            .map(|(m, c)| (crate::map::map_name(std::path::Path::new(m)), image::Rgb(c)))
+            .map(|(m, c)| (crate::map::map_name(std::path::Path::new(m)), c))
             .collect();
         Ok(crate::plot::with_legend(&self.overlay(g)?, &entries))
     }

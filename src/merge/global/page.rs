@@ -156,9 +156,9 @@ pub fn write(mut page: Report, many: &ManyMerge) -> Result<PathBuf> {
         let full = many.overlay(g)?;
         let full = crate::plot::crop_to_content(&full, crate::merge::compose::OVERLAY_UNKNOWN, 4);
         // Walls (any map's colour) survive a shrink before free space, free space before unknown.
-        let picture = crate::plot::fit_image(&full, GROUP_PICTURE, GROUP_PICTURE, |p| match p.0 {
-            [150, 150, 150] => 0,
-            [255, 255, 255] => 1,
+        let picture = crate::plot::fit_image(&full, GROUP_PICTURE, GROUP_PICTURE, |p| match p {
+            crate::merge::compose::OVERLAY_UNKNOWN => 0,
+            image::Rgb([255, 255, 255]) => 1,
             _ => 2,
         });
         let caption = vec![
