@@ -129,7 +129,8 @@ pub(super) fn run(a: MergeArgs, budget: &Budget) -> Result<()> {
             if let Some(w) = world {
                 write!(out, " = {w}")?;
             }
-            writeln!(out, "; {:.0} ms", seconds * 1e3)
+            writeln!(out, "; {:.0} ms", seconds * 1e3)?;
+            writeln!(out, "why: {}", al.explain())
         }
     })?;
     if !al.accepted {

@@ -29,7 +29,18 @@ pub(super) struct MergeEvalArgs {
     /// against another's), at 50% and 30% overlap, one part turned by a random angle and shifted.
     #[arg(long, num_args = 0.., value_name = "MAP|DIR")]
     synthetic: Option<Vec<PathBuf>>,
-    /// Synthetic pairs per map and overlap.
+    /// With --synthetic and no maps: the families to run, comma-separated: office (the office generator's
+    /// offices cut in two, with negatives), grid-rooms, warehouse, doors (repetitive layouts at 50, 30 and
+    /// 20% overlap), bent (offices with heading drift, speckle and unexplored rooms), crops (windows of 120,
+    /// 250 and 400 px overlapping or apart), or all.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "all",
+        value_name = "FAMILY"
+    )]
+    family: Vec<String>,
+    /// Synthetic pairs per map and overlap (per family and overlap for the generated families).
     #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u32).range(1..=1000))]
     per_map: u32,
     /// Synthetic speckle: the probability that a free pixel turns occupied.
@@ -47,6 +58,20 @@ pub(super) struct MergeEvalArgs {
     /// detector alone; both), one row each (a pair file only; takes a few minutes).
     #[arg(long, conflicts_with = "synthetic")]
     ablation: bool,
+    /// Leave-one-building-out: the acceptance rule fitted on every building but one and the one left out
+    /// judged with it, for each building; then the pooled held-out figures, the in-sample ones and the
+    /// shipped rule's (a pair file only).
+    #[arg(long, conflicts_with_all = ["synthetic", "ablation", "html"])]
+    cross_validate: bool,
+    /// With --cross-validate: only the pairs (and negatives) whose maps' names start with one of these
+    /// comma-separated prefixes (a small subset for a quick check).
+    #[arg(
+        long,
+        value_delimiter = ',',
+        value_name = "PREFIX",
+        requires = "cross_validate"
+    )]
+    only: Vec<String>,
     /// Instead of pairs: every building's maps placed at once (`merge A B C ...`), every two buildings'
     /// maps together (they must come out as separate groups), the cost as the number of maps grows, and a
     /// synthetic set of `--set-size` maps cut from one office (takes a few minutes). Without a pair
@@ -106,6 +131,22 @@ pub(super) fn run(a: MergeEvalArgs, budget: &Budget) -> Result<()> {
                 })?;
                 return write_table(a.format, &rows, |out| eval::write_ablation(out, &rows));
             }
+            if a.cross_validate {
+                let mut set = set;
+                let keep =
+                    |n: &str| a.only.is_empty() || a.only.iter().any(|p| n.starts_with(p.as_str()));
+                set.pairs.retain(|p| keep(&p.src) && keep(&p.dst));
+                set.negatives.retain(|p| keep(&p.src) && keep(&p.dst));
+                let options = MergeOptions {
+                    always_verify: true,
+                    ..MergeOptions::default()
+                };
+                let (rows, _) = eval::run(&set, &maps, &options)?;
+                let folds = eval::crossval::cross_validate(&rows);
+                return write_table(a.format, &folds, |out| {
+                    eval::crossval::write_folds(out, &folds)
+                });
+            }
             eval::run_with(&set, &maps, &MergeOptions::default(), &mut on_pair)?
         }
         (None, sources) => {
@@ -132,6 +173,7 @@ pub(super) fn run(a: MergeEvalArgs, budget: &Budget) -> Result<()> {
                     }
                 }
             }
+            let (office, families) = families(&a.family, given.is_empty())?;
             // Negatives only between the generator's offices: given maps may show one place twice.
             let run = eval::SyntheticRun {
                 overlaps,
@@ -141,7 +183,34 @@ pub(super) fn run(a: MergeEvalArgs, budget: &Budget) -> Result<()> {
                 negatives: given.is_empty(),
                 save: a.save_pairs.clone(),
             };
-            eval::run_synthetic_with(&sources, &run, &MergeOptions::default(), &mut on_pair)?
+            let options = MergeOptions::default();
+            let (mut rows, mut ms) = if office {
+                eval::run_synthetic_with(&sources, &run, &options, &mut on_pair)?
+            } else {
+                (Vec::new(), 0.0)
+            };
+            if !families.is_empty() {
+                let first = rows.len();
+                let mut shifted = |i: usize,
+                                   r: &eval::PairRecord,
+                                   ma: &OccupancyMap,
+                                   mb: &OccupancyMap,
+                                   truth: Option<Rigid>| {
+                    on_pair(first + i, r, ma, mb, truth)
+                };
+                let (more, more_ms) = eval::families::run_families(
+                    &families,
+                    a.per_map as usize,
+                    a.seed,
+                    &options,
+                    &mut shifted,
+                )?;
+                // The mean preparation time over both runs, weighted by their pairs.
+                let n = (rows.len() + more.len()).max(1) as f64;
+                ms = (ms * rows.len() as f64 + more_ms * more.len() as f64) / n;
+                rows.extend(more);
+            }
+            (rows, ms)
         }
     };
     if let Some(page) = page {
@@ -151,6 +220,37 @@ pub(super) fn run(a: MergeEvalArgs, budget: &Budget) -> Result<()> {
     write_table(a.format, &rows, |out| {
         eval::write_summary(out, &rows, prep_ms)
     })
+}
+
+/// Whether to run the office family, and which generated families: all of them by default; given maps
+/// are cut as the office family is, and take no generated family.
+fn families(names: &[String], generated: bool) -> Result<(bool, Vec<eval::families::Family>)> {
+    use eval::families::Family;
+    let all = names.iter().any(|n| n == "all");
+    if !generated {
+        if names.iter().any(|n| n != "all") {
+            return Err(Error::invalid(
+                "--family chooses generated families: give no maps to --synthetic",
+            ));
+        }
+        return Ok((true, Vec::new()));
+    }
+    if all {
+        return Ok((true, Family::all()));
+    }
+    let mut out = Vec::new();
+    let mut office = false;
+    for n in names {
+        if n == "office" {
+            office = true;
+        } else {
+            let f = Family::parse(n)?;
+            if !out.contains(&f) {
+                out.push(f);
+            }
+        }
+    }
+    Ok((office, out))
 }
 
 /// The maps synthetic pairs are cut from: the given ones (checked against the memory budget with the

@@ -20,22 +20,30 @@
 use serde::Serialize;
 
 pub use super::accept::{
-    accepts, contradiction, not_contradicted, Acceptance, Features, MAX_CONTRADICTION,
-    MAX_FINE_CONFLICT, MAX_SELF_SYMMETRY,
+    accepts, contradiction, not_contradicted, Acceptance, Features, MAX_ALIAS, MAX_CONTRADICTION,
+    MAX_FINE_CONFLICT, MAX_SELF_SYMMETRY, MIN_SUPPORT,
 };
 pub use super::coarse::FINE_FFT;
 use super::coarse::{coarse_hypotheses, cs, screen, CoarseSet, Crop};
 use super::hypotheses::Hypotheses;
-pub use super::prepare::{prepared_bytes, Prepared, CELLS};
+pub use super::prepare::{prepared_bytes, Prepared, Symmetry, CELLS};
 use super::score::{score_both, Probe};
 use super::transform::Rigid;
 use crate::backend::Backend;
+use crate::cpu::merge_score::FLAG_DEEP;
 use crate::cpu::CpuBackend;
 use crate::error::Result;
 use crate::map::OccupancyMap;
 
 /// The rule value from which the self-symmetry is measured: the operating curve's lowest offset.
 const SYMMETRY_FROM: f64 = -8.0;
+/// A self-transform of a map offers an alternative pose ([`Features::alias`]) when the map matches itself
+/// under it at least this well ([`self_symmetry`]'s measure): a repeat over a good part of the map.
+pub const ALIAS_SELF_MATCH: f64 = 0.2;
+/// An alternative pose is as consistent as the chosen one when its residual conflict (the share of wall
+/// pixels over 3 px deep in the other map's free space after each tile's best shift of a few px) exceeds
+/// the chosen pose's by at most this.
+pub const ALIAS_EXTRA_CONFLICT: f64 = 0.05;
 
 /// The polish's step scales (1: a quarter pixel and 0.1 degree) and rounds at each, at most.
 const POLISH_SCALES: [f64; 3] = [4.0, 2.0, 1.0];
@@ -57,6 +65,10 @@ pub struct MergeOptions {
     pub hypotheses: Hypotheses,
     /// Decline a merge of a map that matches itself turned or shifted ([`self_symmetry`]).
     pub check_symmetry: bool,
+    /// Measure the self-symmetry and the alternative poses whatever the rule value (they are measured
+    /// only for what the rule could accept otherwise): what refitting the rule needs
+    /// (`merge-eval --cross-validate`).
+    pub always_verify: bool,
 }
 
 impl Default for MergeOptions {
@@ -65,6 +77,7 @@ impl Default for MergeOptions {
             accept: Acceptance::default(),
             hypotheses: Hypotheses::default(),
             check_symmetry: true,
+            always_verify: false,
         }
     }
 }
@@ -241,11 +254,37 @@ pub fn align_prepared_with(
     let score = options.accept.margin(&features);
     // Only for what could be merged (down to the operating curve's lowest offset): each map's
     // self-match costs an alignment (cached in the map).
-    if options.check_symmetry && score >= SYMMETRY_FROM && accepts(&features, score) {
-        features.self_match = self_symmetry_with(a, backend)?.max(self_symmetry_with(b, backend)?);
+    let mut alternative = None;
+    let could = score >= SYMMETRY_FROM && accepts(&features, score);
+    if options.check_symmetry && (could || options.always_verify) {
+        let (sa, sb) = (
+            self_symmetry_with(a, backend)?,
+            self_symmetry_with(b, backend)?,
+        );
+        features.self_match = sa.value.max(sb.value);
+        (features.alias, alternative) = alias(src, dst, &best, &sa, &sb, backend)?;
     }
     let accepted = accepts(&features, score);
     let reason = (!accepted).then(|| {
+        if let Some(alt) = alternative.filter(|_| score >= 0.0 && features.alias >= MAX_ALIAS) {
+            let d = transform_distance(&alt, &best);
+            return format!(
+                "ambiguous: the maps fit almost as well ({:.0}% of the evidence) at another pose that a \
+                 map's repeat offers, {d:.0} px away (theta {:.1} deg, t ({:.0}, {:.0})), so it could be \
+                 merged more than one way",
+                100.0 * features.alias,
+                alt.theta_deg,
+                alt.tx,
+                alt.ty
+            );
+        }
+        if score >= 0.0 && features.support < MIN_SUPPORT {
+            return format!(
+                "too little to go on: {:.0} wall pixels of the two maps match each other (at least \
+                 {MIN_SUPPORT:.0} are needed to tell a right pose from a wrong one)",
+                features.support
+            );
+        }
         if score >= 0.0 && features.self_match > MAX_SELF_SYMMETRY {
             let s = features.self_match;
             return format!(
@@ -305,6 +344,51 @@ pub fn align_prepared_with(
         reason,
         candidates,
     })
+}
+
+impl Alignment {
+    /// Why, in a sentence: for an accept, how far the chosen pose stands out from the best distinct
+    /// candidate and from the poses the maps' repeats offer (a near-ambiguity shows here); for a decline,
+    /// the best candidate and what turned it down.
+    pub fn explain(&self) -> String {
+        let f = &self.features;
+        let runner = self
+            .candidates
+            .iter()
+            .skip(1)
+            .filter(|c| transform_distance(&c.transform, &self.transform) > DISTINCT_PX)
+            .max_by(|x, y| x.score.total_cmp(&y.score));
+        let runner = match runner {
+            Some(c) => format!(
+                "the best distinct candidate ({:.1} deg, ({:.0}, {:.0}) px) has rule value {:.2}",
+                c.transform.theta_deg, c.transform.tx, c.transform.ty, c.score
+            ),
+            None => "no distinct candidate".to_string(),
+        };
+        let t = &self.transform;
+        if self.accepted {
+            format!(
+                "rule value {:.2} over its threshold; the choice stands {:.2}x and the coarse score \
+                 {:.2}x above the best distinct alternative ({runner}); a pose a map's repeat offers \
+                 has {:.0}% of its support (ambiguous from {:.0}%); {:.0} wall pixels match",
+                self.score,
+                f.choice_ratio,
+                f.coarse_ratio,
+                100.0 * f.alias,
+                100.0 * MAX_ALIAS,
+                f.support
+            )
+        } else {
+            format!(
+                "best candidate {:.1} deg, ({:.0}, {:.0}) px, rule value {:.2}: {}; {runner}",
+                t.theta_deg,
+                t.tx,
+                t.ty,
+                self.score,
+                self.reason.as_deref().unwrap_or("not confident")
+            )
+        }
+    }
 }
 
 /// Candidate `i`'s coarse score and choice key (`keys`) over the best of the candidates distinct from it
@@ -512,6 +596,7 @@ fn verify(
                     inside: (f64::from(ia) / src.walls.len().max(1) as f64)
                         .min(f64::from(ib) / dst.walls.len().max(1) as f64),
                     matched: f64::from(ma + mb) / inside_total,
+                    support: f64::from(ma + mb),
                     matched_fine: f64::from(fa + fb) / inside_total,
                     conflict_fine: f64::from(ga + gb) / inside_total,
                     // The rest is the choice's, filled in by the caller.
@@ -584,6 +669,27 @@ fn map_to_crop(src: &Prepared, dst: &Prepared, t: &Rigid) -> Rigid {
 /// The local agreement of `from`'s walls mapped by `t` into `to` ([`Features::local`]), the wall pixels
 /// it was measured on (of those sampled), and their share of all of `from`'s wall pixels (at most 1).
 fn local_agreement(from: &Prepared, to: &Prepared, t: &Rigid) -> (f64, f64, f64) {
+    let l = local_fit(from, to, t);
+    (l.share, l.measured, l.coverage)
+}
+
+/// What [`local_fit`] measures.
+#[derive(Clone, Copy, Debug)]
+struct LocalFit {
+    /// Share of the measured wall pixels within 1.5 px of `to`'s walls after their tile's best shift.
+    share: f64,
+    /// Wall pixels measured (of those sampled).
+    measured: f64,
+    /// Their share of all of `from`'s wall pixels (at most 1).
+    coverage: f64,
+    /// Share of the measured wall pixels over 3 px deep in `to`'s free space after their tile's best
+    /// shift: the conflict that bending (a few px of local shift) does not explain.
+    residual: f64,
+}
+
+/// In 48 px tiles of the overlap, `from`'s walls mapped by `t` into `to`, each tile shifted by up to 6 px
+/// to where most of them lie within 1.5 px of `to`'s walls.
+fn local_fit(from: &Prepared, to: &Prepared, t: &Rigid) -> LocalFit {
     const TILE: f64 = 48.0;
     const MIN_POINTS: usize = 24;
     // At most about 8000 wall pixels a map: enough for every tile's share.
@@ -607,7 +713,15 @@ fn local_agreement(from: &Prepared, to: &Prepared, t: &Rigid) -> (f64, f64, f64)
             })
             .count()
     };
-    let (mut hit, mut total) = (0usize, 0usize);
+    let deep = |pts: &[(f64, f64)], dx: f64, dy: f64| {
+        pts.iter()
+            .filter(|q| {
+                to.index(q.0 + dx, q.1 + dy)
+                    .is_some_and(|i| to.flags_fine.flags[i] & FLAG_DEEP != 0)
+            })
+            .count()
+    };
+    let (mut hit, mut total, mut conflicts) = (0usize, 0usize, 0usize);
     for pts in tiles.values().filter(|p| p.len() >= MIN_POINTS) {
         // Shifts of up to 6 px in steps of 2, then the best one's neighbours.
         let mut best = (0usize, 0.0, 0.0);
@@ -620,44 +734,129 @@ fn local_agreement(from: &Prepared, to: &Prepared, t: &Rigid) -> (f64, f64, f64)
             }
         }
         let (_, bx, by) = best;
+        let mut at = (bx, by);
         for dy in -1..=1 {
             for dx in -1..=1 {
-                let c = near(pts, bx + f64::from(dx), by + f64::from(dy));
-                best.0 = best.0.max(c);
+                let (x, y) = (bx + f64::from(dx), by + f64::from(dy));
+                let c = near(pts, x, y);
+                if c > best.0 {
+                    (best.0, at) = (c, (x, y));
+                }
             }
         }
         hit += best.0;
         total += pts.len();
+        conflicts += deep(pts, at.0, at.1);
     }
-    let coverage = (total as f64 * step as f64 / from.walls.len().max(1) as f64).min(1.0);
-    (hit as f64 / total.max(1) as f64, total as f64, coverage)
+    LocalFit {
+        share: hit as f64 / total.max(1) as f64,
+        measured: total as f64,
+        coverage: (total as f64 * step as f64 / from.walls.len().max(1) as f64).min(1.0),
+        residual: conflicts as f64 / total.max(1) as f64,
+    }
+}
+
+/// [`local_fit`] both ways (B's walls into A at `t`, A's into B at its inverse), pooled by the wall
+/// pixels measured: the agreement, the residual conflict and the pixels measured.
+fn local_both(src: &Prepared, dst: &Prepared, t: &Rigid) -> (f64, f64, f64) {
+    let (a, b) = (local_fit(src, dst, t), local_fit(dst, src, &t.inverse()));
+    let n = (a.measured + b.measured).max(1.0);
+    (
+        (a.share * a.measured + b.share * b.measured) / n,
+        (a.residual * a.measured + b.residual * b.measured) / n,
+        a.measured + b.measured,
+    )
 }
 
 /// How well `p` matches itself under its best transform other than the identity: its local agreement
 /// times the share of the map's wall pixels it was measured on. A map that looks the same turned or
 /// shifted (a symmetric arena) can be merged either way; [`MAX_SELF_SYMMETRY`] declines it.
 pub fn self_symmetry(p: &Prepared) -> Result<f64> {
-    self_symmetry_with(p, &mut CpuBackend)
+    Ok(self_symmetry_with(p, &mut CpuBackend)?.value)
 }
 
-/// [`self_symmetry`] with the self-alignment's scoring on `backend` (the same counts on every backend).
-fn self_symmetry_with(p: &Prepared, backend: &mut dyn Backend) -> Result<f64> {
-    if let Some(&v) = p.symmetry.get() {
-        return Ok(v);
+/// [`self_symmetry`] with the self-alignment's scoring on `backend` (the same counts on every backend),
+/// with the self-transforms that offer alternative poses ([`ALIAS_SELF_MATCH`]); cached in the map.
+fn self_symmetry_with(p: &Prepared, backend: &mut dyn Backend) -> Result<Symmetry> {
+    if let Some(v) = p.symmetry.get() {
+        return Ok(v.clone());
     }
     let options = MergeOptions {
         check_symmetry: false,
         ..MergeOptions::default()
     };
     let al = align_prepared_with(p, p, &options, backend)?;
-    let mut best: f64 = 0.0;
+    let mut out = Symmetry::default();
     for c in &al.candidates {
         if transform_distance(&c.transform, &Rigid::IDENTITY) <= DISTINCT_PX {
             continue;
         }
         let (share, _, coverage) = local_agreement(p, p, &map_to_crop(p, p, &c.transform));
-        best = best.max(share * coverage);
+        out.value = out.value.max(share * coverage);
+        if share * coverage >= ALIAS_SELF_MATCH {
+            out.transforms.push(c.transform);
+        }
     }
-    let _ = p.symmetry.set(best);
-    Ok(best)
+    let _ = p.symmetry.set(out.clone());
+    Ok(out)
+}
+
+/// The best alternative to `best` (B's pixels to A's) that the maps' self-transforms offer: each of
+/// them (and its inverse) applied on A's side or on B's; among those whose residual conflict is hardly
+/// above `best`'s ([`ALIAS_EXTRA_CONFLICT`]), the one with most wall pixels agreeing locally (both
+/// ways): its count over `best`'s ([`Features::alias`], 0 without one) and the pose.
+fn alias(
+    src: &Prepared,
+    dst: &Prepared,
+    best: &Rigid,
+    sa: &Symmetry,
+    sb: &Symmetry,
+    backend: &mut dyn Backend,
+) -> Result<(f64, Option<Rigid>)> {
+    let mut poses = vec![*best];
+    for s in &sa.transforms {
+        poses.push(s.after(best));
+        poses.push(s.inverse().after(best));
+    }
+    for s in &sb.transforms {
+        poses.push(best.after(s));
+        poses.push(best.after(&s.inverse()));
+    }
+    poses.retain(|t| t == best || transform_distance(t, best) > DISTINCT_PX);
+    if poses.len() < 2 {
+        return Ok((0.0, None));
+    }
+    let crops: Vec<Rigid> = poses.iter().map(|t| map_to_crop(src, dst, t)).collect();
+    // A cheap screen first (the kernel's counts): alternatives with under a quarter of the chosen pose's
+    // walls near the other's walls are no rival.
+    let (walls_d, walls_s) = score_both(src, dst, &crops, Probe::Walls, backend)?;
+    let near = |i: usize| f64::from(walls_d[i][1] + walls_s[i][1]);
+    let rivals: Vec<usize> = (1..poses.len())
+        .filter(|&i| near(i) >= 0.25 * near(0))
+        .collect();
+    if rivals.is_empty() {
+        return Ok((0.0, None));
+    }
+    let fits: Vec<(f64, f64, f64)> = {
+        use rayon::prelude::*;
+        std::iter::once(0)
+            .chain(rivals.iter().copied())
+            .collect::<Vec<_>>()
+            .par_iter()
+            .map(|&i| local_both(src, dst, &crops[i]))
+            .collect()
+    };
+    let (share0, residual0, n0) = fits[0];
+    let support0 = (share0 * n0).max(1.0);
+    let (mut top, mut pose) = (0.0, None);
+    for (&i, &(share, residual, n)) in rivals.iter().zip(&fits[1..]) {
+        // As consistent: once each tile of the overlap has had its few px of shift (bending), hardly
+        // more walls on free space than the chosen pose (a few per hundred: what a missing wall or a
+        // building's end adds). Its support may be smaller (a wrong pose among equal rooms often
+        // overlaps more than the true one): it is reported as it is.
+        if residual <= residual0 + ALIAS_EXTRA_CONFLICT && share * n / support0 > top {
+            (top, pose) = (share * n / support0, Some(poses[i]));
+        }
+    }
+    Ok((top, pose))
 }

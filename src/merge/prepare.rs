@@ -70,10 +70,20 @@ pub struct Prepared {
     /// Corners for corner hypotheses (crop coordinates), when prepared with them.
     pub(super) corners: Option<Vec<(f64, f64)>>,
     /// Its self-symmetry, once measured ([`super::align::self_symmetry`]).
-    pub(super) symmetry: std::sync::OnceLock<f64>,
+    pub(super) symmetry: std::sync::OnceLock<Symmetry>,
     /// The coarse masks, one level per cell side of [`CELLS`]: the coarsest always, a finer one when
     /// this map is small enough for it to be chosen.
     pub(super) levels: Vec<Option<Coarse>>,
+}
+
+/// How a map matches itself: its best self-match other than the identity, and the transforms (its pixels
+/// to its own) under which it matches itself well enough to misplace another map by them.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Symmetry {
+    /// [`super::align::self_symmetry`].
+    pub value: f64,
+    /// Self-transforms with a self-match of at least [`super::align::ALIAS_SELF_MATCH`].
+    pub transforms: Vec<super::transform::Rigid>,
 }
 
 /// A map's coarse masks at one cell side.

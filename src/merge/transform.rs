@@ -96,6 +96,35 @@ impl Rigid {
     }
 }
 
+/// The least-squares rigid transform taking each point of `from` to its partner in `to` (closed form;
+/// the identity for fewer than two points).
+pub fn fit_rigid(from: &[(f64, f64)], to: &[(f64, f64)]) -> Rigid {
+    let n = from.len().min(to.len());
+    if n < 2 {
+        return Rigid::IDENTITY;
+    }
+    let mean = |v: &[(f64, f64)]| {
+        let s = v[..n]
+            .iter()
+            .fold((0.0, 0.0), |a, p| (a.0 + p.0, a.1 + p.1));
+        (s.0 / n as f64, s.1 / n as f64)
+    };
+    let (mp, mq) = (mean(from), mean(to));
+    let (mut sxx, mut sxy) = (0.0, 0.0);
+    for (p, q) in from.iter().zip(to).take(n) {
+        let (px, py, qx, qy) = (p.0 - mp.0, p.1 - mp.1, q.0 - mq.0, q.1 - mq.1);
+        sxx += px * qx + py * qy;
+        sxy += px * qy - py * qx;
+    }
+    let theta = sxy.atan2(sxx);
+    let (s, c) = theta.sin_cos();
+    Rigid {
+        theta_deg: theta.to_degrees(),
+        tx: mq.0 - (c * mp.0 - s * mp.1),
+        ty: mq.1 - (s * mp.0 + c * mp.1),
+    }
+}
+
 /// A transform in A's map frame (metres, radians; x east, y north as ROS has it): the pose of B's map
 /// frame in A's, `w_a = R(yaw) w_b + (x, y)`.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]

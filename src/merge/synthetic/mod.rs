@@ -8,6 +8,12 @@
 //! known area; B is turned about its centre by a random angle into a square canvas with a random margin.
 //! Both are written with map_server's values (0 occupied, 254 free, 205 unknown).
 
+mod crops;
+mod layouts;
+
+pub use crops::{synthetic_crops, CropSpec};
+pub use layouts::{doors, grid_rooms, warehouse, Layout, LayoutKind};
+
 use super::pairs::TruePair;
 use super::transform::Rigid;
 use crate::map::{MapImage, OccupancyMap};
@@ -32,9 +38,33 @@ pub struct SyntheticPair {
     pub b: OccupancyMap,
     /// B's pixels to A's, exact.
     pub truth: Rigid,
-    /// Points of B (its known area's bounding box corners and centre) where an estimate is checked.
+    /// Points of B where an estimate is checked (its known area's bounding box corners and centre; for
+    /// a bent pair, points of the overlap).
     pub check_points: Vec<(f64, f64)>,
+    /// Where the check points truly are in A (the truth applied to them, except in a bent pair).
+    pub true_points: Vec<(f64, f64)>,
+    /// Largest RMS error over the check points an accurate estimate may have, pixels.
+    pub rms_limit_px: f64,
+    /// With a lattice ([`PairShape::lattice`]): the fewest cells that contradict each other (a wall on
+    /// free space) when B is misplaced by a shift of the lattice: 0 when nothing in the overlap breaks
+    /// the period, so no merger can tell the true pose from a wrong one.
+    pub alias_contradiction: Option<u64>,
 }
+
+/// How a pair is shaped beyond its cut ([`synthetic_pair_with`]).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct PairShape {
+    /// B bent as SLAM drift bends a map: its heading drifts by this many degrees per 1000 px along the cut
+    /// direction, away from the overlap's centre (0: rigid).
+    pub bend_deg_per_kpx: f64,
+    /// The source's lattice of repeats (pixels), to measure [`SyntheticPair::alias_contradiction`].
+    pub lattice: Vec<(f64, f64)>,
+    /// Share of B's rooms left unexplored: discs of its known area turned unknown.
+    pub unexplored: f64,
+}
+
+/// Fewest contradicting cells that count as breaking the period ([`SyntheticPair::alias_contradiction`]).
+pub const MIN_ALIAS_CONTRADICTION: u64 = 40;
 
 /// Smallest known extent (pixels, along the cut direction) a source must have.
 pub const MIN_EXTENT: f64 = 64.0;
@@ -47,6 +77,17 @@ pub const MAX_PART_SIDE: f64 = 16384.0;
 pub fn synthetic_pair(
     source: &OccupancyMap,
     spec: &SyntheticSpec,
+    seed: u64,
+) -> Option<SyntheticPair> {
+    synthetic_pair_with(source, spec, &PairShape::default(), seed)
+}
+
+/// [`synthetic_pair`], B bent and partly unexplored as `shape` says, and the pair's identifiability
+/// measured against the source's lattice. A rigid pair with no lattice is exactly [`synthetic_pair`]'s.
+pub fn synthetic_pair_with(
+    source: &OccupancyMap,
+    spec: &SyntheticSpec,
+    shape: &PairShape,
     seed: u64,
 ) -> Option<SyntheticPair> {
     let classes = ClassTable::new(&source.thresholds);
@@ -102,24 +143,104 @@ pub fn synthetic_pair(
             }
         }
     }
-    // B: its part turned by theta about its centre into a square canvas.
+    // B: its part turned by theta about its centre into a square canvas, bent about the overlap's centre.
     let margin = f64::from(rng.range(4, 48));
     let theta = unit(&mut rng) * 360.0;
-    let (b_px, side, to_source, (kx0, ky0, kx1, ky1)) = turned(
+    let bend = shape.bend_deg_per_kpx.to_radians() / 1000.0;
+    let centre = if bend != 0.0 {
+        let (mut sx, mut sy, mut n) = (0.0, 0.0, 0.0);
+        for y in 0..h {
+            for x in 0..w {
+                if in_a(x, y) && in_b(x, y) && state(x, y) != CellState::Unknown {
+                    (sx, sy, n) = (sx + x as f64, sy + y as f64, n + 1.0);
+                }
+            }
+        }
+        (sx / f64::max(n, 1.0), sy / f64::max(n, 1.0))
+    } else {
+        (0.0, 0.0)
+    };
+    // The heading drifts with the distance along the cut from the overlap's centre: a turn about the
+    // centre growing linearly, so the displacement grows with the square of the distance (as odometry
+    // drift does).
+    let warp = |p: (f64, f64)| {
+        if bend == 0.0 {
+            return p;
+        }
+        let d = (p.0 - centre.0, p.1 - centre.1);
+        let (s, c) = (bend * (d.0 * cu + d.1 * su)).sin_cos();
+        (centre.0 + c * d.0 - s * d.1, centre.1 + s * d.0 + c * d.1)
+    };
+    let (mut b_px, side, to_source, (kx0, ky0, kx1, ky1)) = turned(
         &state,
         (w, h),
         &in_b,
         bbox(&in_b),
         theta,
         margin,
+        &warp,
         &mut |s| value(s, &mut rng),
     )?;
-    let truth = Rigid {
+    if shape.unexplored > 0.0 {
+        unexplore(&mut b_px, side, shape.unexplored, &mut rng);
+    }
+    let rigid = Rigid {
         tx: to_source.tx - ax0 as f64,
         ty: to_source.ty - ay0 as f64,
         ..to_source
     }
     .normalized();
+    let (truth, check_points, true_points, rms_limit_px) = if bend == 0.0 {
+        let check = box_points(kx0, ky0, kx1, ky1);
+        let truth_points = check.iter().map(|&p| rigid.apply(p)).collect();
+        (rigid, check, truth_points, SYNTHETIC_RMS_LIMIT_PX)
+    } else {
+        // Checked where the maps overlap, as annotated real pairs are: B's known pixels whose source
+        // lies in A's part; the truth is the rigid fit to where they truly are, and the limit twice its
+        // residual, as the real pairs' success test has it.
+        let step = (side / 16).max(4);
+        let (mut from, mut to) = (Vec::new(), Vec::new());
+        for y in (step / 2..side).step_by(step) {
+            for x in (step / 2..side).step_by(step) {
+                if b_px[y * side + x] == UNKNOWN {
+                    continue;
+                }
+                let s = warp(to_source.apply((x as f64, y as f64)));
+                let (sx, sy) = (s.0.round(), s.1.round());
+                if sx < 0.0 || sy < 0.0 || sx >= w as f64 || sy >= h as f64 {
+                    continue;
+                }
+                if in_a(sx as usize, sy as usize)
+                    && state(sx as usize, sy as usize) != CellState::Unknown
+                {
+                    from.push((x as f64, y as f64));
+                    to.push((s.0 - ax0 as f64, s.1 - ay0 as f64));
+                }
+            }
+        }
+        if from.len() < 4 {
+            return None;
+        }
+        let fit = crate::merge::transform::fit_rigid(&from, &to);
+        let rms = (from
+            .iter()
+            .zip(&to)
+            .map(|(&p, q)| {
+                let r = fit.apply(p);
+                (r.0 - q.0).powi(2) + (r.1 - q.1).powi(2)
+            })
+            .sum::<f64>()
+            / from.len() as f64)
+            .sqrt();
+        (
+            fit.normalized(),
+            from,
+            to,
+            (2.0 * rms).max(SYNTHETIC_RMS_LIMIT_PX),
+        )
+    };
+    let alias_contradiction = (!shape.lattice.is_empty())
+        .then(|| alias_contradiction(&state, (w, h), &in_a, &in_b, &shape.lattice));
     let make = |w: usize, h: usize, px: Vec<u8>| {
         MapImage::new(w as u32, h as u32, px)
             .ok()
@@ -129,8 +250,98 @@ pub fn synthetic_pair(
         a: make(aw, ah, a_px)?,
         b: make(side, side, b_px)?,
         truth,
-        check_points: box_points(kx0, ky0, kx1, ky1),
+        check_points,
+        true_points,
+        rms_limit_px,
+        alias_contradiction,
     })
+}
+
+/// Turns discs of the known area of a `side` x `side` canvas unknown until about `share` of it is:
+/// rooms a robot has not entered yet.
+fn unexplore(px: &mut [u8], side: usize, share: f64, rng: &mut Rng) {
+    let known: Vec<usize> = (0..px.len()).filter(|&i| px[i] != UNKNOWN).collect();
+    let target = (share * known.len() as f64) as usize;
+    let mut erased = 0usize;
+    for _ in 0..64 {
+        if erased >= target || known.is_empty() {
+            break;
+        }
+        let c = known[rng.range(0, known.len() as u32) as usize];
+        let (cx, cy) = ((c % side) as i64, (c / side) as i64);
+        let r = i64::from(rng.range(20, 50));
+        for y in (cy - r).max(0)..(cy + r + 1).min(side as i64) {
+            for x in (cx - r).max(0)..(cx + r + 1).min(side as i64) {
+                let i = y as usize * side + x as usize;
+                if (x - cx).pow(2) + (y - cy).pow(2) <= r * r && px[i] != UNKNOWN {
+                    px[i] = UNKNOWN;
+                    erased += 1;
+                }
+            }
+        }
+    }
+}
+
+/// The fewest cells of B's part and A's part that contradict each other (one occupied, the other free)
+/// when B is misplaced by a combination of the lattice (up to 3 steps of each vector) that keeps at
+/// least a quarter of the true overlap: 0 when some misplacement contradicts nothing.
+fn alias_contradiction(
+    state: &dyn Fn(usize, usize) -> CellState,
+    (w, h): (usize, usize),
+    in_a: &dyn Fn(usize, usize) -> bool,
+    in_b: &dyn Fn(usize, usize) -> bool,
+    lattice: &[(f64, f64)],
+) -> u64 {
+    let count = |dx: i64, dy: i64| {
+        let (mut overlap, mut contra) = (0u64, 0u64);
+        for y in 0..h as i64 {
+            let ty = y + dy;
+            if ty < 0 || ty >= h as i64 {
+                continue;
+            }
+            for x in 0..w as i64 {
+                let tx = x + dx;
+                if tx < 0 || tx >= w as i64 || !in_b(x as usize, y as usize) {
+                    continue;
+                }
+                let (sb, ta) = (tx as usize, ty as usize);
+                if !in_a(sb, ta) {
+                    continue;
+                }
+                let (b, a) = (state(x as usize, y as usize), state(sb, ta));
+                if b == CellState::Unknown || a == CellState::Unknown {
+                    continue;
+                }
+                overlap += 1;
+                contra += u64::from(b != a);
+            }
+        }
+        (overlap, contra)
+    };
+    let (true_overlap, _) = count(0, 0);
+    let steps: Vec<i64> = (-3..=3).collect();
+    let mut shifts: Vec<(i64, i64)> = Vec::new();
+    let (l1, l2) = (lattice[0], lattice.get(1).copied().unwrap_or((0.0, 0.0)));
+    for &i in &steps {
+        for &j in &steps {
+            if (i, j) == (0, 0) || (lattice.len() < 2 && j != 0) {
+                continue;
+            }
+            let d = (
+                (i as f64 * l1.0 + j as f64 * l2.0).round() as i64,
+                (i as f64 * l1.1 + j as f64 * l2.1).round() as i64,
+            );
+            shifts.push(d);
+        }
+    }
+    shifts
+        .iter()
+        .filter_map(|&(dx, dy)| {
+            let (overlap, contra) = count(dx, dy);
+            (4 * overlap >= true_overlap).then_some(contra)
+        })
+        .min()
+        .unwrap_or(u64::MAX)
 }
 
 /// A cell's value as written (map_server's), a free cell turned occupied with probability `noise`.
@@ -156,9 +367,12 @@ fn box_points(x0: f64, y0: f64, x1: f64, y1: f64) -> Vec<(f64, f64)> {
 
 /// The pixels of a `w` x `h` source for which `keep` holds, within the box `(x0, y0, x1, y1)`, turned by
 /// `theta` degrees about the box's centre into a square canvas holding its diagonal and `margin` on each
-/// side, each cell's value from its state by `value`: the canvas, its side, the transform from its pixels
+/// side (each canvas point's source point passed through `warp`: the identity for a rigid cut), each
+/// cell's value from its state by `value`: the canvas, its side, the transform from its pixels
 /// to the source's, and its known area's bounding box (`None` when it holds nothing known or is too large).
-#[allow(clippy::type_complexity)]
+// The cut's geometry, the warp and the value of a cell are each the caller's: one function for the
+// pairs, the bent pairs, the small windows and the sets.
+#[allow(clippy::type_complexity, clippy::too_many_arguments)]
 fn turned(
     state: &dyn Fn(usize, usize) -> CellState,
     (w, h): (usize, usize),
@@ -166,6 +380,7 @@ fn turned(
     (bx0, by0, bx1, by1): (usize, usize, usize, usize),
     theta: f64,
     margin: f64,
+    warp: &dyn Fn((f64, f64)) -> (f64, f64),
     value: &mut dyn FnMut(CellState) -> u8,
 ) -> Option<(Vec<u8>, usize, Rigid, (f64, f64, f64, f64))> {
     let cb = (
@@ -195,7 +410,7 @@ fn turned(
     let (mut kx0, mut ky0, mut kx1, mut ky1) = (f64::MAX, f64::MAX, f64::MIN, f64::MIN);
     for y in 0..side {
         for x in 0..side {
-            let (sx, sy) = to_source.apply((x as f64, y as f64));
+            let (sx, sy) = warp(to_source.apply((x as f64, y as f64)));
             let (sx, sy) = (sx.round(), sy.round());
             if sx < 0.0 || sy < 0.0 || sx >= w as f64 || sy >= h as f64 {
                 continue;
@@ -276,7 +491,7 @@ pub fn synthetic_set(
         let theta = unit(&mut rng) * 360.0;
         let value = &mut |s: CellState| written(s, noise, &mut rng);
         let (px, side, pose, (kx0, ky0, kx1, ky1)) =
-            turned(&state, (w, h), &keep, b, theta, margin, value)?;
+            turned(&state, (w, h), &keep, b, theta, margin, &|p| p, value)?;
         out.push(SyntheticCrop {
             map: OccupancyMap::from_image(MapImage::new(side as u32, side as u32, px).ok()?),
             pose: pose.normalized(),
@@ -297,17 +512,10 @@ impl SyntheticPair {
             theta_deg: self.truth.theta_deg,
             tx: self.truth.tx,
             ty: self.truth.ty,
-            rms_limit_px: SYNTHETIC_RMS_LIMIT_PX,
+            rms_limit_px: self.rms_limit_px,
             rot_limit_deg: SYNTHETIC_ROT_LIMIT_DEG,
             src_points: self.check_points.iter().map(|p| [p.0, p.1]).collect(),
-            dst_points: self
-                .check_points
-                .iter()
-                .map(|&p| {
-                    let q = self.truth.apply(p);
-                    [q.0, q.1]
-                })
-                .collect(),
+            dst_points: self.true_points.iter().map(|q| [q.0, q.1]).collect(),
         }
     }
 

@@ -1,4 +1,8 @@
-//! `merge-eval`: the merger over a pair set with ground truth, per pair and summed per building.
+//! `merge-eval`: the merger over a pair set with ground truth, per pair and summed per building; the hard
+//! synthetic families (`families.rs`); leave-one-building-out cross-validation (`crossval.rs`).
+
+pub mod crossval;
+pub mod families;
 
 use std::collections::HashMap;
 use std::io::{self, Write};
@@ -10,7 +14,7 @@ use serde::Serialize;
 use super::align::{align_prepared, Alignment, MergeOptions, Prepared};
 use super::hypotheses::Hypotheses;
 use super::pairs::{PairSet, TruePair};
-use super::synthetic::{synthetic_pair, SyntheticSpec};
+use super::synthetic::{synthetic_pair, SyntheticPair, SyntheticSpec};
 use super::transform::Rigid;
 use crate::backend::DetectorKind;
 use crate::baselines::Baseline;
@@ -197,16 +201,10 @@ pub fn run_synthetic_with(
                 let Some(pair) = synthetic_pair(map, &spec, s) else {
                     continue;
                 };
-                let (pa, pb) = (prepare(&pair.a), prepare(&pair.b));
-                let t = Instant::now();
-                let alignment = align_prepared(&pa, &pb, options)
-                    .unwrap_or_else(|e| super::align::declined(&format!("refused: {e}")));
-                let ms = t.elapsed().as_secs_f64() * 1e3;
                 let label = synthetic_label(name, overlap, k);
                 let stem = saved_stem(&label);
                 // The truth as a pair file holds it, named as saved maps are.
                 let truth = pair.true_pair(&format!("b_{stem}"), &format!("a_{stem}"), &group);
-                let (rot, rms) = truth.errors(&alignment.transform);
                 if let Some(dir) = save {
                     pair.a
                         .image
@@ -215,24 +213,8 @@ pub fn run_synthetic_with(
                         .image
                         .write_pgm(&dir.join(format!("{}.pgm", truth.src)))?;
                 }
-                let accurate_candidates = alignment
-                    .candidates
-                    .iter()
-                    .map(|c| truth.accurate(&c.transform))
-                    .collect();
-                let record = PairRecord {
-                    src: label.clone(),
-                    dst: label,
-                    building: group.clone(),
-                    negative: false,
-                    accepted: alignment.accepted,
-                    accurate: truth.accurate(&alignment.transform),
-                    rot_err_deg: rot,
-                    rms_px: rms,
-                    alignment,
-                    ms,
-                    accurate_candidates,
-                };
+                let record =
+                    synthetic_record(label, &group, false, &pair, &truth, options, &mut prepare);
                 on_pair(out.len(), &record, &pair.a, &pair.b, Some(truth.truth()))?;
                 out.push(record);
                 if save.is_some() {
@@ -283,6 +265,43 @@ pub fn run_synthetic_with(
         })?;
     }
     Ok((out, prep_ms / preps.max(1) as f64))
+}
+
+/// The merger on one synthetic pair (both maps prepared by `prepare`), recorded against `truth`; a
+/// `negative` pair (parts that do not overlap) is wrong whenever accepted.
+pub(crate) fn synthetic_record(
+    label: String,
+    group: &str,
+    negative: bool,
+    pair: &SyntheticPair,
+    truth: &TruePair,
+    options: &MergeOptions,
+    prepare: &mut dyn FnMut(&OccupancyMap) -> Prepared,
+) -> PairRecord {
+    let (pa, pb) = (prepare(&pair.a), prepare(&pair.b));
+    let t = Instant::now();
+    let alignment = align_prepared(&pa, &pb, options)
+        .unwrap_or_else(|e| super::align::declined(&format!("refused: {e}")));
+    let ms = t.elapsed().as_secs_f64() * 1e3;
+    let (rot, rms) = truth.errors(&alignment.transform);
+    let accurate_candidates = alignment
+        .candidates
+        .iter()
+        .map(|c| !negative && truth.accurate(&c.transform))
+        .collect();
+    PairRecord {
+        src: label.clone(),
+        dst: label,
+        building: group.to_string(),
+        negative,
+        accepted: alignment.accepted,
+        accurate: !negative && truth.accurate(&alignment.transform),
+        rot_err_deg: rot,
+        rms_px: rms,
+        alignment,
+        ms,
+        accurate_candidates,
+    }
 }
 
 /// How [`run_synthetic`] cuts and runs its pairs.

@@ -1,0 +1,235 @@
+//! The hard synthetic families of `merge-eval --synthetic`, each with exact truth from the project's own
+//! generators: repetitive layouts (a grid of equal rooms, warehouse aisles, a corridor of identical
+//! doors) at 50, 30 and 20% overlap; bent maps (heading drift, speckle, unexplored rooms); small partial
+//! maps (windows of 120 to 400 px, overlapping or apart).
+//!
+//! A repetitive pair is reported in its own row when nothing in its overlap breaks the period
+//! ([`SyntheticPair::alias_contradiction`] under [`MIN_ALIAS_CONTRADICTION`]): no merger can tell its
+//! true pose from a wrong one, so declining it is right and only a wrong accept counts against the
+//! merger. Windows apart are negatives: any accept is wrong.
+
+use std::time::Instant;
+
+use super::{synthetic_record, OnPair, PairRecord};
+use crate::error::{Error, Result};
+use crate::map::OccupancyMap;
+use crate::merge::align::{MergeOptions, Prepared};
+use crate::merge::synthetic::{
+    synthetic_crops, synthetic_pair_with, CropSpec, LayoutKind, PairShape, SyntheticPair,
+    SyntheticSpec, MIN_ALIAS_CONTRADICTION,
+};
+
+/// A family of synthetic pairs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Family {
+    /// One of the repetitive layouts.
+    Layout(LayoutKind),
+    /// Offices with B bent by heading drift, speckled and partly unexplored.
+    Bent,
+    /// Small windows of offices, overlapping or apart.
+    Crops,
+}
+
+impl Family {
+    /// Every family, in report order.
+    pub fn all() -> Vec<Family> {
+        LayoutKind::ALL
+            .iter()
+            .map(|&k| Family::Layout(k))
+            .chain([Family::Bent, Family::Crops])
+            .collect()
+    }
+
+    /// Its name in reports and on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            Family::Layout(k) => k.name(),
+            Family::Bent => "bent",
+            Family::Crops => "crops",
+        }
+    }
+
+    /// The family called `name`.
+    pub fn parse(name: &str) -> Result<Family> {
+        Family::all()
+            .into_iter()
+            .find(|f| f.name() == name)
+            .ok_or_else(|| {
+                let names: Vec<&str> = Family::all().iter().map(|f| f.name()).collect();
+                Error::invalid(format!(
+                    "unknown synthetic family {name:?}: expected office or one of {}",
+                    names.join(", ")
+                ))
+            })
+    }
+}
+
+/// Overlaps of the repetitive families.
+pub const LAYOUT_OVERLAPS: [f64; 3] = [0.5, 0.3, 0.2];
+/// Overlaps of the bent family.
+pub const BENT_OVERLAPS: [f64; 2] = [0.5, 0.3];
+/// The bent family's heading drift, degrees per 1000 px (its speckle and unexplored share below).
+pub const BENT_DRIFT: f64 = 4.0;
+const BENT_NOISE: f64 = 0.002;
+const BENT_UNEXPLORED: f64 = 0.08;
+/// Window sides of the crops family, pixels.
+pub const CROP_SIDES: [u32; 3] = [120, 250, 400];
+/// Overlaps of the crops family (`None`: apart).
+pub const CROP_OVERLAPS: [Option<f64>; 3] = [Some(0.5), Some(0.3), None];
+
+/// Runs `per` pairs of each of `families` and each of its overlaps, deterministic in `seed`; the mean
+/// preparation time of a map, ms.
+pub fn run_families(
+    families: &[Family],
+    per: usize,
+    seed: u64,
+    options: &MergeOptions,
+    on_pair: &mut OnPair,
+) -> Result<(Vec<PairRecord>, f64)> {
+    let mut out = Vec::new();
+    let (mut prep_ms, mut preps) = (0.0, 0usize);
+    let mut prepare = |m: &OccupancyMap| {
+        let t = Instant::now();
+        let p = Prepared::new(m);
+        prep_ms += t.elapsed().as_secs_f64() * 1e3;
+        preps += 1;
+        p
+    };
+    let offices: Vec<OccupancyMap> = (0..per as u64)
+        .map(|k| {
+            crate::synth::office_map(1024, 768, seed.wrapping_mul(97).wrapping_add(k + 11))
+                .map(OccupancyMap::from_image)
+        })
+        .collect::<Result<_>>()?;
+    let mut push = |label: String,
+                    group: String,
+                    negative: bool,
+                    pair: SyntheticPair,
+                    out: &mut Vec<PairRecord>|
+     -> Result<()> {
+        let truth = pair.true_pair(&label, &label, &group);
+        let r = synthetic_record(
+            label,
+            &group,
+            negative,
+            &pair,
+            &truth,
+            options,
+            &mut prepare,
+        );
+        on_pair(out.len(), &r, &pair.a, &pair.b, Some(truth.truth()))?;
+        out.push(r);
+        Ok(())
+    };
+    for &family in families {
+        let name = family.name();
+        match family {
+            Family::Layout(kind) => {
+                for &o in &LAYOUT_OVERLAPS {
+                    for k in 0..per {
+                        let s = seed.wrapping_mul(7919).wrapping_add(k as u64);
+                        let layout = kind.make(s)?;
+                        let map = OccupancyMap::from_image(layout.image);
+                        let shape = PairShape {
+                            lattice: layout.lattice,
+                            ..PairShape::default()
+                        };
+                        let spec = SyntheticSpec {
+                            overlap: o,
+                            noise: 0.0,
+                        };
+                        let Some(pair) =
+                            synthetic_pair_with(&map, &spec, &shape, s ^ (o * 1e4) as u64)
+                        else {
+                            continue;
+                        };
+                        let breaks =
+                            pair.alias_contradiction.unwrap_or(u64::MAX) >= MIN_ALIAS_CONTRADICTION;
+                        let group = if breaks {
+                            format!("{name}, {:.0}% overlap", 100.0 * o)
+                        } else {
+                            format!(
+                                "{name}, {:.0}% overlap, nothing breaks the period",
+                                100.0 * o
+                            )
+                        };
+                        push(
+                            format!("{name}/{:.0}/{k}", 100.0 * o),
+                            group,
+                            false,
+                            pair,
+                            &mut out,
+                        )?;
+                    }
+                }
+            }
+            Family::Bent => {
+                for &o in &BENT_OVERLAPS {
+                    for (k, map) in offices.iter().enumerate() {
+                        let shape = PairShape {
+                            bend_deg_per_kpx: BENT_DRIFT,
+                            unexplored: BENT_UNEXPLORED,
+                            ..PairShape::default()
+                        };
+                        let spec = SyntheticSpec {
+                            overlap: o,
+                            noise: BENT_NOISE,
+                        };
+                        let s = seed
+                            .wrapping_mul(31)
+                            .wrapping_add(k as u64 * 101 + (o * 1e4) as u64);
+                        let Some(pair) = synthetic_pair_with(map, &spec, &shape, s) else {
+                            continue;
+                        };
+                        let group = format!("{name}, {:.0}% overlap", 100.0 * o);
+                        push(
+                            format!("{name}/{:.0}/{k}", 100.0 * o),
+                            group,
+                            false,
+                            pair,
+                            &mut out,
+                        )?;
+                    }
+                }
+            }
+            Family::Crops => {
+                for &side in &CROP_SIDES {
+                    for &o in &CROP_OVERLAPS {
+                        for (k, map) in offices.iter().enumerate() {
+                            let spec = CropSpec {
+                                side,
+                                overlap: o,
+                                noise: 0.0,
+                            };
+                            let s = seed
+                                .wrapping_mul(131)
+                                .wrapping_add(k as u64 * 1009 + u64::from(side))
+                                .wrapping_add(o.map_or(7, |o| (o * 1e4) as u64));
+                            let Some(pair) = synthetic_crops(map, &spec, s) else {
+                                continue;
+                            };
+                            let (group, what) = match o {
+                                Some(o) => (
+                                    format!("{name} {side} px, {:.0}% overlap", 100.0 * o),
+                                    format!("{:.0}", 100.0 * o),
+                                ),
+                                None => (
+                                    format!("{name} {side} px, apart (negative)"),
+                                    "apart".to_string(),
+                                ),
+                            };
+                            push(
+                                format!("{name}/{side}/{what}/{k}"),
+                                group,
+                                o.is_none(),
+                                pair,
+                                &mut out,
+                            )?;
+                        }
+                    }
+                }
+            }
+        }
+    }
+    Ok((out, prep_ms / preps.max(1) as f64))
+}
