@@ -161,6 +161,7 @@ mod tests {
             free_inside: 0.6,
             free_agree: 0.97,
             conflict_fine: 0.3,
+            support: 4000.0,
             ..Features::default()
         }
     }
@@ -189,6 +190,16 @@ mod tests {
             ..f
         };
         assert!(!accepts(&symmetric, 10.0));
+        // An alternative pose as consistent with most of the support: ambiguous.
+        assert!(!accepts(&Features { alias: 0.8, ..f }, 10.0));
+        // A few hundred matched wall pixels: too little to tell right from wrong.
+        assert!(!accepts(
+            &Features {
+                support: 500.0,
+                ..f
+            },
+            10.0
+        ));
     }
 
     #[test]
