@@ -142,18 +142,18 @@ fn cross_validation_leaves_each_building_out() {
     let Some(dir) = common::merge_pairs() else {
         return;
     };
-    let o = std::process::Command::new(env!("CARGO_BIN_EXE_ogm-corners"))
-        .args([
-            "merge-eval",
+    let o = common::tool_in(
+        &dir,
+        "merge-eval",
+        &[
+            "pairs.json",
             "--cross-validate",
             "--only",
             "HIH,KPT4A",
             "--format",
             "json",
-        ])
-        .arg(dir.join("pairs.json"))
-        .output()
-        .unwrap();
+        ],
+    );
     assert_eq!(
         o.status.code(),
         Some(0),

@@ -41,7 +41,8 @@ pub fn contradiction(features: &Features) -> f64 {
 }
 
 /// Whether an alignment with these features and rule value is accepted: the rule, the two contradiction
-/// vetoes and the self-symmetry test.
+/// vetoes, the self-symmetry test, the alternative-pose test ([`MAX_ALIAS`]) and the minimum support
+/// ([`MIN_SUPPORT`]).
 pub fn accepts(features: &Features, rule_value: f64) -> bool {
     rule_value >= 0.0
         && not_contradicted(features)

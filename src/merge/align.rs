@@ -28,7 +28,7 @@ use super::coarse::{coarse_hypotheses, cs, screen, CoarseSet, Crop};
 use super::hypotheses::Hypotheses;
 pub use super::prepare::{prepared_bytes, Prepared, Symmetry, CELLS};
 use super::score::{score_both, Probe};
-use super::transform::Rigid;
+use super::transform::{fit_rigid, Rigid};
 use crate::backend::Backend;
 use crate::cpu::merge_score::FLAG_DEEP;
 use crate::cpu::CpuBackend;
@@ -190,11 +190,7 @@ pub fn align_prepared_with(
         use rayon::prelude::*;
         icped
             .par_iter()
-            .map(|(_, t)| {
-                let (a, na, _) = local_agreement(src, dst, t);
-                let (b, nb, _) = local_agreement(dst, src, &t.inverse());
-                (a * na + b * nb) / (na + nb).max(1.0)
-            })
+            .map(|(_, t)| local_both(src, dst, t).0)
             .collect()
     };
     let to_full = |t: &Rigid| crop_to_map(src, dst, t);
@@ -262,7 +258,7 @@ pub fn align_prepared_with(
             self_symmetry_with(b, backend)?,
         );
         features.self_match = sa.value.max(sb.value);
-        (features.alias, alternative) = alias(src, dst, &best, &sa, &sb, backend)?;
+        (features.alias, alternative) = alias(src, dst, &best, sa, sb, backend)?;
     }
     let accepted = accepts(&features, score);
     let reason = (!accepted).then(|| {
@@ -532,25 +528,7 @@ fn icp(src: &Prepared, dst: &Prepared, mut t: Rigid) -> Rigid {
         if pairs_p.len() < 20 {
             break;
         }
-        let n = pairs_p.len() as f64;
-        let mean = |v: &[(f64, f64)]| {
-            let s = v.iter().fold((0.0, 0.0), |a, p| (a.0 + p.0, a.1 + p.1));
-            (s.0 / n, s.1 / n)
-        };
-        let (mp, mq) = (mean(&pairs_p), mean(&pairs_q));
-        let (mut sxx, mut sxy) = (0.0, 0.0);
-        for (p, q) in pairs_p.iter().zip(&pairs_q) {
-            let (px, py, qx, qy) = (p.0 - mp.0, p.1 - mp.1, q.0 - mq.0, q.1 - mq.1);
-            sxx += px * qx + py * qy;
-            sxy += px * qy - py * qx;
-        }
-        let theta = sxy.atan2(sxx).to_degrees();
-        let (c, s) = cs(theta);
-        let next = Rigid {
-            theta_deg: theta,
-            tx: mq.0 - (c * mp.0 - s * mp.1),
-            ty: mq.1 - (s * mp.0 + c * mp.1),
-        };
+        let next = fit_rigid(&pairs_p, &pairs_q);
         let done = (next.theta_deg - t.theta_deg).abs() < 1e-4
             && (next.tx - t.tx).abs() < 1e-3
             && (next.ty - t.ty).abs() < 1e-3;
@@ -666,17 +644,11 @@ fn map_to_crop(src: &Prepared, dst: &Prepared, t: &Rigid) -> Rigid {
     }
 }
 
-/// The local agreement of `from`'s walls mapped by `t` into `to` ([`Features::local`]), the wall pixels
-/// it was measured on (of those sampled), and their share of all of `from`'s wall pixels (at most 1).
-fn local_agreement(from: &Prepared, to: &Prepared, t: &Rigid) -> (f64, f64, f64) {
-    let l = local_fit(from, to, t);
-    (l.share, l.measured, l.coverage)
-}
-
 /// What [`local_fit`] measures.
 #[derive(Clone, Copy, Debug)]
 struct LocalFit {
-    /// Share of the measured wall pixels within 1.5 px of `to`'s walls after their tile's best shift.
+    /// Share of the measured wall pixels within 1.5 px of `to`'s walls after their tile's best shift
+    /// (the local agreement, [`Features::local`]).
     share: f64,
     /// Wall pixels measured (of those sampled).
     measured: f64,
@@ -777,9 +749,9 @@ pub fn self_symmetry(p: &Prepared) -> Result<f64> {
 
 /// [`self_symmetry`] with the self-alignment's scoring on `backend` (the same counts on every backend),
 /// with the self-transforms that offer alternative poses ([`ALIAS_SELF_MATCH`]); cached in the map.
-fn self_symmetry_with(p: &Prepared, backend: &mut dyn Backend) -> Result<Symmetry> {
+fn self_symmetry_with<'p>(p: &'p Prepared, backend: &mut dyn Backend) -> Result<&'p Symmetry> {
     if let Some(v) = p.symmetry.get() {
-        return Ok(v.clone());
+        return Ok(v);
     }
     let options = MergeOptions {
         check_symmetry: false,
@@ -791,14 +763,14 @@ fn self_symmetry_with(p: &Prepared, backend: &mut dyn Backend) -> Result<Symmetr
         if transform_distance(&c.transform, &Rigid::IDENTITY) <= DISTINCT_PX {
             continue;
         }
-        let (share, _, coverage) = local_agreement(p, p, &map_to_crop(p, p, &c.transform));
-        out.value = out.value.max(share * coverage);
-        if share * coverage >= ALIAS_SELF_MATCH {
+        let l = local_fit(p, p, &map_to_crop(p, p, &c.transform));
+        let matched = l.share * l.coverage;
+        out.value = out.value.max(matched);
+        if matched >= ALIAS_SELF_MATCH {
             out.transforms.push(c.transform);
         }
     }
-    let _ = p.symmetry.set(out.clone());
-    Ok(out)
+    Ok(p.symmetry.get_or_init(|| out))
 }
 
 /// The best alternative to `best` (B's pixels to A's) that the maps' self-transforms offer: each of

@@ -97,7 +97,7 @@ impl Rigid {
 }
 
 /// The least-squares rigid transform taking each point of `from` to its partner in `to` (closed form;
-/// the identity for fewer than two points).
+/// the identity for fewer than two points): ICP's step, and the truth of a bent synthetic pair.
 pub fn fit_rigid(from: &[(f64, f64)], to: &[(f64, f64)]) -> Rigid {
     let n = from.len().min(to.len());
     if n < 2 {
@@ -116,10 +116,11 @@ pub fn fit_rigid(from: &[(f64, f64)], to: &[(f64, f64)]) -> Rigid {
         sxx += px * qx + py * qy;
         sxy += px * qy - py * qx;
     }
-    let theta = sxy.atan2(sxx);
-    let (s, c) = theta.sin_cos();
+    // Through degrees, as every transform here is kept: ICP's iterations stop on these exact values.
+    let theta = sxy.atan2(sxx).to_degrees();
+    let (s, c) = theta.to_radians().sin_cos();
     Rigid {
-        theta_deg: theta.to_degrees(),
+        theta_deg: theta,
         tx: mq.0 - (c * mp.0 - s * mp.1),
         ty: mq.1 - (s * mp.0 + c * mp.1),
     }

@@ -8,12 +8,10 @@
 //! true pose from a wrong one, so declining it is right and only a wrong accept counts against the
 //! merger. Windows apart are negatives: any accept is wrong.
 
-use std::time::Instant;
-
-use super::{synthetic_record, OnPair, PairRecord};
+use super::{synthetic_label, synthetic_record, OnPair, PairRecord, PrepTimer};
 use crate::error::{Error, Result};
 use crate::map::OccupancyMap;
-use crate::merge::align::{MergeOptions, Prepared};
+use crate::merge::align::MergeOptions;
 use crate::merge::synthetic::{
     synthetic_crops, synthetic_pair_with, CropSpec, LayoutKind, PairShape, SyntheticPair,
     SyntheticSpec, MIN_ALIAS_CONTRADICTION,
@@ -77,6 +75,11 @@ pub const CROP_SIDES: [u32; 3] = [120, 250, 400];
 /// Overlaps of the crops family (`None`: apart).
 pub const CROP_OVERLAPS: [Option<f64>; 3] = [Some(0.5), Some(0.3), None];
 
+/// A family's row at overlap `o`: `<name>, <percent>% overlap`.
+fn overlap_group(name: &str, o: f64) -> String {
+    format!("{name}, {:.0}% overlap", 100.0 * o)
+}
+
 /// Runs `per` pairs of each of `families` and each of its overlaps, deterministic in `seed`; the mean
 /// preparation time of a map, ms.
 pub fn run_families(
@@ -87,14 +90,7 @@ pub fn run_families(
     on_pair: &mut OnPair,
 ) -> Result<(Vec<PairRecord>, f64)> {
     let mut out = Vec::new();
-    let (mut prep_ms, mut preps) = (0.0, 0usize);
-    let mut prepare = |m: &OccupancyMap| {
-        let t = Instant::now();
-        let p = Prepared::new(m);
-        prep_ms += t.elapsed().as_secs_f64() * 1e3;
-        preps += 1;
-        p
-    };
+    let mut prep = PrepTimer::default();
     let offices: Vec<OccupancyMap> = (0..per as u64)
         .map(|k| {
             crate::synth::office_map(1024, 768, seed.wrapping_mul(97).wrapping_add(k + 11))
@@ -108,15 +104,7 @@ pub fn run_families(
                     out: &mut Vec<PairRecord>|
      -> Result<()> {
         let truth = pair.true_pair(&label, &label, &group);
-        let r = synthetic_record(
-            label,
-            &group,
-            negative,
-            &pair,
-            &truth,
-            options,
-            &mut prepare,
-        );
+        let r = synthetic_record(label, &group, negative, &pair, &truth, options, &mut prep);
         on_pair(out.len(), &r, &pair.a, &pair.b, Some(truth.truth()))?;
         out.push(r);
         Ok(())
@@ -146,20 +134,11 @@ pub fn run_families(
                         let breaks =
                             pair.alias_contradiction.unwrap_or(u64::MAX) >= MIN_ALIAS_CONTRADICTION;
                         let group = if breaks {
-                            format!("{name}, {:.0}% overlap", 100.0 * o)
+                            overlap_group(name, o)
                         } else {
-                            format!(
-                                "{name}, {:.0}% overlap, nothing breaks the period",
-                                100.0 * o
-                            )
+                            format!("{}, nothing breaks the period", overlap_group(name, o))
                         };
-                        push(
-                            format!("{name}/{:.0}/{k}", 100.0 * o),
-                            group,
-                            false,
-                            pair,
-                            &mut out,
-                        )?;
+                        push(synthetic_label(name, o, k), group, false, pair, &mut out)?;
                     }
                 }
             }
@@ -181,10 +160,9 @@ pub fn run_families(
                         let Some(pair) = synthetic_pair_with(map, &spec, &shape, s) else {
                             continue;
                         };
-                        let group = format!("{name}, {:.0}% overlap", 100.0 * o);
                         push(
-                            format!("{name}/{:.0}/{k}", 100.0 * o),
-                            group,
+                            synthetic_label(name, o, k),
+                            overlap_group(name, o),
                             false,
                             pair,
                             &mut out,
@@ -231,5 +209,5 @@ pub fn run_families(
             }
         }
     }
-    Ok((out, prep_ms / preps.max(1) as f64))
+    Ok((out, prep.mean_ms()))
 }

@@ -180,14 +180,7 @@ pub fn run_synthetic_with(
     let (per_map, noise, seed, negatives) = (*per_map, *noise, *seed, *negatives);
     let mut saved: Vec<TruePair> = Vec::new();
     let mut out = Vec::new();
-    let (mut prep_ms, mut preps) = (0.0, 0usize);
-    let mut prepare = |m: &OccupancyMap| {
-        let t = Instant::now();
-        let p = Prepared::new(m);
-        prep_ms += t.elapsed().as_secs_f64() * 1e3;
-        preps += 1;
-        p
-    };
+    let mut prep = PrepTimer::default();
     for &overlap in overlaps.iter() {
         let spec = SyntheticSpec { overlap, noise };
         let group = format!("synthetic, {:.0}% overlap", 100.0 * overlap);
@@ -214,7 +207,7 @@ pub fn run_synthetic_with(
                         .write_pgm(&dir.join(format!("{}.pgm", truth.src)))?;
                 }
                 let record =
-                    synthetic_record(label, &group, false, &pair, &truth, options, &mut prepare);
+                    synthetic_record(label, &group, false, &pair, &truth, options, &mut prep);
                 on_pair(out.len(), &record, &pair.a, &pair.b, Some(truth.truth()))?;
                 out.push(record);
                 if save.is_some() {
@@ -233,7 +226,7 @@ pub fn run_synthetic_with(
                     &cuts[(i + 1) % cuts.len()].0,
                     &cuts[(i + 1) % cuts.len()].1.b,
                 );
-                let (pa, pb) = (prepare(a), prepare(b));
+                let (pa, pb) = (prep.prepare(a), prep.prepare(b));
                 let t = Instant::now();
                 let alignment = align_prepared(&pa, &pb, options)
                     .unwrap_or_else(|e| super::align::declined(&format!("refused: {e}")));
@@ -264,10 +257,33 @@ pub fn run_synthetic_with(
             writeln!(w)
         })?;
     }
-    Ok((out, prep_ms / preps.max(1) as f64))
+    Ok((out, prep.mean_ms()))
 }
 
-/// The merger on one synthetic pair (both maps prepared by `prepare`), recorded against `truth`; a
+/// Maps prepared for the merger, timed: the synthetic runs prepare both maps of every pair anew.
+#[derive(Default)]
+pub(crate) struct PrepTimer {
+    ms: f64,
+    maps: usize,
+}
+
+impl PrepTimer {
+    /// `m` prepared, its time counted.
+    pub(crate) fn prepare(&mut self, m: &OccupancyMap) -> Prepared {
+        let t = Instant::now();
+        let p = Prepared::new(m);
+        self.ms += t.elapsed().as_secs_f64() * 1e3;
+        self.maps += 1;
+        p
+    }
+
+    /// The mean time to prepare a map, milliseconds (0 before any).
+    pub(crate) fn mean_ms(&self) -> f64 {
+        self.ms / self.maps.max(1) as f64
+    }
+}
+
+/// The merger on one synthetic pair (both maps prepared by `prep`), recorded against `truth`; a
 /// `negative` pair (parts that do not overlap) is wrong whenever accepted.
 pub(crate) fn synthetic_record(
     label: String,
@@ -276,9 +292,9 @@ pub(crate) fn synthetic_record(
     pair: &SyntheticPair,
     truth: &TruePair,
     options: &MergeOptions,
-    prepare: &mut dyn FnMut(&OccupancyMap) -> Prepared,
+    prep: &mut PrepTimer,
 ) -> PairRecord {
-    let (pa, pb) = (prepare(&pair.a), prepare(&pair.b));
+    let (pa, pb) = (prep.prepare(&pair.a), prep.prepare(&pair.b));
     let t = Instant::now();
     let alignment = align_prepared(&pa, &pb, options)
         .unwrap_or_else(|e| super::align::declined(&format!("refused: {e}")));
