@@ -191,3 +191,40 @@ fn cross_validation_leaves_each_building_out() {
     // The folds' rules differ from each other: each was fitted on its own training buildings.
     assert_ne!(rows[0]["rule"], rows[1]["rule"]);
 }
+
+/// Bad choices of families or subsets: a one-line error and exit 2, before any folder is made.
+#[test]
+fn bad_family_and_subset_choices_are_refused() {
+    let d = tempfile::tempdir().unwrap();
+    std::fs::write(
+        d.path().join("pairs.json"),
+        r#"{"pairs": [{"src": "o2", "dst": "o1", "building": "office", "theta_deg": 0, "tx": 0, "ty": 0,
+            "rms_limit_px": 5, "rot_limit_deg": 2, "src_points": [[10, 10]], "dst_points": [[10, 10]]}],
+            "negatives": []}"#,
+    )
+    .unwrap();
+    let cases: [(&[&str], &str); 4] = [
+        (
+            &["--synthetic", "--family", "nonsense", "--html", "h"],
+            "unknown synthetic family",
+        ),
+        (
+            &["pairs.json", "--family", "warehouse"],
+            "use it with --synthetic",
+        ),
+        (&["--synthetic", "maps", "--family", "bent"], "give no maps"),
+        (
+            &["pairs.json", "--cross-validate", "--only", "ZZZ"],
+            "no pair of the pair file",
+        ),
+    ];
+    std::fs::create_dir(d.path().join("maps")).unwrap();
+    for (args, want) in cases {
+        let o = common::tool_in(d.path(), "merge-eval", args);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
+        assert!(err.contains(want), "{args:?}: {err}");
+    }
+    // The report folder of the refused run was not made.
+    assert!(!d.path().join("h").exists());
+}

@@ -32,13 +32,8 @@ pub(super) struct MergeEvalArgs {
     /// With --synthetic and no maps: the families to run, comma-separated: office (the office generator's
     /// offices cut in two, with negatives), grid-rooms, warehouse, doors (repetitive layouts at 50, 30 and
     /// 20% overlap), bent (offices with heading drift, speckle and unexplored rooms), crops (windows of 120,
-    /// 250 and 400 px overlapping or apart), or all.
-    #[arg(
-        long,
-        value_delimiter = ',',
-        default_value = "all",
-        value_name = "FAMILY"
-    )]
+    /// 250 and 400 px overlapping or apart), or all (the default).
+    #[arg(long, value_delimiter = ',', value_name = "FAMILY")]
     family: Vec<String>,
     /// Synthetic pairs per map and overlap (per family and overlap for the generated families).
     #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u32).range(1..=1000))]
@@ -108,6 +103,17 @@ pub(super) fn run(a: MergeEvalArgs, budget: &Budget) -> Result<()> {
             "--save-pairs writes synthetic pairs (--synthetic) or the synthetic set (--global without a pair file)",
         ));
     }
+    // The families checked before any folder is made (clap drops a requirement on --synthetic, which
+    // conflicts with the pair file, so it is checked here).
+    let chosen = match &a.synthetic {
+        Some(given) => Some(families(&a.family, given.is_empty())?),
+        None if !a.family.is_empty() => {
+            return Err(Error::invalid(
+                "--family chooses synthetic families: use it with --synthetic",
+            ))
+        }
+        None => None,
+    };
     let mut page = match &a.html {
         Some(dir) => Some(PairsPage::create(dir)?),
         None => None,
@@ -137,6 +143,12 @@ pub(super) fn run(a: MergeEvalArgs, budget: &Budget) -> Result<()> {
                     |n: &str| a.only.is_empty() || a.only.iter().any(|p| n.starts_with(p.as_str()));
                 set.pairs.retain(|p| keep(&p.src) && keep(&p.dst));
                 set.negatives.retain(|p| keep(&p.src) && keep(&p.dst));
+                if set.pairs.is_empty() {
+                    return Err(Error::invalid(format!(
+                        "--only {}: no pair of the pair file has both maps named so",
+                        a.only.join(",")
+                    )));
+                }
                 let options = MergeOptions {
                     always_verify: true,
                     ..MergeOptions::default()
@@ -173,7 +185,7 @@ pub(super) fn run(a: MergeEvalArgs, budget: &Budget) -> Result<()> {
                     }
                 }
             }
-            let (office, families) = families(&a.family, given.is_empty())?;
+            let (office, families) = chosen.unwrap_or_default();
             // Negatives only between the generator's offices: given maps may show one place twice.
             let run = eval::SyntheticRun {
                 overlaps,
@@ -226,7 +238,7 @@ pub(super) fn run(a: MergeEvalArgs, budget: &Budget) -> Result<()> {
 /// are cut as the office family is, and take no generated family.
 fn families(names: &[String], generated: bool) -> Result<(bool, Vec<eval::families::Family>)> {
     use eval::families::Family;
-    let all = names.iter().any(|n| n == "all");
+    let all = names.is_empty() || names.iter().any(|n| n == "all");
     if !generated {
         if names.iter().any(|n| n != "all") {
             return Err(Error::invalid(
