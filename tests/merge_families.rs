@@ -72,11 +72,11 @@ fn a_warehouse_misplaced_by_its_repeat_is_declined_as_ambiguous() {
     }
 }
 
-/// Bent maps (heading drift of 4 degrees per 1000 px, speckle, unexplored rooms) at 50% overlap: merged,
-/// within the success limits (twice the truth's residual).
+/// Bent maps (heading drift of 4 degrees per 1000 px, speckle, unexplored rooms) at 50% overlap: the
+/// estimate within the success limits (twice the truth's residual), and an accepted one never outside them.
 #[test]
-fn bent_maps_are_merged_within_the_limits() {
-    let mut ok = 0;
+fn bent_maps_are_placed_within_the_limits() {
+    let (mut right, mut accepted) = (0, 0);
     for seed in 0..3u64 {
         let map =
             OccupancyMap::from_image(ogm_corners::synth::office_map(1024, 768, seed + 11).unwrap());
@@ -98,10 +98,14 @@ fn bent_maps_are_merged_within_the_limits() {
             "{}",
             al.explain()
         );
-        ok += usize::from(al.accepted && pair.accurate(&al.transform));
+        right += usize::from(pair.accurate(&al.transform));
+        accepted += usize::from(al.accepted);
     }
-    // Measured: 4 of 4 in merge-eval's bent family at 50%; here at least 2 of 3.
-    assert!(ok >= 2, "{ok} of 3 bent pairs merged");
+    // Measured in merge-eval's bent family at 50% (8 pairs): 7 estimates right, 5 accepted, with the
+    // rule that stays safe leaving each building out (it weighs the coarse score's lead, which bending
+    // blurs). Here: every estimate right, at least one accepted.
+    assert_eq!(right, 3, "{right} of 3 bent pairs placed right");
+    assert!(accepted >= 1, "no bent pair merged");
 }
 
 /// Small windows that do not overlap are never merged (the two 250 px crops 11 px apart were
@@ -135,8 +139,10 @@ fn small_partial_maps_apart_are_declined() {
     }
 }
 
-/// `merge-eval --cross-validate` on the two small buildings: a row per building left out, the pooled
-/// held-out row, the in-sample row and the shipped rule's; no wrong accept held out.
+/// Leave-one-building-out on the real pairs (all of them: the claim is about whole buildings): one row per
+/// building, the pooled held-out row, the in-sample row and the shipped rule's. Held out, no wrong accept
+/// and no negative in any building, with the vetoes and with the rule alone; at least 90% of the pairs
+/// accepted and accurate pooled (measured: 199 of 206).
 #[test]
 fn cross_validation_leaves_each_building_out() {
     let Some(dir) = common::merge_pairs() else {
@@ -145,14 +151,7 @@ fn cross_validation_leaves_each_building_out() {
     let o = common::tool_in(
         &dir,
         "merge-eval",
-        &[
-            "pairs.json",
-            "--cross-validate",
-            "--only",
-            "HIH,KPT4A",
-            "--format",
-            "json",
-        ],
+        &["pairs.json", "--cross-validate", "--format", "json"],
     );
     assert_eq!(
         o.status.code(),
@@ -169,6 +168,7 @@ fn cross_validation_leaves_each_building_out() {
     assert_eq!(
         names,
         [
+            "F5",
             "HIH",
             "KPT4A",
             "pooled held-out",
@@ -177,19 +177,27 @@ fn cross_validation_leaves_each_building_out() {
         ]
     );
     for r in rows {
-        assert_eq!(
-            r["pairs"],
-            if r["building"] == "HIH" || r["building"] == "KPT4A" {
-                12
-            } else {
-                24
-            }
-        );
+        let pairs = match r["building"].as_str().unwrap() {
+            "F5" => 182,
+            "HIH" | "KPT4A" => 12,
+            _ => 206,
+        };
+        assert_eq!(r["pairs"], pairs, "{r}");
         assert_eq!(r["wrong"], 0, "{r}");
         assert_eq!(r["negatives_accepted"], 0, "{r}");
+        // The threshold sits above every wrong one it was fitted on, vetoed or not, and that holds
+        // for the building left out too: the rule alone declines every wrong estimate and negative.
+        assert_eq!(r["rule_alone_wrong"], 0, "{r}");
     }
-    // The folds' rules differ from each other: each was fitted on its own training buildings.
+    let pooled = &rows[3];
+    assert!(pooled["rule"].is_null(), "the pooled row has no one rule");
+    assert!(
+        pooled["accepted_accurate"].as_u64().unwrap() * 10 >= 206 * 9,
+        "{pooled}"
+    );
+    // Each fold's rule is its own, fitted on its own training buildings.
     assert_ne!(rows[0]["rule"], rows[1]["rule"]);
+    assert_ne!(rows[1]["rule"], rows[2]["rule"]);
 }
 
 /// Bad choices of families or subsets: a one-line error and exit 2, before any folder is made.

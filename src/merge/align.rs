@@ -14,8 +14,8 @@
 //! and verified by the kernel (walls, fine walls, free space); the estimate is the candidate with the
 //! best product of its coarse score (relative to the best), drift-tolerant local agreement and
 //! consistency ([`Features::choice`]), polished by hill-climbing on the kernel's fine counts. It is
-//! accepted when a linear rule over four features, fitted on half of the real pairs, clears its
-//! threshold with a margin ([`Acceptance`]), and no veto says otherwise ([`accepts`]).
+//! accepted when a linear rule over three features, fitted on the real pairs (and checked leaving each
+//! building out), clears its threshold with a margin ([`Acceptance`]), and no veto says otherwise ([`accepts`]).
 
 use serde::Serialize;
 
@@ -186,11 +186,11 @@ pub fn align_prepared_with(
     let verified = verify(src, dst, &crops, backend)?;
     // Every candidate's local agreement: the choice below and its margin over the runner-up need them all.
     let top = icped.iter().map(|r| r.0).fold(f64::MIN, f64::max).max(1e-9);
-    let locals: Vec<f64> = {
+    let locals: Vec<(f64, f64, f64)> = {
         use rayon::prelude::*;
         icped
             .par_iter()
-            .map(|(_, t)| local_both(src, dst, t).0)
+            .map(|(_, t)| local_both(src, dst, t))
             .collect()
     };
     let to_full = |t: &Rigid| crop_to_map(src, dst, t);
@@ -198,9 +198,10 @@ pub fn align_prepared_with(
         .iter()
         .zip(verified)
         .zip(locals)
-        .map(|((&(score, t), mut f), local)| {
+        .map(|((&(score, t), mut f), (local, residual, _))| {
             f.coarse = score;
             f.local = local;
+            f.residual = residual;
             f.coarse_norm = score / coarse_unit;
             (score, to_full(&t), f)
         })
@@ -239,6 +240,7 @@ pub fn align_prepared_with(
     refined[0].2 = Features {
         coarse: refined[0].2.coarse,
         local: refined[0].2.local,
+        residual: refined[0].2.residual,
         coarse_norm: refined[0].2.coarse_norm,
         ..again
     };
@@ -304,11 +306,10 @@ pub fn align_prepared_with(
         }
         format!(
             "not confident: {:.0}% of the smaller map's free space falls in the other ({:.1}% of it on \
-             occupied or unknown pixels), the choice scores {:.2}x and the coarse score {:.2}x the best \
-             distinct alternative (rule value {score:.2} below 0)",
+             occupied or unknown pixels), the consistent coarse score stands {:.2}x the best distinct \
+             alternative's (rule value {score:.2} below 0)",
             100.0 * features.free_inside,
             100.0 * (1.0 - features.free_agree),
-            features.choice_ratio,
             features.coarse_ratio
         )
     });
@@ -364,8 +365,8 @@ impl Alignment {
         let t = &self.transform;
         if self.accepted {
             format!(
-                "rule value {:.2} over its threshold; the choice stands {:.2}x and the coarse score \
-                 {:.2}x above the best distinct alternative ({runner}); a pose a map's repeat offers \
+                "rule value {:.2} over its threshold; the choice stands {:.2}x and the consistent coarse \
+                 score {:.2}x above the best distinct alternative ({runner}); a pose a map's repeat offers \
                  has {:.0}% of its support (ambiguous from {:.0}%); {:.0} wall pixels match",
                 self.score,
                 f.choice_ratio,
@@ -387,13 +388,19 @@ impl Alignment {
     }
 }
 
-/// Candidate `i`'s coarse score and choice key (`keys`) over the best of the candidates distinct from it
-/// (more than [`DISTINCT_PX`] apart), each at most [`MAX_RATIO`] (also when there is none).
+/// Candidate `i`'s consistent coarse score and choice key (`keys`) over the best of the candidates
+/// distinct from it (more than [`DISTINCT_PX`] apart), each at most [`MAX_RATIO`] (also when there is
+/// none). The consistent coarse score is the coarse score times the share of the walls that no local
+/// shift of a few px keeps out of the other map's free space ([`Features::residual`]): the correlation
+/// counts walls on walls, and a rival that lays one map over the other (a half turn of an office, a
+/// shift by a period) earns it with walls that the other map says are open space. A bent map's true pose
+/// correlates less well than such a rival, but its conflicts vanish under the local shifts.
 fn distinct_ratios(refined: &[(f64, Rigid, Features)], keys: &[f64], i: usize) -> (f64, f64) {
+    let consistent = |r: &(f64, Rigid, Features)| r.0 * (1.0 - r.2.residual).max(0.0);
     let (mut other_coarse, mut other_key) = (f64::NEG_INFINITY, f64::NEG_INFINITY);
     for (j, r) in refined.iter().enumerate() {
         if j != i && transform_distance(&r.1, &refined[i].1) > DISTINCT_PX {
-            other_coarse = other_coarse.max(r.0);
+            other_coarse = other_coarse.max(consistent(r));
             other_key = other_key.max(keys[j]);
         }
     }
@@ -404,7 +411,10 @@ fn distinct_ratios(refined: &[(f64, Rigid, Features)], keys: &[f64], i: usize) -
             MAX_RATIO
         }
     };
-    (ratio(refined[i].0, other_coarse), ratio(keys[i], other_key))
+    (
+        ratio(consistent(&refined[i]), other_coarse),
+        ratio(keys[i], other_key),
+    )
 }
 
 /// A declined alignment with no candidate.

@@ -3,11 +3,12 @@
 //! out judged with that rule, for each building in turn. The held-out figures are what a user can expect
 //! on a building the rule has never seen; the in-sample ones (fitted on all) only show the gap.
 //!
-//! The fit is the rule's own recipe ([`Acceptance`]): a logistic regression of "accurate" on the four
-//! features (standardised, a unit ridge on the weights, Newton's method), the threshold 0.3 standard
-//! deviations of the rule's values above the highest value of a wrong estimate or a negative among the
-//! training pairs that no veto declines. The vetoes keep their limits (they are stated with the data they
-//! were set on, [`super::super::accept`]).
+//! The fit is the rule's own recipe ([`Acceptance`]): a logistic regression of "accurate" on the three
+//! inputs (standardised, a unit ridge on the weights, Newton's method), the threshold 0.3 standard
+//! deviations of the rule's values above the highest value of any wrong estimate or negative among the
+//! training pairs, vetoed or not. The vetoes keep their limits (they are stated with the data they were
+//! set on, [`super::super::accept`]); as the threshold does not lean on them, the held-out figures with
+//! the rule alone are reported too (`rule alone` rows): what the vetoes' hand-set limits add.
 
 use std::collections::HashMap;
 use std::io::{self, Write};
@@ -17,10 +18,12 @@ use serde::Serialize;
 use super::PairRecord;
 use crate::merge::align::{accepts, Acceptance, Features};
 
-/// The rule's four inputs for a candidate's features, as [`Acceptance::margin`] weighs them.
-fn inputs(f: &Features) -> [f64; 4] {
+/// Inputs of the rule.
+const K: usize = 3;
+
+/// The rule's inputs for a candidate's features, as [`Acceptance::margin`] weighs them.
+fn inputs(f: &Features) -> [f64; K] {
     [
-        f.choice_ratio.max(1e-3).ln(),
         f.coarse_ratio.max(1e-3).ln(),
         f.free_inside,
         (1.01 - f.free_agree).max(1e-3).ln(),
@@ -28,62 +31,63 @@ fn inputs(f: &Features) -> [f64; 4] {
 }
 
 /// The rule fitted on `train` (features, accurate): weights by a ridge logistic regression, threshold
-/// above the highest wrong one that passes the vetoes.
+/// above the highest wrong one (vetoed or not: a wrong estimate a veto happens to catch here may pass
+/// it on another building).
 // The gradient and Hessian indexed as the formulas are written.
 #[allow(clippy::needless_range_loop)]
 pub fn fit(train: &[(Features, bool)]) -> Acceptance {
+    const D: usize = K + 1;
     let n = train.len().max(1) as f64;
-    let xs: Vec<[f64; 4]> = train.iter().map(|(f, _)| inputs(f)).collect();
-    let mut mean = [0.0; 4];
-    let mut sd = [0.0; 4];
+    let xs: Vec<[f64; K]> = train.iter().map(|(f, _)| inputs(f)).collect();
+    let mut mean = [0.0; K];
+    let mut sd = [0.0; K];
     for x in &xs {
-        for k in 0..4 {
+        for k in 0..K {
             mean[k] += x[k] / n;
         }
     }
     for x in &xs {
-        for k in 0..4 {
+        for k in 0..K {
             sd[k] += (x[k] - mean[k]).powi(2) / n;
         }
     }
     for v in &mut sd {
         *v = v.sqrt().max(1e-9);
     }
-    let z = |x: &[f64; 4]| -> [f64; 5] {
-        [
-            1.0,
-            (x[0] - mean[0]) / sd[0],
-            (x[1] - mean[1]) / sd[1],
-            (x[2] - mean[2]) / sd[2],
-            (x[3] - mean[3]) / sd[3],
-        ]
+    // The intercept first, then the standardised inputs.
+    let z = |x: &[f64; K]| -> [f64; D] {
+        let mut z = [1.0; D];
+        for k in 0..K {
+            z[k + 1] = (x[k] - mean[k]) / sd[k];
+        }
+        z
     };
-    // Newton's method on the penalised log-likelihood (a unit ridge on the four weights, not the
+    // Newton's method on the penalised log-likelihood (a unit ridge on the weights, not the
     // intercept): the classes are often separable, and the ridge keeps the weights finite.
-    let mut b = [0.0f64; 5];
+    let mut b = [0.0f64; D];
     for _ in 0..50 {
-        let mut g = [0.0f64; 5];
-        let mut h = [[0.0f64; 5]; 5];
+        let mut g = [0.0f64; D];
+        let mut h = [[0.0f64; D]; D];
         for (x, (_, y)) in xs.iter().zip(train) {
             let zx = z(x);
-            let eta: f64 = (0..5).map(|k| b[k] * zx[k]).sum();
+            let eta: f64 = (0..D).map(|k| b[k] * zx[k]).sum();
             let p = 1.0 / (1.0 + (-eta).exp());
             let r = f64::from(u8::from(*y)) - p;
             let w = (p * (1.0 - p)).max(1e-12);
-            for i in 0..5 {
+            for i in 0..D {
                 g[i] += r * zx[i];
-                for j in 0..5 {
+                for j in 0..D {
                     h[i][j] += w * zx[i] * zx[j];
                 }
             }
         }
-        for i in 1..5 {
+        for i in 1..D {
             g[i] -= b[i];
             h[i][i] += 1.0;
         }
         let Some(step) = solve(h, g) else { break };
         let mut moved = 0.0f64;
-        for i in 0..5 {
+        for i in 0..D {
             b[i] += step[i];
             moved = moved.max(step[i].abs());
         }
@@ -92,57 +96,65 @@ pub fn fit(train: &[(Features, bool)]) -> Acceptance {
         }
     }
     // Back to the raw inputs: w_k = b_k / sd_k (the intercept folds into the threshold).
-    let w = [b[1] / sd[0], b[2] / sd[1], b[3] / sd[2], b[4] / sd[3]];
+    let mut w = [0.0; K];
+    for k in 0..K {
+        w[k] = b[k + 1] / sd[k];
+    }
     let value = |f: &Features| {
         let x = inputs(f);
-        (0..4).map(|k| w[k] * x[k]).sum::<f64>()
+        (0..K).map(|k| w[k] * x[k]).sum::<f64>()
     };
     let values: Vec<f64> = train.iter().map(|(f, _)| value(f)).collect();
     let m = values.iter().sum::<f64>() / n;
     let spread = (values.iter().map(|v| (v - m).powi(2)).sum::<f64>() / n).sqrt();
-    // The highest wrong one that no veto would decline (a veto-declined one cannot be accepted anyway).
+    // The highest wrong one, vetoed or not: the rule must not lean on a veto's hand-set limit.
     let highest_wrong = train
         .iter()
         .zip(&values)
-        .filter(|((f, ok), _)| !ok && accepts(f, f64::INFINITY))
+        .filter(|((_, ok), _)| !ok)
         .map(|(_, &v)| v)
         .fold(f64::NEG_INFINITY, f64::max);
-    let threshold = if highest_wrong.is_finite() {
+    // With no wrong example (or no right one, or all values alike) there is nothing to set a threshold
+    // on: the rule accepts nothing rather than everything.
+    let has_right = train.iter().any(|(_, ok)| *ok);
+    let threshold = if highest_wrong.is_finite() && has_right && spread > 1e-9 {
         highest_wrong + 0.3 * spread
     } else {
-        values.iter().copied().fold(f64::INFINITY, f64::min)
+        f64::INFINITY
     };
+    // In units of a tenth of the training values' spread: the many-map placement weighs candidates by
+    // their rule values on that scale ([`crate::merge::global`]), whatever the fit's own scale.
+    let unit = if spread > 1e-9 { 10.0 / spread } else { 1.0 };
     Acceptance {
-        w_choice: w[0],
-        w_coarse: w[1],
-        w_free_inside: w[2],
-        w_free_disagree: w[3],
-        threshold,
+        w_coarse: w[0] * unit,
+        w_free_inside: w[1] * unit,
+        w_free_disagree: w[2] * unit,
+        threshold: threshold * unit,
     }
 }
 
-/// Solves `h x = g` (5 x 5, Gaussian elimination with partial pivoting); `None` when singular.
+/// Solves `h x = g` (Gaussian elimination with partial pivoting); `None` when singular.
 // Row and column indices read as the textbook's elimination does.
 #[allow(clippy::needless_range_loop)]
-fn solve(mut h: [[f64; 5]; 5], mut g: [f64; 5]) -> Option<[f64; 5]> {
-    for c in 0..5 {
-        let p = (c..5).max_by(|&i, &j| h[i][c].abs().total_cmp(&h[j][c].abs()))?;
+fn solve<const D: usize>(mut h: [[f64; D]; D], mut g: [f64; D]) -> Option<[f64; D]> {
+    for c in 0..D {
+        let p = (c..D).max_by(|&i, &j| h[i][c].abs().total_cmp(&h[j][c].abs()))?;
         if h[p][c].abs() < 1e-12 {
             return None;
         }
         h.swap(c, p);
         g.swap(c, p);
-        for r in c + 1..5 {
+        for r in c + 1..D {
             let f = h[r][c] / h[c][c];
-            for k in c..5 {
+            for k in c..D {
                 h[r][k] -= f * h[c][k];
             }
             g[r] -= f * g[c];
         }
     }
-    let mut x = [0.0; 5];
-    for r in (0..5).rev() {
-        let s: f64 = (r + 1..5).map(|k| h[r][k] * x[k]).sum();
+    let mut x = [0.0; D];
+    for r in (0..D).rev() {
+        let s: f64 = (r + 1..D).map(|k| h[r][k] * x[k]).sum();
         x[r] = (g[r] - s) / h[r][r];
     }
     Some(x)
@@ -163,8 +175,11 @@ pub struct FoldRow {
     pub negatives: usize,
     /// Of those, accepted.
     pub negatives_accepted: usize,
-    /// The rule fitted without it.
-    pub rule: Acceptance,
+    /// Wrong accepts and negatives accepted by the rule alone, no veto applied: whether the held-out
+    /// safety rests on the vetoes' hand-set limits.
+    pub rule_alone_wrong: usize,
+    /// The rule fitted without it (none for the pooled row: each fold has its own).
+    pub rule: Option<Acceptance>,
 }
 
 /// Each record's maps' buildings: from the pairs' own buildings, by map name.
@@ -200,6 +215,7 @@ pub fn cross_validate(rows: &[PairRecord]) -> Vec<FoldRow> {
     let judge = |rule: &Acceptance, sel: &[&PairRecord], label: String| {
         let ok =
             |r: &PairRecord| accepts(&r.alignment.features, rule.margin(&r.alignment.features));
+        let alone = |r: &&&PairRecord| rule.margin(&r.alignment.features) >= 0.0;
         let pos: Vec<&PairRecord> = sel.iter().copied().filter(|r| !r.negative).collect();
         let neg: Vec<&PairRecord> = sel.iter().copied().filter(|r| r.negative).collect();
         FoldRow {
@@ -209,7 +225,9 @@ pub fn cross_validate(rows: &[PairRecord]) -> Vec<FoldRow> {
             wrong: pos.iter().filter(|r| ok(r) && !r.accurate).count(),
             negatives: neg.len(),
             negatives_accepted: neg.iter().filter(|r| ok(r)).count(),
-            rule: *rule,
+            rule_alone_wrong: pos.iter().filter(|r| !r.accurate).filter(alone).count()
+                + neg.iter().filter(alone).count(),
+            rule: Some(*rule),
         }
     };
     let mut out = Vec::new();
@@ -229,7 +247,8 @@ pub fn cross_validate(rows: &[PairRecord]) -> Vec<FoldRow> {
         // A negative touches two buildings: counted in both folds, judged by each fold's rule.
         negatives: sum(|r| r.negatives, &out),
         negatives_accepted: sum(|r| r.negatives_accepted, &out),
-        rule: Acceptance::default(),
+        rule_alone_wrong: sum(|r| r.rule_alone_wrong, &out),
+        rule: None,
     };
     let all: Vec<(Features, bool)> = rows.iter().map(sample).collect();
     let every: Vec<&PairRecord> = rows.iter().collect();
@@ -249,14 +268,23 @@ pub fn cross_validate(rows: &[PairRecord]) -> Vec<FoldRow> {
 pub fn write_folds(out: &mut dyn Write, rows: &[FoldRow]) -> io::Result<()> {
     writeln!(
         out,
-        "| building left out | pairs | accepted and accurate | wrong accepts | negatives accepted | rule fitted without it (choice, coarse, free inside, free disagree; threshold) |"
+        "| building left out | pairs | accepted and accurate | wrong accepts | negatives accepted | rule alone, no veto: wrong or negative accepts | rule fitted without it (coarse, free inside, free disagree; threshold) |"
     )?;
-    writeln!(out, "|---|---|---|---|---|---|")?;
+    writeln!(out, "|---|---|---|---|---|---|---|")?;
     for r in rows {
-        let a = &r.rule;
+        let rule = match &r.rule {
+            Some(a) if a.threshold.is_infinite() => {
+                "none: no wrong and right examples to fit on (accepts nothing)".to_string()
+            }
+            Some(a) => format!(
+                "{:.3}, {:.3}, {:.3}; {:.3}",
+                a.w_coarse, a.w_free_inside, a.w_free_disagree, a.threshold
+            ),
+            None => "each fold's own".to_string(),
+        };
         writeln!(
             out,
-            "| {} | {} | {} ({:.1}%) | {} | {} of {} | {:.3}, {:.3}, {:.3}, {:.3}; {:.3} |",
+            "| {} | {} | {} ({:.1}%) | {} | {} of {} | {} | {rule} |",
             r.building,
             r.pairs,
             r.accepted_accurate,
@@ -264,11 +292,7 @@ pub fn write_folds(out: &mut dyn Write, rows: &[FoldRow]) -> io::Result<()> {
             r.wrong,
             r.negatives_accepted,
             r.negatives,
-            a.w_choice,
-            a.w_coarse,
-            a.w_free_inside,
-            a.w_free_disagree,
-            a.threshold
+            r.rule_alone_wrong,
         )?;
     }
     Ok(())
@@ -302,9 +326,21 @@ mod tests {
             train.push(mk(0.05 + 0.2 * t, 1.0 + 0.3 * t, false));
         }
         let rule = fit(&train);
-        assert!(rule.w_free_inside > 0.0 && rule.w_choice > 0.0, "{rule:?}");
+        assert!(rule.w_free_inside > 0.0 && rule.w_coarse > 0.0, "{rule:?}");
         for (f, ok) in &train {
             assert_eq!(rule.margin(f) >= 0.0, *ok, "{f:?} {rule:?}");
         }
+        // A wrong one that looks right but that a veto declines (walls deep in free space) still sets
+        // the threshold: the rule alone declines it.
+        let (f, _) = mk(0.7, 3.5, false);
+        let vetoed = Features {
+            conflict_fine: 0.9,
+            ..f
+        };
+        assert!(!accepts(&vetoed, f64::INFINITY));
+        train.push((vetoed, false));
+        let strict = fit(&train);
+        assert!(strict.margin(&vetoed) < 0.0, "{strict:?}");
+        assert!(strict.threshold > rule.threshold, "{strict:?} {rule:?}");
     }
 }

@@ -130,9 +130,11 @@ pub fn evidence(pairwise: &Pairwise, options: &GlobalOptions) -> Vec<EdgeEvidenc
 }
 
 /// Whether an edge joins groups on its own: accepted by the pair test and not contradicted more than it
-/// is supported.
+/// is supported, counting itself as one accepted edge (weight 1) however high its rule value: two cycles
+/// of accepted edges that disagree with it outweigh it, whatever its own confidence (a wrong accept is
+/// as confident as a right one).
 fn trusted(e: &Edge, ev: &EdgeEvidence) -> bool {
-    e.accepted && ev.contradicted < ev.own + ev.support
+    e.accepted && ev.contradicted < ev.own.min(1.0) + ev.support
 }
 
 /// Where each map lands and why.
@@ -239,22 +241,17 @@ pub fn place(
         for &g in &group_ids {
             for &h in group_ids.range(g + 1..) {
                 let clusters = clusters(g, h, &groups, edges, ev, options);
-                let Some(best) = clusters.first() else {
-                    continue;
-                };
                 // Two single maps: their pair test has spoken.
                 let mosaic_worth = groups.members(g).len() + groups.members(h).len() > 2;
                 let valid =
                     |c: &Cluster| c.trusted || (mosaic_worth && (c.pairs >= 2 || c.confirmed));
-                if !valid(best) {
+                // The strongest placement that may join: a stronger one the cycles distrust (a
+                // contradicted accept) neither joins nor hides the one they agree with.
+                let mut usable = clusters.iter().filter(|c| valid(c));
+                let Some(best) = usable.next() else {
                     continue;
-                }
-                let runner_up = clusters
-                    .iter()
-                    .skip(1)
-                    .filter(|c| valid(c))
-                    .map(|c| c.support)
-                    .fold(0.0, f64::max);
+                };
+                let runner_up = usable.map(|c| c.support).fold(0.0, f64::max);
                 if runner_up >= AMBIGUITY * best.support {
                     for m in groups.members(h).into_iter().chain(groups.members(g)) {
                         ambiguous[m] = true;
