@@ -127,7 +127,7 @@ pub(super) fn run(a: MergeEvalArgs, budget: &Budget) -> Result<()> {
         Some(p) => p.add(i, r, ma, mb, truth),
         None => Ok(()),
     };
-    let (rows, prep_ms) = match (&a.pairs, &a.synthetic) {
+    let (rows, costs) = match (&a.pairs, &a.synthetic) {
         (Some(pairs), _) => {
             let set = PairSet::load(pairs)?;
             let maps = maps_folder(&a, pairs);
@@ -196,10 +196,10 @@ pub(super) fn run(a: MergeEvalArgs, budget: &Budget) -> Result<()> {
                 save: a.save_pairs.clone(),
             };
             let options = MergeOptions::default();
-            let (mut rows, mut ms) = if office {
+            let (mut rows, mut costs) = if office {
                 eval::run_synthetic_with(&sources, &run, &options, &mut on_pair)?
             } else {
-                (Vec::new(), 0.0)
+                (Vec::new(), eval::MapCosts::default())
             };
             if !families.is_empty() {
                 let first = rows.len();
@@ -210,27 +210,25 @@ pub(super) fn run(a: MergeEvalArgs, budget: &Budget) -> Result<()> {
                                    truth: Option<Rigid>| {
                     on_pair(first + i, r, ma, mb, truth)
                 };
-                let (more, more_ms) = eval::families::run_families(
+                let (more, more_costs) = eval::families::run_families(
                     &families,
                     a.per_map as usize,
                     a.seed,
                     &options,
                     &mut shifted,
                 )?;
-                // The mean preparation time over both runs, weighted by their pairs.
-                let n = (rows.len() + more.len()).max(1) as f64;
-                ms = (ms * rows.len() as f64 + more_ms * more.len() as f64) / n;
+                costs = costs.and(more_costs);
                 rows.extend(more);
             }
-            (rows, ms)
+            (rows, costs)
         }
     };
     if let Some(page) = page {
-        let index = page.finish(&rows, prep_ms)?;
+        let index = page.finish(&rows, costs.prepare_ms)?;
         ogm_corners::say!("ogm-corners: wrote {}", index.display());
     }
     write_table(a.format, &rows, |out| {
-        eval::write_summary(out, &rows, prep_ms)
+        eval::write_summary(out, &rows, &costs)
     })
 }
 

@@ -763,6 +763,7 @@ fn self_symmetry_with<'p>(p: &'p Prepared, backend: &mut dyn Backend) -> Result<
     if let Some(v) = p.symmetry.get() {
         return Ok(v);
     }
+    let start = std::time::Instant::now();
     let options = MergeOptions {
         check_symmetry: false,
         ..MergeOptions::default()
@@ -780,6 +781,7 @@ fn self_symmetry_with<'p>(p: &'p Prepared, backend: &mut dyn Backend) -> Result<
             out.transforms.push(c.transform);
         }
     }
+    out.ms = start.elapsed().as_secs_f64() * 1e3;
     Ok(p.symmetry.get_or_init(|| out))
 }
 

@@ -84,6 +84,9 @@ pub struct Symmetry {
     pub value: f64,
     /// Self-transforms with a self-match of at least [`super::align::ALIAS_SELF_MATCH`].
     pub transforms: Vec<super::transform::Rigid>,
+    /// Time its measurement took, milliseconds: `merge-eval` reports it per map, apart from the time
+    /// of the pair whose alignment first needed it.
+    pub ms: f64,
 }
 
 /// A map's coarse masks at one cell side.

@@ -8,7 +8,7 @@
 //! true pose from a wrong one, so declining it is right and only a wrong accept counts against the
 //! merger. Windows apart are negatives: any accept is wrong.
 
-use super::{synthetic_label, synthetic_record, OnPair, PairRecord, PrepTimer};
+use super::{synthetic_label, synthetic_record, MapCosts, OnPair, PairRecord, PrepTimer};
 use crate::error::{Error, Result};
 use crate::map::OccupancyMap;
 use crate::merge::align::MergeOptions;
@@ -88,7 +88,7 @@ pub fn run_families(
     seed: u64,
     options: &MergeOptions,
     on_pair: &mut OnPair,
-) -> Result<(Vec<PairRecord>, f64)> {
+) -> Result<(Vec<PairRecord>, MapCosts)> {
     let mut out = Vec::new();
     let mut prep = PrepTimer::default();
     let offices: Vec<OccupancyMap> = (0..per as u64)
@@ -209,5 +209,5 @@ pub fn run_families(
             }
         }
     }
-    Ok((out, prep.mean_ms()))
+    Ok((out, prep.costs()))
 }

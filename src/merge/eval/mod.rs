@@ -66,7 +66,11 @@ pub type OnPair<'a> =
 
 /// Runs the merger on every pair and negative of `set`, maps read from `maps/<NAME>.png` (or `.pgm`,
 /// `.yaml`), each map prepared once.
-pub fn run(set: &PairSet, maps: &Path, options: &MergeOptions) -> Result<(Vec<PairRecord>, f64)> {
+pub fn run(
+    set: &PairSet,
+    maps: &Path,
+    options: &MergeOptions,
+) -> Result<(Vec<PairRecord>, MapCosts)> {
     run_with(set, maps, options, &mut |_, _, _, _, _| Ok(()))
 }
 
@@ -76,23 +80,20 @@ pub fn run_with(
     maps: &Path,
     options: &MergeOptions,
     on_pair: &mut OnPair,
-) -> Result<(Vec<PairRecord>, f64)> {
+) -> Result<(Vec<PairRecord>, MapCosts)> {
     let mut prepared: HashMap<String, (OccupancyMap, Prepared)> = HashMap::new();
-    let mut prep_ms = 0.0;
-    let mut get =
-        |name: &str, prepared: &mut HashMap<String, (OccupancyMap, Prepared)>| -> Result<()> {
-            if !prepared.contains_key(name) {
-                let map = OccupancyMap::load(map_path(maps, name))?;
-                let t = Instant::now();
-                let p = match options.hypotheses.detector() {
-                    Some(d) => Prepared::with_corners(&map, d)?,
-                    None => Prepared::new(&map),
-                };
-                prepared.insert(name.to_string(), (map, p));
-                prep_ms += t.elapsed().as_secs_f64() * 1e3;
-            }
-            Ok(())
-        };
+    let mut timer = PrepTimer::default();
+    let get = |name: &str,
+               prepared: &mut HashMap<String, (OccupancyMap, Prepared)>,
+               timer: &mut PrepTimer|
+     -> Result<()> {
+        if !prepared.contains_key(name) {
+            let map = OccupancyMap::load(map_path(maps, name))?;
+            let p = timer.prepare_with(&map, options.hypotheses.detector())?;
+            prepared.insert(name.to_string(), (map, p));
+        }
+        Ok(())
+    };
     let mut out = Vec::new();
     let jobs = set
         .pairs
@@ -104,11 +105,10 @@ pub fn run_with(
                 .map(|n| (n.src.clone(), n.dst.clone(), None)),
         );
     for (src, dst, truth) in jobs {
-        get(&src, &mut prepared)?;
-        get(&dst, &mut prepared)?;
-        let t = Instant::now();
-        let alignment = align_prepared(&prepared[&dst].1, &prepared[&src].1, options)?;
-        let ms = t.elapsed().as_secs_f64() * 1e3;
+        get(&src, &mut prepared, &mut timer)?;
+        get(&dst, &mut prepared, &mut timer)?;
+        let (alignment, ms) = timer.align(&prepared[&dst].1, &prepared[&src].1, options);
+        let alignment = alignment?;
         let accurate_candidates = match truth {
             Some(p) => alignment
                 .candidates
@@ -146,8 +146,7 @@ pub fn run_with(
         )?;
         out.push(record);
     }
-    let n = prepared.len().max(1) as f64;
-    Ok((out, prep_ms / n))
+    Ok((out, timer.costs()))
 }
 
 /// Runs the merger on synthetic pairs cut from each of `sources` ([`synthetic_pair`]) as `run` says:
@@ -158,7 +157,7 @@ pub fn run_synthetic(
     sources: &[(String, OccupancyMap)],
     run: &SyntheticRun,
     options: &MergeOptions,
-) -> Result<(Vec<PairRecord>, f64)> {
+) -> Result<(Vec<PairRecord>, MapCosts)> {
     run_synthetic_with(sources, run, options, &mut |_, _, _, _, _| Ok(()))
 }
 
@@ -168,7 +167,7 @@ pub fn run_synthetic_with(
     run: &SyntheticRun,
     options: &MergeOptions,
     on_pair: &mut OnPair,
-) -> Result<(Vec<PairRecord>, f64)> {
+) -> Result<(Vec<PairRecord>, MapCosts)> {
     let SyntheticRun {
         overlaps,
         per_map,
@@ -227,9 +226,9 @@ pub fn run_synthetic_with(
                     &cuts[(i + 1) % cuts.len()].1.b,
                 );
                 let (pa, pb) = (prep.prepare(a), prep.prepare(b));
-                let t = Instant::now();
-                let alignment = align_prepared(&pa, &pb, options)
-                    .unwrap_or_else(|e| super::align::declined(&format!("refused: {e}")));
+                let (alignment, ms) = prep.align(&pa, &pb, options);
+                let alignment =
+                    alignment.unwrap_or_else(|e| super::align::declined(&format!("refused: {e}")));
                 let record = PairRecord {
                     src: format!("{nb}/{:.0}/b", 100.0 * overlap),
                     dst: format!("{na}/{:.0}/a", 100.0 * overlap),
@@ -240,7 +239,7 @@ pub fn run_synthetic_with(
                     rot_err_deg: 0.0,
                     rms_px: 0.0,
                     alignment,
-                    ms: t.elapsed().as_secs_f64() * 1e3,
+                    ms,
                     accurate_candidates: Vec::new(),
                 };
                 on_pair(out.len(), &record, a, b, None)?;
@@ -257,7 +256,7 @@ pub fn run_synthetic_with(
             writeln!(w)
         })?;
     }
-    Ok((out, prep.mean_ms()))
+    Ok((out, prep.costs()))
 }
 
 /// Maps prepared for the merger, timed: the synthetic runs prepare both maps of every pair anew.
@@ -265,6 +264,8 @@ pub fn run_synthetic_with(
 pub(crate) struct PrepTimer {
     ms: f64,
     maps: usize,
+    symmetry_ms: f64,
+    symmetric: usize,
 }
 
 impl PrepTimer {
@@ -277,9 +278,92 @@ impl PrepTimer {
         p
     }
 
-    /// The mean time to prepare a map, milliseconds (0 before any).
-    pub(crate) fn mean_ms(&self) -> f64 {
-        self.ms / self.maps.max(1) as f64
+    /// `m` prepared with the corners of `detector` when the hypotheses need them, its time counted.
+    pub(crate) fn prepare_with(
+        &mut self,
+        m: &OccupancyMap,
+        detector: Option<DetectorKind>,
+    ) -> Result<Prepared> {
+        let t = Instant::now();
+        let p = match detector {
+            Some(d) => Prepared::with_corners(m, d)?,
+            None => Prepared::new(m),
+        };
+        self.ms += t.elapsed().as_secs_f64() * 1e3;
+        self.maps += 1;
+        Ok(p)
+    }
+
+    /// `align_prepared(a, b, options)` and its time, milliseconds, less the self-symmetry it measured
+    /// for either map (counted here per map: it is cached, so only the first pair that needs it pays).
+    pub(crate) fn align(
+        &mut self,
+        a: &Prepared,
+        b: &Prepared,
+        options: &MergeOptions,
+    ) -> (Result<Alignment>, f64) {
+        // The same map as both (a self-alignment) counts once.
+        let maps: Vec<&Prepared> = if std::ptr::eq(a, b) {
+            vec![a]
+        } else {
+            vec![a, b]
+        };
+        let before: Vec<bool> = maps.iter().map(|p| p.symmetry.get().is_some()).collect();
+        let t = Instant::now();
+        let alignment = align_prepared(a, b, options);
+        let mut ms = t.elapsed().as_secs_f64() * 1e3;
+        for (p, had) in maps.into_iter().zip(before) {
+            if let (false, Some(s)) = (had, p.symmetry.get()) {
+                self.symmetry_ms += s.ms;
+                self.symmetric += 1;
+                ms -= s.ms;
+            }
+        }
+        (alignment, ms.max(0.0))
+    }
+
+    /// What the maps cost, once each.
+    pub(crate) fn costs(&self) -> MapCosts {
+        MapCosts {
+            prepare_ms: self.ms / self.maps.max(1) as f64,
+            symmetry_ms: self.symmetry_ms / self.symmetric.max(1) as f64,
+            symmetric_maps: self.symmetric,
+            maps: self.maps,
+        }
+    }
+}
+
+/// What maps cost once each, apart from the pairs' align times (mean milliseconds a map): preparation
+/// (every map) and the self-symmetry (measured only for a map in a pair the rule could accept; cached).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct MapCosts {
+    /// Preparing a map for alignment.
+    pub prepare_ms: f64,
+    /// Measuring a map's self-symmetry, over the maps that needed it.
+    pub symmetry_ms: f64,
+    /// Maps whose self-symmetry was measured.
+    pub symmetric_maps: usize,
+    /// Maps prepared.
+    pub maps: usize,
+}
+
+impl MapCosts {
+    /// Two runs' costs together (means weighted by their maps).
+    pub fn and(self, o: MapCosts) -> MapCosts {
+        let mean = |x: f64, n: usize, y: f64, m: usize| {
+            (x * n as f64 + y * m as f64) / (n + m).max(1) as f64
+        };
+        MapCosts {
+            prepare_ms: mean(self.prepare_ms, self.maps, o.prepare_ms, o.maps),
+            symmetry_ms: mean(
+                self.symmetry_ms,
+                self.symmetric_maps,
+                o.symmetry_ms,
+                o.symmetric_maps,
+            ),
+            symmetric_maps: self.symmetric_maps + o.symmetric_maps,
+            maps: self.maps + o.maps,
+        }
     }
 }
 
@@ -295,10 +379,8 @@ pub(crate) fn synthetic_record(
     prep: &mut PrepTimer,
 ) -> PairRecord {
     let (pa, pb) = (prep.prepare(&pair.a), prep.prepare(&pair.b));
-    let t = Instant::now();
-    let alignment = align_prepared(&pa, &pb, options)
-        .unwrap_or_else(|e| super::align::declined(&format!("refused: {e}")));
-    let ms = t.elapsed().as_secs_f64() * 1e3;
+    let (alignment, ms) = prep.align(&pa, &pb, options);
+    let alignment = alignment.unwrap_or_else(|e| super::align::declined(&format!("refused: {e}")));
     let (rot, rms) = truth.errors(&alignment.transform);
     let accurate_candidates = alignment
         .candidates
@@ -410,7 +492,7 @@ pub fn ablation(
             hypotheses: h,
             ..MergeOptions::default()
         };
-        let (rows, prepare_ms) = run(set, maps, &options)?;
+        let (rows, costs) = run(set, maps, &options)?;
         let pos: Vec<&PairRecord> = rows.iter().filter(|r| !r.negative).collect();
         let mut ms: Vec<f64> = pos.iter().map(|r| r.ms).collect();
         ms.sort_by(f64::total_cmp);
@@ -426,7 +508,7 @@ pub fn ablation(
             wrong: pos.iter().filter(|r| r.accepted && !r.accurate).count(),
             negatives_accepted: rows.iter().filter(|r| r.negative && r.accepted).count(),
             median_ms: ms.get(ms.len() / 2).copied().unwrap_or(0.0),
-            prepare_ms,
+            prepare_ms: costs.prepare_ms,
         });
     }
     Ok(out)
@@ -480,7 +562,7 @@ pub fn calibration(src: &str) -> bool {
 
 /// Per building (and "all", and the negatives): pairs, accepted and accurate, accurate if all were
 /// accepted, wrong accepts, median and p90 ms.
-pub fn write_summary(out: &mut dyn Write, rows: &[PairRecord], prep_ms: f64) -> io::Result<()> {
+pub fn write_summary(out: &mut dyn Write, rows: &[PairRecord], costs: &MapCosts) -> io::Result<()> {
     let mut groups: Vec<String> = Vec::new();
     for r in rows {
         if !groups.contains(&r.building) {
@@ -533,7 +615,9 @@ pub fn write_summary(out: &mut dyn Write, rows: &[PairRecord], prep_ms: f64) -> 
     }
     writeln!(
         out,
-        "\nPreparing a map (once per map): {prep_ms:.0} ms on average."
+        "\nPreparing a map (once per map): {:.0} ms on average. Its self-symmetry (once per map, for the \
+         {} of {} maps in a pair the rule could accept; not in the pairs' times): {:.0} ms on average.",
+        costs.prepare_ms, costs.symmetric_maps, costs.maps, costs.symmetry_ms
     )?;
     writeln!(
         out,
@@ -576,4 +660,40 @@ pub fn operating_curve(rows: &[PairRecord]) -> Vec<(f64, usize, usize, usize, us
             (o, pos.len(), correct, pos.len() - correct, negatives)
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The self-symmetry that a pair's alignment measures is counted once per map, out of the pair's
+    /// time; a second pair of the same maps and a map aligned with itself add what they should.
+    #[test]
+    fn self_symmetry_is_counted_once_per_map_apart_from_the_pairs() {
+        let office = OccupancyMap::from_image(crate::synth::office_map(480, 360, 5).unwrap());
+        let spec = SyntheticSpec {
+            overlap: 0.6,
+            noise: 0.0,
+        };
+        let pair = synthetic_pair(&office, &spec, 3).unwrap();
+        let options = MergeOptions {
+            always_verify: true,
+            ..MergeOptions::default()
+        };
+        let mut timer = PrepTimer::default();
+        let (a, b) = (timer.prepare(&pair.a), timer.prepare(&pair.b));
+        let (first, ms) = timer.align(&a, &b, &options);
+        first.unwrap();
+        let c = timer.costs();
+        assert_eq!((c.maps, c.symmetric_maps), (2, 2), "{c:?}");
+        assert!(c.symmetry_ms > 0.0 && ms >= 0.0, "{c:?} {ms}");
+        // Cached in the maps: the pair the other way measures nothing more.
+        timer.align(&b, &a, &options).0.unwrap();
+        assert_eq!(timer.costs().symmetric_maps, 2);
+        // A map aligned with itself is one map.
+        let lone = timer.prepare(&pair.a);
+        timer.align(&lone, &lone, &options).0.unwrap();
+        assert_eq!(timer.costs().symmetric_maps, 3);
+        assert_eq!(timer.costs().maps, 3);
+    }
 }
