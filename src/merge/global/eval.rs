@@ -78,9 +78,11 @@ pub struct SetRow {
     pub maps: usize,
     /// Maps placed (in a group of two or more).
     pub placed: usize,
-    /// Placed maps whose every annotated pair with another map of their group is accurate.
+    /// Placed maps checked by an annotated pair with another map of their group and not placed wrongly.
     pub correct: usize,
-    /// Placed maps with at least one annotated pair in their group that is not.
+    /// Placed maps blamed for the inaccurate annotated pairs of their group: the fewest maps that every
+    /// such pair touches (a map placed wrongly makes all its pairs inaccurate; its partners are not
+    /// blamed for it).
     pub wrong: usize,
     /// Groups formed.
     pub groups: usize,
@@ -150,7 +152,7 @@ pub fn score(
             .cloned()
             .unwrap_or_default()
     };
-    let mut bad = vec![false; n];
+    let mut inaccurate: Vec<(usize, usize)> = Vec::new();
     let mut checked = vec![false; n];
     let chained = chain(&result.pairwise);
     for t in truths {
@@ -165,8 +167,7 @@ pub fn score(
                 row.derived_accurate += 1;
             } else {
                 row.derived_wrong += 1;
-                bad[s] = true;
-                bad[d] = true;
+                inaccurate.push((s, d));
             }
         }
         if let Some(est) = chained[s]
@@ -187,6 +188,7 @@ pub fn score(
             }
         }
     }
+    let bad = blamed(&inaccurate, n);
     for (m, p) in result.placement.maps.iter().enumerate() {
         let Some(g) = p.group else { continue };
         row.placed += 1;
@@ -201,6 +203,28 @@ pub fn score(
         }
     }
     row
+}
+
+/// The maps to blame for the inaccurate pairs `wrong` (of `n` maps): the fewest that every such pair
+/// touches, greedily (the map in most of the pairs left first, ties to the lower index, until none is
+/// left). A map placed wrongly makes all its pairs inaccurate; its partners, placed right, are not blamed
+/// for it, and a map placed between two wrongly placed ones is not either.
+fn blamed(wrong: &[(usize, usize)], n: usize) -> Vec<bool> {
+    let mut bad = vec![false; n];
+    let mut left: Vec<(usize, usize)> = wrong.to_vec();
+    while !left.is_empty() {
+        let mut count = vec![0usize; n];
+        for &(s, d) in &left {
+            count[s] += 1;
+            count[d] += 1;
+        }
+        let worst = (0..n)
+            .max_by(|&x, &y| count[x].cmp(&count[y]).then(y.cmp(&x)))
+            .unwrap_or(0);
+        bad[worst] = true;
+        left.retain(|&(s, d)| s != worst && d != worst);
+    }
+    bad
 }
 
 /// The table of [`SetRow`]s.
@@ -494,4 +518,25 @@ pub fn chain(pairwise: &Pairwise) -> Vec<Option<(usize, Rigid)>> {
         }
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::blamed;
+
+    /// One map placed wrongly makes every pair with it inaccurate: it alone is blamed, not its partners.
+    #[test]
+    fn the_map_in_every_inaccurate_pair_is_blamed_not_its_partners() {
+        let mut wrong = Vec::new();
+        for x in [0, 1, 3, 4] {
+            wrong.push((x, 2));
+            wrong.push((2, x));
+        }
+        assert_eq!(blamed(&wrong, 5), vec![false, false, true, false, false]);
+        assert_eq!(blamed(&[], 3), vec![false; 3]);
+        // Two pairs with no map in common: one map of each is blamed.
+        let two = blamed(&[(0, 1), (3, 4)], 5);
+        assert_eq!(two.iter().filter(|&&b| b).count(), 2);
+        assert!(two[0] != two[1] && two[3] != two[4], "{two:?}");
+    }
 }
