@@ -271,11 +271,7 @@ pub(crate) struct PrepTimer {
 impl PrepTimer {
     /// `m` prepared, its time counted.
     pub(crate) fn prepare(&mut self, m: &OccupancyMap) -> Prepared {
-        let t = Instant::now();
-        let p = Prepared::new(m);
-        self.ms += t.elapsed().as_secs_f64() * 1e3;
-        self.maps += 1;
-        p
+        self.timed(|| Prepared::new(m))
     }
 
     /// `m` prepared with the corners of `detector` when the hypotheses need them, its time counted.
@@ -284,14 +280,19 @@ impl PrepTimer {
         m: &OccupancyMap,
         detector: Option<DetectorKind>,
     ) -> Result<Prepared> {
+        self.timed(|| match detector {
+            Some(d) => Prepared::with_corners(m, d),
+            None => Ok(Prepared::new(m)),
+        })
+    }
+
+    /// One map's preparation, `make`, timed and counted.
+    fn timed<T>(&mut self, make: impl FnOnce() -> T) -> T {
         let t = Instant::now();
-        let p = match detector {
-            Some(d) => Prepared::with_corners(m, d)?,
-            None => Prepared::new(m),
-        };
+        let p = make();
         self.ms += t.elapsed().as_secs_f64() * 1e3;
         self.maps += 1;
-        Ok(p)
+        p
     }
 
     /// `align_prepared(a, b, options)` and its time, milliseconds, less the self-symmetry it measured
