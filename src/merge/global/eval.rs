@@ -420,7 +420,6 @@ pub fn synthetic_maps(
     n: usize,
     seed: u64,
 ) -> Result<(Vec<String>, Vec<OccupancyMap>, Vec<TruePair>)> {
-    use crate::merge::synthetic::{synthetic_set, SYNTHETIC_RMS_LIMIT_PX, SYNTHETIC_ROT_LIMIT_DEG};
     // About 580 px a grid step: a 1044 px window each. The office is generated at half that size and
     // doubled, so its rooms and walls are as large in pixels as those of the real sensor maps (a 5 cm
     // grid); at its own scale a window would show a dense grid of small rooms.
@@ -434,8 +433,19 @@ pub fn synthetic_maps(
         .map(|(x, y)| half.get(x / 2, y / 2))
         .collect();
     let source = OccupancyMap::from_image(crate::map::MapImage::new(w2, h2, px)?);
-    let crops = synthetic_set(&source, n, 0.0, seed).ok_or_else(|| {
-        crate::error::Error::invalid("the synthetic office is too small to cut a set from")
+    synthetic_maps_of(&source, n, seed)
+}
+
+/// `n` maps cut from `source` ([`synthetic_set`](crate::merge::synthetic::synthetic_set), no speckle)
+/// with every ordered pair's exact truth (the synthetic limits), named `part-NN`.
+pub fn synthetic_maps_of(
+    source: &OccupancyMap,
+    n: usize,
+    seed: u64,
+) -> Result<(Vec<String>, Vec<OccupancyMap>, Vec<TruePair>)> {
+    use crate::merge::synthetic::{synthetic_set, SYNTHETIC_RMS_LIMIT_PX, SYNTHETIC_ROT_LIMIT_DEG};
+    let crops = synthetic_set(source, n, 0.0, seed).ok_or_else(|| {
+        crate::error::Error::invalid("the synthetic map is too small to cut a set from")
     })?;
     let names: Vec<String> = (0..n).map(|k| format!("part-{k:02}")).collect();
     let mut truths = Vec::new();

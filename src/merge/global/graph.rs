@@ -5,6 +5,7 @@ use std::collections::{BTreeMap, BTreeSet};
 
 use serde::Serialize;
 
+use super::calibrate::Calibration;
 use super::{Edge, GlobalOptions, Pairwise};
 use crate::backend::Backend;
 use crate::error::Result;
@@ -57,11 +58,20 @@ pub struct EdgeEvidence {
     /// For an accepted edge: sum over third maps through which no two edges compose to it of the weaker
     /// of two accepted edges through it that compose to something else.
     pub contradicted: f64,
+    /// For an accepted edge: two other accepted edges through a third map compose to it.
+    pub confirmed: bool,
+    /// Excluded: its residual conflict is far above the set's level at confirmed poses (this limit,
+    /// [`calibrate`](super::calibrate)); it neither votes nor confirms.
+    pub excluded: Option<f64>,
 }
 
 impl EdgeEvidence {
-    /// The weight it votes with: its own plus its support, less its contradiction (at least 0).
+    /// The weight it votes with: its own plus its support, less its contradiction (at least 0; 0 when
+    /// excluded).
     pub fn vote(&self) -> f64 {
+        if self.excluded.is_some() {
+            return 0.0;
+        }
         (self.own + self.support - self.contradicted).max(0.0)
     }
 }
@@ -83,15 +93,34 @@ fn by_pair(pairwise: &Pairwise) -> BTreeMap<(usize, usize), Vec<usize>> {
     out
 }
 
-/// Triangle support and contradiction of every edge.
-pub fn evidence(pairwise: &Pairwise, options: &GlobalOptions) -> Vec<EdgeEvidence> {
+/// Triangle support and contradiction of every edge; with `level`, the edges it excludes
+/// ([`Calibration::excludes`]) take no part.
+pub fn evidence(
+    pairwise: &Pairwise,
+    options: &GlobalOptions,
+    level: Option<&Calibration>,
+) -> Vec<EdgeEvidence> {
     use rayon::prelude::*;
-    let pairs = by_pair(pairwise);
+    let excluded = |e: &Edge| {
+        level
+            .and_then(|l| l.excludes(e.residual).then_some(l.limit))
+            .flatten()
+    };
+    let mut pairs = by_pair(pairwise);
     let edges = &pairwise.edges;
+    for list in pairs.values_mut() {
+        list.retain(|&i| excluded(&edges[i]).is_none());
+    }
     let of = |u: usize, v: usize| pairs.get(&(u.min(v), u.max(v))).map_or(&[][..], |v| v);
     edges
         .par_iter()
         .map(|e| {
+            if let Some(limit) = excluded(e) {
+                return EdgeEvidence {
+                    excluded: Some(limit),
+                    ..EdgeEvidence::default()
+                };
+            }
             let (i, j) = (e.a, e.b);
             let direct = e.toward(i); // j -> i
             let mut ev = EdgeEvidence {
@@ -112,6 +141,7 @@ pub fn evidence(pairwise: &Pairwise, options: &GlobalOptions) -> Vec<EdgeEvidenc
                         let w = weight(ex).min(weight(ey));
                         if agree(&direct, &path, e.at, options) {
                             best = best.max(w);
+                            ev.confirmed |= e.accepted && ex.accepted && ey.accepted;
                         } else if e.accepted && ex.accepted && ey.accepted {
                             against = against.max(w);
                         }
@@ -134,7 +164,7 @@ pub fn evidence(pairwise: &Pairwise, options: &GlobalOptions) -> Vec<EdgeEvidenc
 /// of accepted edges that disagree with it outweigh it, whatever its own confidence (a wrong accept is
 /// as confident as a right one).
 fn trusted(e: &Edge, ev: &EdgeEvidence) -> bool {
-    e.accepted && ev.contradicted < ev.own.min(1.0) + ev.support
+    e.accepted && ev.excluded.is_none() && ev.contradicted < ev.own.min(1.0) + ev.support
 }
 
 /// Where each map lands and why.
@@ -168,6 +198,8 @@ pub struct Placement {
     pub kept: Vec<usize>,
     /// Accepted pairwise merges the placement contradicts.
     pub dropped: Vec<Dropped>,
+    /// The set's level of conflict at confirmed poses, and the limit it set.
+    pub level: Calibration,
 }
 
 /// One vote cluster: a placement of group `h` into group `g`'s frame and what stands behind it.
@@ -202,13 +234,14 @@ impl Groups {
     }
 }
 
-/// The placement of every map over the pairwise candidates and their evidence ([`evidence`]),
-/// deterministic; `maps` prepared from `images`; `backend` scores the dense checks.
+/// The placement of every map over the pairwise candidates and their evidence ([`evidence`], with the
+/// set's `level`), deterministic; `maps` prepared from `images`; `backend` scores the dense checks.
 pub fn place(
     pairwise: &Pairwise,
     maps: &[Prepared],
     images: &[&OccupancyMap],
     ev: &[EdgeEvidence],
+    level: &Calibration,
     options: &GlobalOptions,
     backend: &mut dyn Backend,
 ) -> Result<Placement> {
@@ -324,6 +357,15 @@ pub fn place(
                     turn.abs(),
                     (p.0 - q.0).hypot(p.1 - q.1)
                 )
+            } else if let Some(limit) = ev[i].excluded {
+                format!(
+                    "{:.0}% of its walls lie in the other map's free space (after a few px of local \
+                     shift), far above this set's pairs that cycles confirm (a median {:.0}%, at most \
+                     {:.0}% allowed)",
+                    100.0 * e.residual,
+                    100.0 * level.median,
+                    100.0 * limit
+                )
             } else if ev[i].vote() == 0.0 {
                 "contradicted by cycles: other maps compose to another placement".to_string()
             } else {
@@ -375,6 +417,7 @@ pub fn place(
         groups: group_list,
         kept,
         dropped,
+        level: *level,
     })
 }
 

@@ -12,12 +12,15 @@
 //! 2. Triangles ([`graph`]): an edge gains the weight of each third map through which two other edges
 //!    compose to it within [`GlobalOptions::loop_deg`] and [`GlobalOptions::loop_px`]; an accepted edge
 //!    loses the weight of each third map through which two accepted edges compose to something else.
+//!    The set's own level of conflict at the poses cycles confirm ([`calibrate`]) then excludes the
+//!    candidates far above it, and the triangles are counted again without them.
 //! 3. Groups grow by agglomeration: the best-supported placement of one group into another (votes of all
 //!    edges between them, clustered), taken when an accepted edge stands behind it (or, when only cycles
 //!    or several pairs do, when the pair test on the two groups' mosaics agrees), no other placement
 //!    comes close, and no overlapping pair of maps it puts together contradicts itself densely.
 //! 4. A weighted pose-graph least squares over the edges consistent with the placement ([`posegraph`]).
 
+pub mod calibrate;
 pub mod eval;
 pub mod graph;
 mod merged;
@@ -76,6 +79,10 @@ pub struct Edge {
     /// Where it makes the maps overlap, in B's pixels ([`overlap_centre`](super::align)): where it is
     /// compared with other estimates of B's placement.
     pub at: (f64, f64),
+    /// Its walls in the other map's free space once each tile of the overlap has had a few px of shift
+    /// ([`Features::residual`](super::accept::Features)): what [`calibrate`] weighs against the set's
+    /// own level.
+    pub residual: f64,
 }
 
 impl Edge {
@@ -210,6 +217,7 @@ fn edges_of(
             score: c.score,
             accepted: rank == 0 && accepted,
             at: overlap_centre(pa, pb, &c.transform),
+            residual: c.features.residual,
         })
         .collect()
 }
@@ -242,8 +250,16 @@ pub fn place(
     options: &GlobalOptions,
     backend: &mut dyn crate::backend::Backend,
 ) -> Result<graph::Placement> {
-    let ev = graph::evidence(pairwise, options);
-    let mut placement = graph::place(pairwise, maps, images, &ev, options, backend)?;
+    // The cycles once to find the confirmed pairs and the set's level; then again without the
+    // candidates far above it, so that they neither vote nor confirm others.
+    let first = graph::evidence(pairwise, options, None);
+    let level = calibrate::calibrate(pairwise, &first);
+    let ev = if pairwise.edges.iter().any(|e| level.excludes(e.residual)) {
+        graph::evidence(pairwise, options, Some(&level))
+    } else {
+        first
+    };
+    let mut placement = graph::place(pairwise, maps, images, &ev, &level, options, backend)?;
     let start: Vec<Rigid> = placement.maps.iter().map(|m| m.pose).collect();
     for members in &placement.groups {
         let constraints: Vec<posegraph::Constraint> = placement
