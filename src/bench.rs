@@ -16,6 +16,7 @@ use crate::gpu::{GpuBackend, GpuOptions};
 use crate::map::{map_name, OccupancyMap};
 use crate::rules::{RuleSet, RuleTable};
 use crate::states::ClassTable;
+use crate::stats::median;
 
 /// The git commit the library was built from (build.rs; "unknown" without git).
 pub const GIT_COMMIT: &str = env!("OGM_GIT_COMMIT");
@@ -174,16 +175,6 @@ impl PeakRss {
 struct Memory {
     before_mb: f64,
     peak_mb: f64,
-}
-
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        (v[n / 2 - 1] + v[n / 2]) / 2.0
-    }
 }
 
 /// Runs `f` once to warm up (first-use costs stay out of the median), then `repeat` timed times. Returns

@@ -53,6 +53,7 @@ pub mod report;
 pub mod robust;
 pub mod rules;
 pub mod states;
+mod stats;
 pub mod stream;
 pub mod streamed;
 pub mod synth;

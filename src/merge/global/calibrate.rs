@@ -49,7 +49,7 @@ impl Calibration {
 
 /// The level of `pairwise`'s confirmed accepted pairs ([`EdgeEvidence::confirmed`] in `ev`).
 pub fn calibrate(pairwise: &Pairwise, ev: &[EdgeEvidence]) -> Calibration {
-    let mut r: Vec<f64> = pairwise
+    let r: Vec<f64> = pairwise
         .edges
         .iter()
         .zip(ev)
@@ -61,25 +61,14 @@ pub fn calibrate(pairwise: &Pairwise, ev: &[EdgeEvidence]) -> Calibration {
     if confirmed == 0 {
         return Calibration::default();
     }
-    let median = median(&mut r);
-    let mut dev: Vec<f64> = r.iter().map(|x| (x - median).abs()).collect();
-    let spread = 1.4826 * self::median(&mut dev);
+    let median = crate::stats::median(r.clone());
+    let spread = 1.4826 * crate::stats::median(r.iter().map(|x| (x - median).abs()).collect());
     let limit = (confirmed >= MIN_CONFIRMED)
         .then(|| (median + SPREADS * spread).max(MEDIANS * median).max(FLOOR));
     Calibration {
         confirmed,
         median,
         limit,
-    }
-}
-
-fn median(v: &mut [f64]) -> f64 {
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        0.5 * (v[n / 2 - 1] + v[n / 2])
     }
 }
 

@@ -60,16 +60,16 @@ pub struct EdgeEvidence {
     pub contradicted: f64,
     /// For an accepted edge: two other accepted edges through a third map compose to it.
     pub confirmed: bool,
-    /// Excluded: its residual conflict is far above the set's level at confirmed poses (this limit,
-    /// [`calibrate`](super::calibrate)); it neither votes nor confirms.
-    pub excluded: Option<f64>,
+    /// Excluded: its residual conflict is over the set's limit ([`Calibration::limit`]); it neither votes
+    /// nor confirms.
+    pub excluded: bool,
 }
 
 impl EdgeEvidence {
     /// The weight it votes with: its own plus its support, less its contradiction (at least 0; 0 when
     /// excluded).
     pub fn vote(&self) -> f64 {
-        if self.excluded.is_some() {
+        if self.excluded {
             return 0.0;
         }
         (self.own + self.support - self.contradicted).max(0.0)
@@ -101,23 +101,19 @@ pub fn evidence(
     level: Option<&Calibration>,
 ) -> Vec<EdgeEvidence> {
     use rayon::prelude::*;
-    let excluded = |e: &Edge| {
-        level
-            .and_then(|l| l.excludes(e.residual).then_some(l.limit))
-            .flatten()
-    };
+    let excluded = |e: &Edge| level.is_some_and(|l| l.excludes(e.residual));
     let mut pairs = by_pair(pairwise);
     let edges = &pairwise.edges;
     for list in pairs.values_mut() {
-        list.retain(|&i| excluded(&edges[i]).is_none());
+        list.retain(|&i| !excluded(&edges[i]));
     }
     let of = |u: usize, v: usize| pairs.get(&(u.min(v), u.max(v))).map_or(&[][..], |v| v);
     edges
         .par_iter()
         .map(|e| {
-            if let Some(limit) = excluded(e) {
+            if excluded(e) {
                 return EdgeEvidence {
-                    excluded: Some(limit),
+                    excluded: true,
                     ..EdgeEvidence::default()
                 };
             }
@@ -164,7 +160,7 @@ pub fn evidence(
 /// of accepted edges that disagree with it outweigh it, whatever its own confidence (a wrong accept is
 /// as confident as a right one).
 fn trusted(e: &Edge, ev: &EdgeEvidence) -> bool {
-    e.accepted && ev.excluded.is_none() && ev.contradicted < ev.own.min(1.0) + ev.support
+    e.accepted && !ev.excluded && ev.contradicted < ev.own.min(1.0) + ev.support
 }
 
 /// Where each map lands and why.
@@ -357,7 +353,7 @@ pub fn place(
                     turn.abs(),
                     (p.0 - q.0).hypot(p.1 - q.1)
                 )
-            } else if let Some(limit) = ev[i].excluded {
+            } else if let (true, Some(limit)) = (ev[i].excluded, level.limit) {
                 format!(
                     "{:.0}% of its walls lie in the other map's free space (after a few px of local \
                      shift), far above this set's pairs that cycles confirm (a median {:.0}%, at most \
