@@ -53,6 +53,22 @@ impl Error {
         }
     }
 
+    /// An error writing `path` from the system's error. A write past the process's file size limit
+    /// (EFBIG under `ulimit -f`; the tool ignores SIGXFSZ so that it gets the error instead of dying) is
+    /// said in words and met as a full disk is: exit status 1, nothing half-written left.
+    pub fn write(path: impl AsRef<Path>, e: std::io::Error) -> Self {
+        #[cfg(unix)]
+        const EFBIG: i32 = 27;
+        #[cfg(unix)]
+        if e.raw_os_error() == Some(EFBIG) {
+            return Error::output(
+                path,
+                "over this process's file size limit (ulimit -f; File too large)",
+            );
+        }
+        Error::output(path, e)
+    }
+
     /// The process exit status the command-line tool uses: 2 for bad input, 3 for a declined merge, 1
     /// otherwise.
     pub fn exit_code(&self) -> i32 {

@@ -24,11 +24,18 @@ fn pending() -> std::sync::MutexGuard<'static, Vec<PathBuf>> {
     PENDING.lock().unwrap_or_else(|e| e.into_inner())
 }
 
+/// Removes a temporary output: a file, or a staging folder with what is in it.
+fn remove_temporary(p: &Path) {
+    if fs::remove_file(p).is_err() {
+        let _ = fs::remove_dir_all(p);
+    }
+}
+
 /// Removes every temporary output file not yet renamed into place (for tests; a signal handler wants
 /// [`remove_pending_and_exit`]).
 pub fn remove_pending() {
     for p in pending().drain(..) {
-        let _ = fs::remove_file(p);
+        remove_temporary(&p);
     }
 }
 
@@ -37,9 +44,43 @@ pub fn remove_pending() {
 pub fn remove_pending_and_exit(code: i32) -> ! {
     let mut list = pending();
     for p in list.drain(..) {
-        let _ = fs::remove_file(p);
+        remove_temporary(&p);
     }
     std::process::exit(code)
+}
+
+/// A hidden staging folder inside `dir` (`.staging.XXXXXX`), removed when dropped and by an interrupt:
+/// where a report's files are written before they are moved into `dir` together.
+pub struct StagingDir {
+    dir: Option<tempfile::TempDir>,
+}
+
+impl StagingDir {
+    /// Makes it in `dir`.
+    pub fn new_in(dir: &Path) -> Result<Self> {
+        let mut list = pending();
+        let t = tempfile::Builder::new()
+            .prefix(".staging.")
+            .tempdir_in(dir)
+            .map_err(|e| Error::output(dir, e))?;
+        list.push(t.path().to_path_buf());
+        Ok(StagingDir { dir: Some(t) })
+    }
+
+    /// Its path.
+    pub fn path(&self) -> &Path {
+        self.dir.as_ref().expect("present until dropped").path()
+    }
+}
+
+impl Drop for StagingDir {
+    fn drop(&mut self) {
+        if let Some(t) = self.dir.take() {
+            let p = t.path().to_path_buf();
+            drop(t);
+            pending().retain(|q| q != &p);
+        }
+    }
 }
 
 /// An output file being written: a temporary file beside the target, renamed onto it by
@@ -78,6 +119,15 @@ impl AtomicFile {
                 target,
                 "names a folder (it ends in a separator); give a file name",
             ));
+        }
+        // Standard output or error under another name (`/dev/stdout`, `/dev/fd/1`, a link to them, or
+        // the file they are redirected to): written through the descriptor itself. A rename would
+        // replace the file the shell redirected into (`>> log` losing its earlier lines).
+        if let Some(f) = open_descriptor(target).map_err(|e| out_err(&e))? {
+            return Ok(AtomicFile {
+                target: target.to_path_buf(),
+                inner: Some(Inner::Direct(BufWriter::new(f))),
+            });
         }
         match fs::metadata(target) {
             Ok(m) if m.is_dir() => return Err(out_err(&"is a folder")),
@@ -145,7 +195,7 @@ impl AtomicFile {
     /// Flushes, syncs (so a full disk shows up here, not later) and renames the file into place.
     pub fn commit(mut self) -> Result<()> {
         let target = std::mem::take(&mut self.target);
-        let err = |e: io::Error| Error::output(&target, e);
+        let err = |e: io::Error| Error::write(&target, e);
         let Some(inner) = self.inner.take() else {
             return Ok(());
         };
@@ -216,10 +266,120 @@ impl Write for AtomicFile {
     }
 }
 
+/// The descriptor `path` names, for writing, when it names one of this process's open descriptors:
+/// `/dev/stdout`, `/dev/stderr`, `/dev/fd/N`, `/proc/self/fd/N` (or `/proc/<this pid>/fd/N`), or any
+/// path (a link, the redirected file itself) that is the file standard output or error is. Standard
+/// output and error are written through a duplicate of the descriptor (sharing its offset and append
+/// mode, after what the tool printed); other descriptors are opened for appending.
+fn open_descriptor(path: &Path) -> io::Result<Option<File>> {
+    #[cfg(unix)]
+    {
+        use std::os::fd::AsFd;
+        let stdout = || -> io::Result<File> {
+            io::stdout().flush()?;
+            Ok(File::from(io::stdout().as_fd().try_clone_to_owned()?))
+        };
+        let stderr =
+            || -> io::Result<File> { Ok(File::from(io::stderr().as_fd().try_clone_to_owned()?)) };
+        match descriptor_number(path) {
+            Some(0) => {
+                return Err(io::Error::other(
+                    "is standard input, which cannot be written",
+                ))
+            }
+            Some(1) => return stdout().map(Some),
+            Some(2) => return stderr().map(Some),
+            Some(_) => return fs::OpenOptions::new().append(true).open(path).map(Some),
+            None => {}
+        }
+        // A path that is the very file standard output or error is (links followed).
+        let Ok(meta) = fs::metadata(path) else {
+            return Ok(None);
+        };
+        let id = FileId::from_meta(path, &meta);
+        let same = |fd: std::os::fd::BorrowedFd<'_>| {
+            File::from(fd.try_clone_to_owned().ok()?)
+                .metadata()
+                .ok()
+                .map(|m| FileId::from_meta(path, &m) == id)
+        };
+        if same(io::stdout().as_fd()) == Some(true) {
+            return stdout().map(Some);
+        }
+        if same(io::stderr().as_fd()) == Some(true) {
+            return stderr().map(Some);
+        }
+        Ok(None)
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = path;
+        Ok(None)
+    }
+}
+
+/// N when `path` is spelled as one of this process's descriptors (`/dev/stdin|stdout|stderr`,
+/// `/dev/fd/N`, `/proc/self/fd/N`, `/proc/thread-self/fd/N`, `/proc/<this pid>/fd/N`).
+#[cfg(unix)]
+fn descriptor_number(path: &Path) -> Option<u32> {
+    let s = path.to_str()?;
+    match s {
+        "/dev/stdin" => return Some(0),
+        "/dev/stdout" => return Some(1),
+        "/dev/stderr" => return Some(2),
+        _ => {}
+    }
+    let pid = format!("/proc/{}/fd/", std::process::id());
+    [
+        "/dev/fd/",
+        "/proc/self/fd/",
+        "/proc/thread-self/fd/",
+        pid.as_str(),
+    ]
+    .iter()
+    .find_map(|prefix| s.strip_prefix(prefix))
+    .and_then(|n| n.parse().ok())
+}
+
+/// Refuses, before any work, an output whose folder does not exist or cannot be written (a read-only
+/// folder or file system); a device or descriptor (`/dev/null`, `/dev/stdout`) is written in place and
+/// passes.
+pub fn check_writable(path: &Path) -> Result<()> {
+    #[cfg(unix)]
+    if descriptor_number(path).is_some() {
+        return Ok(());
+    }
+    if fs::metadata(path).is_ok_and(|m| !m.is_file()) {
+        return Ok(());
+    }
+    let real = resolve(path);
+    let dir = match real.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    if !dir.is_dir() {
+        return Err(Error::input(path, "its folder does not exist"));
+    }
+    #[cfg(unix)]
+    {
+        use rustix::fs::{access, Access};
+        if let Err(e) = access(&dir, Access::WRITE_OK | Access::EXEC_OK) {
+            return Err(Error::input(
+                path,
+                format!(
+                    "its folder cannot be written ({})",
+                    io::Error::from_raw_os_error(e.raw_os_error())
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
 /// Writes `path` atomically with `f`: the file appears, complete, only when `f` succeeded.
 pub fn write_atomic(path: &Path, f: impl FnOnce(&mut dyn Write) -> io::Result<()>) -> Result<()> {
     let mut file = AtomicFile::create(path)?;
-    f(&mut file).map_err(|e| Error::output(path, e))?;
+    f(&mut file).map_err(|e| Error::write(path, e))?;
     file.commit()
 }
 
@@ -242,7 +402,7 @@ impl Staged {
         // Flushed now: a device written directly (`/dev/full`) fails here, before any file is renamed.
         f(&mut file)
             .and_then(|()| file.flush())
-            .map_err(|e| Error::output(path, e))?;
+            .map_err(|e| Error::write(path, e))?;
         self.files.push(file);
         Ok(())
     }

@@ -4,9 +4,57 @@
 mod batch;
 mod cli;
 
+use std::alloc::{GlobalAlloc, Layout, System};
 use std::process::ExitCode;
 
 use clap::Parser;
+
+/// The system allocator, with a failure that ends the run in one line (exit 2, outputs in progress
+/// removed) instead of Rust's abort with a backtrace: what a limit the budget could not see (an address
+/// space limit lowered after start, another process taking the memory) ends in.
+struct Guarded;
+
+// SAFETY: every call is forwarded to the system allocator unchanged; only a null result is acted on.
+unsafe impl GlobalAlloc for Guarded {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        checked(System.alloc(layout), layout.size())
+    }
+
+    unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
+        checked(System.alloc_zeroed(layout), layout.size())
+    }
+
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        System.dealloc(ptr, layout)
+    }
+
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        checked(System.realloc(ptr, layout, new_size), new_size)
+    }
+}
+
+#[global_allocator]
+static ALLOCATOR: Guarded = Guarded;
+
+/// `ptr`, unless the allocation failed: then one line on standard error (formatted on the stack: the heap
+/// just failed) and exit 2 with the temporary outputs removed.
+fn checked(ptr: *mut u8, size: usize) -> *mut u8 {
+    if !ptr.is_null() || size == 0 {
+        return ptr;
+    }
+    use std::io::Write as _;
+    let mut line = [0u8; 256];
+    let mut cursor = std::io::Cursor::new(&mut line[..]);
+    let _ = writeln!(
+        cursor,
+        "ogm-corners: error: out of memory: the system refused {:.1} MiB (a process or machine limit below \
+         what the run needs); give a lower --max-memory, or raise the limit",
+        size as f64 / (1u64 << 20) as f64
+    );
+    let n = cursor.position() as usize;
+    let _ = std::io::stderr().write_all(&line[..n]);
+    ogm_corners::files::remove_pending_and_exit(2)
+}
 
 fn main() -> ExitCode {
     // A panic is a bug: one escaped line, then exit 1 below (not Rust's multi-line message and 101).
@@ -26,6 +74,13 @@ fn main() -> ExitCode {
             ogm_corners::error::one_line(&what)
         );
     }));
+    // Past a file size limit (`ulimit -f`) a write then fails with EFBIG, reported and cleaned up like a
+    // full disk, instead of SIGXFSZ killing the process with its temporary files left behind.
+    #[cfg(unix)]
+    // SAFETY: sets a signal's disposition to "ignore", before any other thread exists.
+    unsafe {
+        libc::signal(libc::SIGXFSZ, libc::SIG_IGN);
+    }
     // Outputs are written to temporary files renamed into place when complete; an interrupted run removes
     // the ones in progress, so neither a partial output nor a stray temporary file is left.
     let _ = ctrlc::set_handler(|| {

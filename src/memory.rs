@@ -34,10 +34,10 @@ impl Default for Budget {
 }
 
 impl Budget {
-    /// 80% of the machine's memory (the cgroup limit when lower), leaving room for the rest of the system;
-    /// 8 GiB when neither can be read.
+    /// 80% of the machine's memory (the cgroup limit, or what this process's address space and data
+    /// limits leave, when lower), leaving room for the rest of the system; 8 GiB when none can be read.
     pub fn machine() -> Self {
-        let total = [physical_memory(), cgroup_limit()]
+        let total = [physical_memory(), cgroup_limit(), process_limit()]
             .into_iter()
             .flatten()
             .min();
@@ -79,7 +79,7 @@ impl Budget {
             return Ok(());
         }
         let from = match self.origin {
-            Origin::Machine => "80% of this machine's memory",
+            Origin::Machine => "80% of this machine's memory or of this process's limits",
             Origin::Given => "as given",
         };
         Err(Error::invalid(format!(
@@ -140,6 +140,35 @@ pub fn parse_bytes(s: &str) -> std::result::Result<u64, String> {
         return Err(format!("size `{s}` is out of range"));
     }
     Ok(v as u64)
+}
+
+/// What this process's address space and data segment limits (`ulimit -v`, `ulimit -d`: RLIMIT_AS,
+/// RLIMIT_DATA) leave beyond what it already uses (VmSize, VmData of `/proc/self/status`), if either is
+/// set: the lower binds.
+fn process_limit() -> Option<u64> {
+    #[cfg(target_os = "linux")]
+    {
+        use rustix::process::{getrlimit, Resource};
+        let status = std::fs::read_to_string("/proc/self/status").unwrap_or_default();
+        let used = |key: &str| -> u64 {
+            status
+                .lines()
+                .find_map(|l| l.strip_prefix(key))
+                .and_then(|v| v.split_whitespace().next()?.parse::<u64>().ok())
+                .map_or(0, |kib| kib.saturating_mul(1024))
+        };
+        [
+            (Resource::As, used("VmSize:")),
+            (Resource::Data, used("VmData:")),
+        ]
+        .into_iter()
+        .filter_map(|(r, used)| Some(getrlimit(r).current?.saturating_sub(used)))
+        .min()
+    }
+    #[cfg(not(target_os = "linux"))]
+    {
+        None
+    }
 }
 
 /// Total physical memory (Linux `/proc/meminfo`).

@@ -28,9 +28,10 @@ pub fn csv_field(s: &str) -> std::borrow::Cow<'_, str> {
     }
 }
 
-/// A Markdown table cell: `|` escaped and line breaks made spaces, so a file name cannot break the table.
+/// A Markdown table cell: `|` escaped, line breaks made spaces and other control characters written
+/// escaped (`\u{1b}`), so a file name can neither break the table nor send escape sequences to a terminal.
 pub fn md_cell(s: &str) -> String {
-    s.replace('|', "\\|").replace(['\n', '\r'], " ")
+    crate::error::one_line(&s.replace('|', "\\|").replace(['\n', '\r'], " "))
 }
 
 /// Output formats of `detect`.
@@ -295,5 +296,6 @@ mod tests {
         assert_eq!(csv_field("a,b"), "\"a,b\"");
         assert_eq!(csv_field("say \"hi\"\n"), "\"say \"\"hi\"\"\n\"");
         assert_eq!(md_cell("a|b\nc"), "a\\|b c");
+        assert_eq!(md_cell("x\u{1b}[31m\r"), "x\\u{1b}[31m ");
     }
 }

@@ -92,7 +92,7 @@ pub fn detect_to(
     for o in outputs.iter_mut() {
         let name = o.name.clone();
         let w = KeypointWriter::begin(&mut *o.out, o.format, &about)
-            .map_err(|e| Error::output(&name, e))?;
+            .map_err(|e| Error::write(&name, e))?;
         writers.push((w, name));
     }
     // Both callbacks draw on the canvas (rows, then marks), one at a time.
@@ -105,7 +105,7 @@ pub fn detect_to(
                 c.mark(k);
             }
             for (w, name) in writers.iter_mut() {
-                w.push(k).map_err(|e| Error::output(&*name, e))?;
+                w.push(k).map_err(|e| Error::write(&*name, e))?;
             }
             Ok(())
         },
@@ -116,7 +116,7 @@ pub fn detect_to(
         },
     )?;
     for (w, name) in writers {
-        w.end().map_err(|e| Error::output(&name, e))?;
+        w.end().map_err(|e| Error::write(&name, e))?;
     }
     Ok(done)
 }

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+import numbers
 import os
 import threading
 from typing import Any, Dict, Optional, Tuple
@@ -14,6 +16,21 @@ from ._map import Map, load_map
 
 DETECTORS = ("ogm", "ogm-robust", "harris", "shi-tomasi", "trajkovic")
 BACKENDS = ("auto", "cpu", "reference", "gpu")
+
+
+# Integer options and their width: checked here so that a bad value is a ValueError naming the option
+# (the extension's conversion would raise an OverflowError that names nothing).
+_UNSIGNED = {
+    "t1": 32, "t2": 32, "min_scale": 32, "max_scale": 32, "nms_radius": 32, "min_strength": 32,
+    "max_corners": 63,
+}
+
+
+def _check_unsigned(name: str, value: Any, bits: int) -> None:
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral):
+        raise TypeError(f"{name} must be an int, got {type(value).__name__}")
+    if not 0 <= value < 2**bits:
+        raise ValueError(f"{name} must be between 0 and {2**bits - 1}, got {value}")
 
 
 class Detector:
@@ -35,6 +52,9 @@ class Detector:
     __slots__ = ("_d",)
 
     def __init__(self, detector: str = "ogm", backend: str = "auto", **options: Any) -> None:
+        for name, bits in _UNSIGNED.items():
+            if options.get(name) is not None:
+                _check_unsigned(name, options[name], bits)
         self._d = _core.Detector(detector, backend, **options)
 
     @property
@@ -53,18 +73,36 @@ class Detector:
         return self._d.backend_note
 
     def detect(
-        self, map: Any, *, occupied_thresh: float = 0.65, free_thresh: float = 0.25
+        self,
+        map: Any,
+        *,
+        occupied_thresh: Optional[float] = None,
+        free_thresh: Optional[float] = None,
     ) -> Keypoints:
         """The keypoints of ``map``: a ``Map``, a path to a map file, or a 2-D numpy array.
 
         A uint8 array is a map image (grey levels read with the ROS defaults; row 0 at the top); an int8
         array is ``nav_msgs/OccupancyGrid`` cells (-1 unknown, 0..100) read as ``map_saver`` reads them
-        with ``occupied_thresh`` and ``free_thresh``, in the array's own row order. Either way ``x``,
+        with ``occupied_thresh`` and ``free_thresh`` (0.65 and 0.25 by default; for int8 arrays only: a
+        ``Map`` or a uint8 image carries its own), in the array's own row order. Either way ``x``,
         ``y`` index the array as ``array[y, x]``. A C-contiguous array is read in place (do not write to
         it during the call); any other is copied once.
         """
-        if isinstance(map, (str, os.PathLike)):
+        if isinstance(map, (str, bytes, os.PathLike)):
             map = load_map(map)
+        if not isinstance(map, Map) and getattr(np.asarray(map), "dtype", None) == np.int8:
+            occupied_thresh = 0.65 if occupied_thresh is None else float(occupied_thresh)
+            free_thresh = 0.25 if free_thresh is None else float(free_thresh)
+            if not (math.isfinite(occupied_thresh) and math.isfinite(free_thresh)):
+                raise ValueError(
+                    f"occupied_thresh and free_thresh must be finite, got {occupied_thresh} and "
+                    f"{free_thresh}"
+                )
+        elif occupied_thresh is not None or free_thresh is not None:
+            raise ValueError(
+                "occupied_thresh and free_thresh apply to int8 occupancy-grid arrays; a Map or a uint8 "
+                "image is read with its own thresholds (Map(..., occupied_thresh=, free_thresh=))"
+            )
         if isinstance(map, Map):
             words, angle = self._d._detect_map(map._m)
             return Keypoints._from_words(
@@ -84,7 +122,12 @@ class Detector:
             )
         if not a.flags.c_contiguous:
             a = np.ascontiguousarray(a)
-        words, angle = self._d._detect_array(a.view(np.uint8), grid, occupied_thresh, free_thresh)
+        words, angle = self._d._detect_array(
+            a.view(np.uint8),
+            grid,
+            0.65 if occupied_thresh is None else occupied_thresh,
+            0.25 if free_thresh is None else free_thresh,
+        )
         return Keypoints._from_words(
             words, False, self.detector, self.backend, angle, a.shape[1], a.shape[0]
         )

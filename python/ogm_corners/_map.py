@@ -6,6 +6,7 @@ import array as pyarray
 import enum
 import errno
 import math
+import numbers
 import os
 from dataclasses import dataclass
 from typing import Any, Optional, Tuple, Union
@@ -175,6 +176,12 @@ class Map:
             data = data.data
         if width is None or height is None or resolution is None:
             raise TypeError("from_occupancy_grid needs width, height and resolution (or a message)")
+        for name, v in (("width", width), ("height", height)):
+            # A float or a string would be truncated or parsed: a grid's size is a count.
+            if isinstance(v, bool) or not isinstance(v, numbers.Integral):
+                raise TypeError(f"{name} must be an int, got {type(v).__name__} {v!r}")
+            if not 0 <= v < 2**32:
+                raise ValueError(f"{name} must be between 0 and {2**32 - 1}, got {v}")
         cells = _grid_cells(data)
         cells = np.ascontiguousarray(cells.reshape(-1)).view(np.uint8)
         # MapMetaData.resolution is a float32: 0.05 arrives as 0.05000000074505806. Its shortest float32
@@ -283,7 +290,7 @@ def _unpickle(pixels: np.ndarray, resolution: Optional[float], origin: Any, kwar
 def load_map(path: PathLike) -> Map:
     """Loads a ROS ``map_server`` yaml (and the image it names) or an image alone (PGM or PNG, with the
     ROS default thresholds and no georeference)."""
-    p = os.fspath(path)
+    p = os.fsdecode(os.fspath(path))
     if not os.path.exists(p):
         raise FileNotFoundError(errno.ENOENT, "no such map", p)
     return Map._wrap(_core.load_map(p))

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+import numbers
 import os
 from dataclasses import dataclass, field
 from typing import Any, Dict, Iterator, List, Optional, Sequence, Tuple, Union
@@ -84,7 +85,7 @@ class Alignment:
 def _as_map(m: Any) -> Map:
     if isinstance(m, Map):
         return m
-    if isinstance(m, (str, os.PathLike)):
+    if isinstance(m, (str, bytes, os.PathLike)):
         return load_map(m)
     raise TypeError(f"expected a Map or a path, got {type(m).__name__}")
 
@@ -200,15 +201,23 @@ class ManyMerge:
         """The number of groups."""
         return len(self.report["groups"])
 
+    def _group(self, group: Any) -> int:
+        if isinstance(group, bool) or not isinstance(group, numbers.Integral):
+            raise TypeError(f"group must be an int, got {type(group).__name__}")
+        if group < 0:
+            raise ValueError(f"group must be 0 or more, got {group}")
+        return int(group)
+
     def merged_map(self, group: int = 0) -> Map:
         """Group ``group``'s merged map, in its first map's frame."""
+        group = self._group(group)
         if group not in self._merged:
             self._merged[group] = Map._wrap(self._core._merged(group))
         return self._merged[group]
 
     def overlay(self, group: int = 0) -> np.ndarray:
         """Group ``group``'s picture, each map's walls in its own colour, (height, width, 3) uint8."""
-        return self._core._overlay(group)
+        return self._core._overlay(self._group(group))
 
     @property
     def merged(self) -> Optional[Map]:

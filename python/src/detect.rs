@@ -14,7 +14,7 @@ use ogm_corners::{
     RuleSet,
 };
 
-use crate::errors::{to_py, unlocked};
+use crate::errors::{to_py, unlocked, within_budget};
 use crate::map::{image_of, Map};
 
 /// One keypoint as the package's numpy dtype lays it out (`ogm_corners._keypoints.RECORD`): 40 bytes,
@@ -185,6 +185,7 @@ impl Detector {
         map: &Map,
     ) -> PyResult<(Bound<'py, PyArray1<u64>>, Option<f64>)> {
         let m = &map.inner;
+        self.check_budget(m.image.width(), m.image.height())?;
         let (words, angle) = unlocked(py, || {
             let found = self.lock().detect(m)?;
             Ok((records(&found, m.georef), angle_of(&found)))
@@ -218,6 +219,7 @@ impl Detector {
         free_thresh: f64,
     ) -> PyResult<(Bound<'py, PyArray1<u64>>, Option<f64>)> {
         let image = image_of(&pixels, false)?;
+        self.check_budget(image.width(), image.height())?;
         let classes = if grid {
             Some(
                 GridThresholds {
@@ -243,6 +245,16 @@ impl Detector {
 }
 
 impl Detector {
+    /// Refuses a detection whose working memory (the backend's buffers for a `w` x `h` map, as the
+    /// command line counts them) is over the budget.
+    fn check_budget(&self, w: u32, h: u32) -> PyResult<()> {
+        let bytes = self.lock().working_bytes(w, h);
+        within_budget(
+            format_args!("detecting in a {w}x{h} map with {}", self.name),
+            bytes,
+        )
+    }
+
     /// The detector; a panic in an earlier call (reported then as an exception) does not stop later ones.
     fn lock(&self) -> std::sync::MutexGuard<'_, ogm_corners::Detector> {
         self.inner.lock().unwrap_or_else(|p| p.into_inner())

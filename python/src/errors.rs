@@ -4,7 +4,7 @@
 use std::panic::{catch_unwind, AssertUnwindSafe};
 
 use ogm_corners::Error;
-use pyo3::exceptions::{PyOSError, PyRuntimeError, PyValueError};
+use pyo3::exceptions::{PyMemoryError, PyOSError, PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 
 pyo3::create_exception!(
@@ -42,4 +42,26 @@ pub fn unlocked<T: Send>(
             PyRuntimeError::new_err(format!("internal error: {what}"))
         })?
         .map_err(to_py)
+}
+
+/// Refuses, as a `MemoryError` naming the estimate and the limit, what would take more than the memory
+/// budget (`OGM_MAX_MEMORY`, else 80% of the machine's memory or of this process's limits), before it is
+/// allocated: the command line's check, so that a call raises instead of aborting the interpreter.
+pub fn within_budget(what: impl std::fmt::Display, bytes: u64) -> PyResult<()> {
+    ogm_corners::memory::Budget::from_option(None)
+        .map_err(to_py)?
+        .check(what, bytes)
+        .map_err(|e| PyMemoryError::new_err(e.to_string()))
+}
+
+/// A transform's numbers, refused unless finite (NaN would compose map A with B silently dropped).
+pub fn finite_transform(t: (f64, f64, f64)) -> PyResult<(f64, f64, f64)> {
+    if [t.0, t.1, t.2].iter().all(|v| v.is_finite()) {
+        Ok(t)
+    } else {
+        Err(PyValueError::new_err(format!(
+            "the transform (theta_deg {}, tx {}, ty {}) is not finite",
+            t.0, t.1, t.2
+        )))
+    }
 }

@@ -17,7 +17,7 @@ use ogm_corners::merge::synthetic::synthetic_set;
 use ogm_corners::states::ClassTable;
 use ogm_corners::{synth, Error, OccupancyMap};
 
-use crate::errors::{to_py, unlocked};
+use crate::errors::{to_py, unlocked, within_budget};
 
 /// Pixels read in place from a numpy array (C-contiguous uint8, or int8 cells viewed as uint8).
 struct NumpyPixels {
@@ -47,8 +47,9 @@ fn dim(n: usize, what: &str) -> PyResult<u32> {
         .map_err(|_| PyValueError::new_err(format!("{what} {n} is more than a map can have")))
 }
 
-/// A map image over a 2-D uint8 array: read in place when C-contiguous (and `copy` is false), copied
-/// otherwise.
+/// A map image over a 2-D uint8 array: read in place when C-contiguous (and `copy` is false), copied in
+/// row order otherwise (a Fortran-ordered or strided array's memory is not its rows). A copy is counted
+/// against the memory budget first and made with the interpreter's lock released.
 pub fn image_of(array: &PyReadonlyArray2<'_, u8>, copy: bool) -> PyResult<MapImage> {
     let shape = array.shape();
     let (h, w) = (dim(shape[0], "height")?, dim(shape[1], "width")?);
@@ -57,18 +58,34 @@ pub fn image_of(array: &PyReadonlyArray2<'_, u8>, copy: bool) -> PyResult<MapIma
             "zero-size map ({w}x{h}): nothing to detect in"
         ))));
     }
-    match array.as_slice() {
-        Ok(slice) if !copy => {
-            let source = NumpyPixels {
-                _owner: array.as_any().clone().unbind(),
-                ptr: slice.as_ptr(),
-                len: slice.len(),
-            };
-            MapImage::shared(w, h, Arc::new(source)).map_err(to_py)
-        }
-        Ok(slice) => MapImage::new(w, h, slice.to_vec()).map_err(to_py),
-        Err(_) => MapImage::new(w, h, array.as_array().iter().copied().collect()).map_err(to_py),
+    // `as_slice` also answers for a Fortran-ordered array (memory order, columns first): only a
+    // C-contiguous one is its rows.
+    let rows = if array.is_c_contiguous() {
+        array.as_slice().ok()
+    } else {
+        None
+    };
+    if let (Some(slice), false) = (rows, copy) {
+        let source = NumpyPixels {
+            _owner: array.as_any().clone().unbind(),
+            ptr: slice.as_ptr(),
+            len: slice.len(),
+        };
+        return MapImage::shared(w, h, Arc::new(source)).map_err(to_py);
     }
+    within_budget(
+        format_args!("copying a {w}x{h} map"),
+        u64::from(w) * u64::from(h),
+    )?;
+    let py = array.py();
+    let pixels = match rows {
+        Some(slice) => py.detach(|| slice.to_vec()),
+        None => {
+            let view = array.as_array();
+            py.detach(|| view.iter().copied().collect())
+        }
+    };
+    MapImage::new(w, h, pixels).map_err(to_py)
 }
 
 /// A georeference from Python's optional resolution and origin, checked to give every pixel of `image`

@@ -9,8 +9,9 @@ use ogm_corners::merge::{MergeOptions, Rigid};
 use ogm_corners::{BackendChoice, Error};
 use pyo3::prelude::*;
 
-use crate::errors::{to_py, unlocked};
+use crate::errors::{finite_transform, to_py, unlocked, within_budget};
 use crate::map::Map;
+use ogm_corners::merge::footprint::{check_alignable, footprint};
 
 /// A picture as a (height, width, 3) uint8 array.
 fn rgb_array(py: Python<'_>, picture: image::RgbImage) -> PyResult<Bound<'_, PyArray3<u8>>> {
@@ -30,8 +31,19 @@ fn backend(py: Python<'_>, name: &str) -> PyResult<Box<dyn ogm_corners::Backend>
 #[pyfunction]
 #[pyo3(signature = (a, b, backend="cpu"))]
 pub fn merge(py: Python<'_>, a: &Map, b: &Map, backend: &str) -> PyResult<String> {
-    let mut on = self::backend(py, backend)?;
     let (ma, mb) = (&a.inner, &b.inner);
+    // B at A's resolution and both preparations, counted before any is allocated (as the command line).
+    let fa = footprint(ma, None).map_err(to_py)?;
+    let fb = footprint(mb, ma.georef.map(|g| g.resolution)).map_err(to_py)?;
+    within_budget(
+        format_args!(
+            "merging a {}x{} map and a {}x{} one (at the first's cells)",
+            fa.width, fa.height, fb.width, fb.height
+        ),
+        fa.bytes().saturating_add(fb.bytes()),
+    )?;
+    check_alignable(&fa, &fb).map_err(to_py)?;
+    let mut on = self::backend(py, backend)?;
     let merged = unlocked(py, || {
         pair::merge_pair(ma, mb, &MergeOptions::default(), on.as_mut())
     })?;
@@ -41,8 +53,9 @@ pub fn merge(py: Python<'_>, a: &Map, b: &Map, backend: &str) -> PyResult<String
 /// The merged map of `a` and `b`, B placed by (theta degrees, tx, ty) in A's frame.
 #[pyfunction]
 pub fn compose(py: Python<'_>, a: &Map, b: &Map, transform: (f64, f64, f64)) -> PyResult<Map> {
-    let t = rigid(transform);
+    let t = rigid(finite_transform(transform)?);
     let (ma, mb) = (&a.inner, &b.inner);
+    canvas_within_budget(ma, mb, &t, 1)?;
     unlocked(py, || pair::compose_pair(ma, mb, &t)).map(Map::wrap)
 }
 
@@ -54,10 +67,36 @@ pub fn overlay<'py>(
     b: &Map,
     transform: (f64, f64, f64),
 ) -> PyResult<Bound<'py, PyArray3<u8>>> {
-    let t = rigid(transform);
+    let t = rigid(finite_transform(transform)?);
     let (ma, mb) = (&a.inner, &b.inner);
+    canvas_within_budget(ma, mb, &t, 6)?;
     let picture = unlocked(py, || pair::overlay_pair(ma, mb, &t))?;
     rgb_array(py, picture)
+}
+
+/// Refuses a merged canvas of `a` and `b` (B placed by `t`, at A's resolution) whose `per_px` bytes a
+/// pixel, plus B brought to A's cells, are over the budget.
+fn canvas_within_budget(
+    a: &ogm_corners::OccupancyMap,
+    b: &ogm_corners::OccupancyMap,
+    t: &Rigid,
+    per_px: u64,
+) -> PyResult<()> {
+    let fb = footprint(b, a.georef.map(|g| g.resolution)).map_err(to_py)?;
+    let side = |v: u64| u32::try_from(v).unwrap_or(u32::MAX);
+    let canvas = ogm_corners::merge::compose::Canvas::of(
+        a.image.width(),
+        a.image.height(),
+        side(fb.width),
+        side(fb.height),
+        t,
+    );
+    let px = canvas.width().saturating_mul(canvas.height());
+    within_budget(
+        format_args!("a merged canvas of {}x{}", canvas.width(), canvas.height()),
+        px.saturating_mul(per_px)
+            .saturating_add(fb.width.saturating_mul(fb.height)),
+    )
 }
 
 fn rigid((theta_deg, tx, ty): (f64, f64, f64)) -> Rigid {
@@ -127,6 +166,19 @@ pub fn merge_many(
             maps.len()
         ))));
     }
+    // Every map at the first georeferenced map's cells and its preparation, held at once.
+    let resolution = maps
+        .iter()
+        .find_map(|m| m.inner.georef)
+        .map(|g| g.resolution);
+    let mut held = 0u64;
+    for m in &maps {
+        held = held.saturating_add(footprint(&m.inner, resolution).map_err(to_py)?.bytes());
+    }
+    within_budget(
+        format_args!("{} maps and their preparation", maps.len()),
+        held,
+    )?;
     let mut on = self::backend(py, backend)?;
     // Clones share the pixels (Map::wrap), so this copies no image.
     let owned: Vec<ogm_corners::OccupancyMap> = maps.iter().map(|m| m.inner.clone()).collect();

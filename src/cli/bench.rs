@@ -331,7 +331,10 @@ pub(super) fn bench(a: BenchArgs, budget: &Budget) -> Result<()> {
                 synthetic += 1;
                 if let Some(p) = &saved {
                     image.write_pgm(p)?;
-                    ogm_corners::say!("ogm-corners: bench: wrote {}", p.display());
+                    ogm_corners::say!(
+                        "ogm-corners: bench: wrote {}",
+                        ogm_corners::error::one_line(&p.display().to_string())
+                    );
                 }
                 BenchMap {
                     label: "synthetic".to_string(),

@@ -113,7 +113,10 @@ pub(super) fn run(a: CompareArgs, budget: &Budget) -> Result<()> {
         }
         let sheet = compare::contact_sheet(&name, &bm.map, &found);
         files::write_png(sheet_path, &sheet)?;
-        ogm_corners::say!("ogm-corners: wrote {}", sheet_path.display());
+        ogm_corners::say!(
+            "ogm-corners: wrote {}",
+            ogm_corners::error::one_line(&sheet_path.display().to_string())
+        );
         if let Some(page) = &mut page {
             page.add_sheet(i, &name, p, &sheet)?;
         }
@@ -127,7 +130,10 @@ pub(super) fn run(a: CompareArgs, budget: &Budget) -> Result<()> {
             a.repeat
         );
         let index = page.finish(&rows, &about)?;
-        ogm_corners::say!("ogm-corners: wrote {}", index.display());
+        ogm_corners::say!(
+            "ogm-corners: wrote {}",
+            ogm_corners::error::one_line(&index.display().to_string())
+        );
     }
     write_stdout(|out| compare::write_table(out, a.format.into(), &rows))
 }

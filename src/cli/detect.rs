@@ -140,7 +140,7 @@ fn run_streamed(a: &DetectArgs, format: Format, budget: &Budget) -> Result<()> {
             o.out
                 .flush()
                 .map(|()| d)
-                .map_err(|e| Error::output(&name, e))
+                .map_err(|e| Error::write(&name, e))
         });
     let done = match done {
         // `| head`: the reader has what it wanted.

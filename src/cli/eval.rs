@@ -161,14 +161,20 @@ pub(super) fn run(a: EvalArgs, budget: &Budget) -> Result<()> {
             a.tolerance
         );
         let index = page.finish_repeatability(&rows, &about)?;
-        ogm_corners::say!("ogm-corners: wrote {}", index.display());
+        ogm_corners::say!(
+            "ogm-corners: wrote {}",
+            ogm_corners::error::one_line(&index.display().to_string())
+        );
     }
     if let Some(dir) = &a.plot {
         files::create_dir(dir)?;
         for (file, picture) in eval::repeatability_plots(&rows) {
             let path = dir.join(file);
             files::write_png(&path, &picture)?;
-            ogm_corners::say!("ogm-corners: wrote {}", path.display());
+            ogm_corners::say!(
+                "ogm-corners: wrote {}",
+                ogm_corners::error::one_line(&path.display().to_string())
+            );
         }
     }
     write_stdout(|out| eval::write_table(out, a.format.into(), &rows))
@@ -250,7 +256,10 @@ fn annotated(
             files::create_dir(dir)?;
             let path = dir.join(ogm_corners::eval::annotations::marked_sheet_file(name));
             files::write_png(&path, &sheet)?;
-            ogm_corners::say!("ogm-corners: wrote {}", path.display());
+            ogm_corners::say!(
+                "ogm-corners: wrote {}",
+                ogm_corners::error::one_line(&path.display().to_string())
+            );
         }
         if let Some(page) = &mut page {
             page.add_map(i, name, p, &sheet, true)?;
@@ -269,7 +278,10 @@ fn annotated(
     rows.extend(total);
     if let Some(page) = page {
         let index = page.finish_recall(&rows, file)?;
-        ogm_corners::say!("ogm-corners: wrote {}", index.display());
+        ogm_corners::say!(
+            "ogm-corners: wrote {}",
+            ogm_corners::error::one_line(&index.display().to_string())
+        );
     }
     write_stdout(|out| write_table(out, a.format.into(), &rows))
 }

@@ -11,7 +11,7 @@ use serde::Serialize;
 use ogm_corners::files;
 use ogm_corners::map::{save_names, yaml_text};
 use ogm_corners::memory::Budget;
-use ogm_corners::merge::align::prepared_bytes;
+use ogm_corners::merge::footprint::{check_alignable, footprint};
 use ogm_corners::merge::pair::{self, Verdict};
 use ogm_corners::merge::{compose, MergeOptions};
 use ogm_corners::{Error, OccupancyMap, Result};
@@ -76,8 +76,12 @@ pub(super) fn run(a: MergeArgs, budget: &Budget) -> Result<()> {
         return super::merge_many::run(a, budget);
     }
     let mut inputs = files::Inputs::new();
+    // The images first; what merging them needs is counted once they are read (below).
+    let mut raw = 0u64;
     for p in &a.maps {
-        super::claim_input(p, budget, &prepared_bytes, &mut inputs)?;
+        let (w, h) = super::claim_input(p, budget, &|_, _| 0, &mut inputs)?;
+        raw = raw.saturating_add(u64::from(w) * u64::from(h));
+        budget.check(format_args!("{} maps", a.maps.len()), raw)?;
     }
     let (yaml_out, pgm_out) = save_names(a.output.as_deref())?;
     for (p, what) in [
@@ -87,10 +91,38 @@ pub(super) fn run(a: MergeArgs, budget: &Budget) -> Result<()> {
     ] {
         if let Some(p) = p {
             inputs.claim_output(p, what)?;
+            // A missing or read-only folder is found now, not after the work.
+            files::check_writable(p)?;
         }
     }
-    let map_a = OccupancyMap::load(&a.maps[0])?;
-    let map_b = OccupancyMap::load(&a.maps[1])?;
+    let map_a = OccupancyMap::load_within(&a.maps[0], budget, &|_, _| 0)?;
+    let map_b = OccupancyMap::load_within(&a.maps[1], budget, &|w, h| {
+        u64::from(map_a.image.width()) * u64::from(map_a.image.height())
+            + u64::from(w) * u64::from(h)
+    })?;
+    for w in map_a.warnings.iter().chain(&map_b.warnings) {
+        ogm_corners::say!("ogm-corners: warning: {}", ogm_corners::error::one_line(w));
+    }
+    // B at A's resolution and both preparations over their explored parts, before any is allocated.
+    let fa = footprint(&map_a, None)?;
+    let fb = footprint(&map_b, map_a.georef.map(|g| g.resolution))?;
+    budget.check(
+        format_args!(
+            "merging {} ({}x{}, explored {}x{}) and {} ({}x{} at A's cells, explored {}x{})",
+            a.maps[0].display(),
+            fa.width,
+            fa.height,
+            fa.crop.0,
+            fa.crop.1,
+            a.maps[1].display(),
+            fb.width,
+            fb.height,
+            fb.crop.0,
+            fb.crop.1
+        ),
+        fa.bytes().saturating_add(fb.bytes()),
+    )?;
+    check_alignable(&fa, &fb)?;
     let mut backend = super::backend_on(a.backend)?;
     let start = Instant::now();
     let merged = pair::merge_pair(&map_a, &map_b, &MergeOptions::default(), backend.as_mut())?;
@@ -140,6 +172,28 @@ pub(super) fn run(a: MergeArgs, budget: &Budget) -> Result<()> {
                 .unwrap_or_else(|| "not confident".to_string()),
         ));
     }
+    // The merged map and the picture are as large as the canvas: counted before they are made.
+    let canvas = compose::Canvas::of(
+        map_a.image.width(),
+        map_a.image.height(),
+        map_b.image.width(),
+        map_b.image.height(),
+        &al.transform,
+    );
+    let per_px = u64::from(pgm_out.is_some()) + 6 * u64::from(a.overlay.is_some());
+    budget.check(
+        format_args!(
+            "the merged map and picture ({}x{} pixels)",
+            canvas.width(),
+            canvas.height()
+        ),
+        (fa.bytes() + fb.bytes()).saturating_add(
+            canvas
+                .width()
+                .saturating_mul(canvas.height())
+                .saturating_mul(per_px),
+        ),
+    )?;
     // The merged map, its yaml and the picture renamed into place together: a failure leaves none.
     let mut staged = files::Staged::default();
     let mut wrote = Vec::new();
@@ -160,7 +214,10 @@ pub(super) fn run(a: MergeArgs, budget: &Budget) -> Result<()> {
     }
     staged.commit()?;
     for p in wrote {
-        ogm_corners::say!("ogm-corners: wrote {}", p.display());
+        ogm_corners::say!(
+            "ogm-corners: wrote {}",
+            ogm_corners::error::one_line(&p.display().to_string())
+        );
     }
     Ok(())
 }

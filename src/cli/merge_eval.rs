@@ -131,6 +131,7 @@ pub(super) fn run(a: MergeEvalArgs, budget: &Budget) -> Result<()> {
         (Some(pairs), _) => {
             let set = PairSet::load(pairs)?;
             let maps = maps_folder(&a, pairs);
+            check_set_memory(&set, &maps, budget)?;
             if a.ablation {
                 let rows = eval::ablation(&set, &maps, &mut |h| {
                     ogm_corners::say!("ogm-corners: merge-eval: hypotheses {h}")
@@ -201,6 +202,28 @@ pub(super) fn run(a: MergeEvalArgs, budget: &Budget) -> Result<()> {
             } else {
                 (Vec::new(), eval::MapCosts::default())
             };
+            // A given map too small to cut at these overlaps gives no pair: said, and an error when none
+            // of them gave one (a table of zeros would read as a result).
+            if !given.is_empty() {
+                let uncut: Vec<&str> = sources
+                    .iter()
+                    .map(|(name, _)| name.as_str())
+                    .filter(|name| !rows.iter().any(|r| r.src.starts_with(&format!("{name}/"))))
+                    .collect();
+                if uncut.len() == sources.len() {
+                    return Err(Error::invalid(format!(
+                        "no synthetic pair could be cut from {}: too small (or too little of it known) \
+                         for two parts at 50% and 30% overlap",
+                        ogm_corners::error::one_line(&uncut.join(", "))
+                    )));
+                }
+                for name in uncut {
+                    ogm_corners::say!(
+                        "ogm-corners: note: {}: too small to cut synthetic pairs from; left out",
+                        ogm_corners::error::one_line(name)
+                    );
+                }
+            }
             if !families.is_empty() {
                 let first = rows.len();
                 let mut shifted = |i: usize,
@@ -225,7 +248,10 @@ pub(super) fn run(a: MergeEvalArgs, budget: &Budget) -> Result<()> {
     };
     if let Some(page) = page {
         let index = page.finish(&rows, costs.prepare_ms)?;
-        ogm_corners::say!("ogm-corners: wrote {}", index.display());
+        ogm_corners::say!(
+            "ogm-corners: wrote {}",
+            ogm_corners::error::one_line(&index.display().to_string())
+        );
     }
     write_table(a.format, &rows, |out| {
         eval::write_summary(out, &rows, &costs)
@@ -309,6 +335,34 @@ fn library(set: &PairSet, maps: &std::path::Path) -> Result<global_eval::Library
         })
         .collect::<Result<_>>()?;
     Ok(global_eval::Library { maps })
+}
+
+/// Refuses a pair file whose maps, each held with its preparation (every map is prepared once and kept
+/// while its pairs run), would exceed the budget; read up to their image headers only.
+fn check_set_memory(set: &PairSet, maps: &std::path::Path, budget: &Budget) -> Result<()> {
+    let names: std::collections::BTreeSet<&str> = set
+        .pairs
+        .iter()
+        .map(|p| [p.src.as_str(), p.dst.as_str()])
+        .chain(
+            set.negatives
+                .iter()
+                .map(|p| [p.src.as_str(), p.dst.as_str()]),
+        )
+        .flatten()
+        .collect();
+    let mut total = 0u64;
+    for name in &names {
+        let (w, h, _) = OccupancyMap::probe(&eval::map_path(maps, name))?;
+        total = total.saturating_add(set_bytes(w, h));
+    }
+    budget.check(
+        format_args!(
+            "the {} maps of the pair file and their preparation",
+            names.len()
+        ),
+        total,
+    )
 }
 
 /// `merge-eval --global`: the suite over a pair file's buildings, or the synthetic set alone.

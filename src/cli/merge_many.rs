@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use ogm_corners::files;
 use ogm_corners::map::{save_names, yaml_text};
 use ogm_corners::memory::Budget;
-use ogm_corners::merge::align::prepared_bytes;
+use ogm_corners::merge::footprint::footprint;
 use ogm_corners::merge::global::{merge_maps, page, report, GlobalOptions};
 use ogm_corners::{Error, OccupancyMap, Result};
 
@@ -31,25 +31,20 @@ fn group_path(base: &Path, g: usize) -> PathBuf {
 }
 
 pub(super) fn run(a: MergeArgs, budget: &Budget) -> Result<()> {
-    let (paths, mut inputs) = super::map_inputs(&a.maps, budget, &prepared_bytes)?;
+    let (paths, mut inputs) = super::map_inputs(&a.maps, budget, &|_, _| 0)?;
     if paths.len() < 2 {
         return Err(Error::invalid(format!(
             "merge needs at least two maps; found {}",
             paths.len()
         )));
     }
-    // Every map and its preparation are held at once.
+    // Every map is held at once: the images now; their preparations once their explored parts are known.
     let mut total: u64 = 0;
     for p in &paths {
         let (w, h, _) = OccupancyMap::probe(p)?;
-        total = total
-            .saturating_add(u64::from(w) * u64::from(h))
-            .saturating_add(prepared_bytes(w, h));
+        total = total.saturating_add(u64::from(w) * u64::from(h));
     }
-    budget.check(
-        format_args!("{} maps and their preparation", paths.len()),
-        total,
-    )?;
+    budget.check(format_args!("{} maps", paths.len()), total)?;
     let (yaml_out, pgm_out) = save_names(a.output.as_deref())?;
     // Every file it may write, checked against the inputs before any work: at most one group per two maps.
     for g in 0..paths.len() / 2 {
@@ -79,17 +74,27 @@ pub(super) fn run(a: MergeArgs, budget: &Budget) -> Result<()> {
         .into_iter()
         .flatten()
     {
-        let parent = p.parent().filter(|d| !d.as_os_str().is_empty());
-        if parent.is_some_and(|d| !d.is_dir()) {
-            return Err(Error::input(p, "its folder does not exist"));
-        }
+        files::check_writable(p)?;
     }
     let html = a.html.as_deref().map(page::create).transpose()?;
     let names: Vec<String> = paths.iter().map(|p| p.display().to_string()).collect();
     let maps = paths
         .iter()
-        .map(OccupancyMap::load)
+        .map(|p| OccupancyMap::load_within(p, budget, &|_, _| total))
         .collect::<Result<Vec<_>>>()?;
+    for w in maps.iter().flat_map(|m| &m.warnings) {
+        ogm_corners::say!("ogm-corners: warning: {}", ogm_corners::error::one_line(w));
+    }
+    // Each map at the first georeferenced map's cells, and its preparation over its explored part.
+    let resolution = maps.iter().find_map(|m| m.georef).map(|g| g.resolution);
+    let mut held: u64 = 0;
+    for m in &maps {
+        held = held.saturating_add(footprint(m, resolution)?.bytes());
+    }
+    budget.check(
+        format_args!("{} maps and their preparation", maps.len()),
+        held,
+    )?;
     let bar = indicatif::ProgressBar::new(0);
     bar.set_style(
         indicatif::ProgressStyle::with_template(
@@ -139,7 +144,7 @@ pub(super) fn run(a: MergeArgs, budget: &Budget) -> Result<()> {
         })?;
     }
     if let Some(p) = &a.init_poses {
-        let text = report::init_poses_yaml(&doc);
+        let text = report::init_poses_yaml(&doc)?;
         if doc.maps.iter().all(|m| m.world.is_none()) {
             ogm_corners::say!(
                 "ogm-corners: note: {}: no placed map has a world frame (a yaml), so it lists none",
@@ -148,10 +153,16 @@ pub(super) fn run(a: MergeArgs, budget: &Budget) -> Result<()> {
         }
         staged.write(p, |out| out.write_all(text.as_bytes()))?;
     }
+    // The report is written before anything is committed (a failure in it leaves no output), and moved
+    // into its folder after the rest.
+    let html = html.map(|h| page::write(h, &many)).transpose()?;
     staged.commit()?;
     if let Some(html) = html {
-        let index = page::write(html, &many)?;
-        ogm_corners::say!("ogm-corners: wrote {}", index.display());
+        let index = html.commit()?;
+        ogm_corners::say!(
+            "ogm-corners: wrote {}",
+            ogm_corners::error::one_line(&index.display().to_string())
+        );
     }
     write_stdout(|out| match a.format {
         super::TextOrJson::Json => {

@@ -323,7 +323,7 @@ fn claim_input(
     budget: &Budget,
     extra: &dyn Fn(u32, u32) -> u64,
     inputs: &mut ogm_corners::files::Inputs,
-) -> Result<()> {
+) -> Result<(u32, u32)> {
     let (w, h, image) = ogm_corners::OccupancyMap::probe(p)?;
     budget.check(
         format_args!("{}: a {w}x{h} map", p.display()),
@@ -331,7 +331,7 @@ fn claim_input(
     )?;
     inputs.add(p);
     inputs.add(&image);
-    Ok(())
+    Ok((w, h))
 }
 
 /// Parses `WIDTHxHEIGHT`.
@@ -402,7 +402,7 @@ fn write_stdout(f: impl FnOnce(&mut dyn Write) -> std::io::Result<()>) -> Result
     match f(&mut out).and_then(|_| out.flush()) {
         Ok(()) => Ok(()),
         Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
-        Err(e) => Err(Error::output("<stdout>", e)),
+        Err(e) => Err(Error::write("<stdout>", e)),
     }
 }
 

@@ -72,6 +72,31 @@ pub(super) fn looked_for() -> String {
     )
 }
 
+/// Refuses a `WGPU_BACKEND` naming a backend wgpu does not know (wgpu would skip it with a log line
+/// nobody sees, and the run would quietly find no GPU).
+fn check_backend_env() -> Result<()> {
+    const KNOWN: [&str; 10] = [
+        "vulkan", "vk", "dx12", "d3d12", "metal", "mtl", "opengl", "gles", "gl", "webgpu",
+    ];
+    let Ok(v) = std::env::var("WGPU_BACKEND") else {
+        return Ok(());
+    };
+    let lower = v.to_lowercase();
+    let unknown: Vec<&str> = lower
+        .split(',')
+        .map(str::trim)
+        .filter(|b| !b.is_empty() && !KNOWN.contains(b) && *b != "noop")
+        .collect();
+    if unknown.is_empty() {
+        return Ok(());
+    }
+    Err(Error::invalid(format!(
+        "WGPU_BACKEND={}: unknown backend {}; use vulkan, metal, dx12 or gl (comma-separated)",
+        crate::error::one_line(&v),
+        crate::error::one_line(&unknown.join(", "))
+    )))
+}
+
 /// Preference order of device types: real GPUs first, software rasterisers last.
 fn rank(t: wgpu::DeviceType) -> u8 {
     match t {
@@ -87,6 +112,7 @@ fn rank(t: wgpu::DeviceType) -> u8 {
 /// device type. With `hardware_only`, a software adapter (lavapipe, WARP) is not chosen unless named.
 /// `Ok(None)` when there is none to choose.
 pub(super) fn choose(hardware_only: bool) -> Result<Option<(wgpu::Instance, wgpu::Adapter)>> {
+    check_backend_env()?;
     let instance = instance();
     let adapters = enumerate(&instance);
     if let Ok(want) = std::env::var("WGPU_ADAPTER_NAME") {

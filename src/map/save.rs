@@ -11,8 +11,9 @@ use crate::files;
 pub fn save_names(o: Option<&Path>) -> Result<(Option<PathBuf>, Option<PathBuf>)> {
     match o {
         Some(o)
-            if o.extension()
-                .is_some_and(|e| e.eq_ignore_ascii_case("yaml")) =>
+            if o.extension().is_some_and(|e| {
+                e.eq_ignore_ascii_case("yaml") || e.eq_ignore_ascii_case("yml")
+            }) =>
         {
             Ok((Some(o.to_path_buf()), Some(o.with_extension("pgm"))))
         }
@@ -20,7 +21,7 @@ pub fn save_names(o: Option<&Path>) -> Result<(Option<PathBuf>, Option<PathBuf>)
             Ok((None, Some(o.to_path_buf())))
         }
         Some(o) => Err(Error::invalid(format!(
-            "{}: the map is written as NAME.yaml (with NAME.pgm) or NAME.pgm",
+            "{}: the map is written as NAME.yaml or NAME.yml (with NAME.pgm) or NAME.pgm",
             o.display()
         ))),
         None => Ok((None, None)),

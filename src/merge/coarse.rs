@@ -67,17 +67,8 @@ pub(super) fn coarse_hypotheses(
         .or_else(|| sizes(coarsest))
         .expect("the coarsest level is always prepared");
     let cell = sc.cell;
-    if n > MAX_FFT {
-        return Err(Error::invalid(format!(
-            "maps whose explored parts span {}x{} and {}x{} pixels are too large to align (at most {} \
-             coarse cells across both)",
-            src.w,
-            src.h,
-            dst.w,
-            dst.h,
-            MAX_FFT
-        )));
-    }
+    check_size((src.w, src.h), (dst.w, dst.h))?;
+    debug_assert!(n <= MAX_FFT);
     let mut planner = FftPlanner::new();
     let (fwd, inv) = (
         Fft2::new(&mut planner, n, false),
@@ -352,4 +343,23 @@ fn peaks(vals: &[f32], n: usize, k: usize) -> Vec<(usize, f32)> {
         }
         m = vals.len();
     }
+}
+
+/// Refuses maps whose prepared parts (`src` moved onto `dst`, pixels) are too large to align: the
+/// correlation at the coarsest cells would be over [`MAX_FFT`] cells a side. Known from the sizes alone,
+/// so callers check before preparing.
+pub(super) fn check_size(src: (usize, usize), dst: (usize, usize)) -> Result<()> {
+    let cell = CELLS[CELLS.len() - 1];
+    let (sw, sh) = (src.0.div_ceil(cell), src.1.div_ceil(cell));
+    let (dw, dh) = (dst.0.div_ceil(cell), dst.1.div_ceil(cell));
+    let diag = (sh as f64).hypot(sw as f64).ceil() as usize + 2;
+    let n = (dh.max(dw) + diag).next_power_of_two();
+    if n > MAX_FFT {
+        return Err(Error::invalid(format!(
+            "maps whose explored parts span {}x{} and {}x{} pixels are too large to align (at most {} \
+             coarse cells across both)",
+            src.0, src.1, dst.0, dst.1, MAX_FFT
+        )));
+    }
+    Ok(())
 }

@@ -259,21 +259,10 @@ pub fn resample(map: &OccupancyMap, resolution: f64) -> Result<OccupancyMap> {
     let Some(g) = map.georef else {
         return Ok(map.clone());
     };
-    if !(resolution.is_finite() && resolution > 0.0) {
-        return Err(Error::invalid(format!("bad resolution {resolution}")));
-    }
     let k = g.resolution / resolution; // new pixels per old pixel
     let (w, h) = (map.image.width(), map.image.height());
-    let (nw, nh) = (
-        (f64::from(w) * k).round().max(1.0),
-        (f64::from(h) * k).round().max(1.0),
-    );
-    if nw * nh > 4.0 * (1u64 << 30) as f64 {
-        return Err(Error::invalid(format!(
-            "resampling a {w}x{h} map from {} to {resolution} m a pixel would give {nw}x{nh}",
-            g.resolution
-        )));
-    }
+    // Refused, in plain words, past the largest map; the caller's budget counted it before.
+    let (nw, nh) = super::footprint::resampled_size(map, resolution)?;
     let (nw, nh) = (nw as u32, nh as u32);
     let mut px = Vec::with_capacity(nw as usize * nh as usize);
     for y in 0..nh {

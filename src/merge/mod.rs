@@ -9,6 +9,7 @@
 //! - [`synthetic`]: pairs with exact truth cut from any map.
 //! - [`global`]: many maps at once: every pair aligned, one consistent placement of all.
 //! - [`mosaic`]: the merged map of many placed maps, and its picture.
+//! - [`footprint`]: what a merge will hold in memory, known before it allocates.
 //! - [`hypotheses`]: where the aligner's hypotheses come from (dense correlation, corners, both).
 
 mod accept;
@@ -18,6 +19,7 @@ pub mod compose;
 mod distance;
 pub mod eval;
 mod fft;
+pub mod footprint;
 pub mod global;
 pub mod hypotheses;
 mod local;

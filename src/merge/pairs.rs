@@ -80,6 +80,17 @@ impl PairSet {
                     ),
                 ));
             }
+            // A limit of zero or less would make every estimate wrong, silently.
+            if p.rms_limit_px <= 0.0 || p.rot_limit_deg <= 0.0 {
+                return Err(Error::input(
+                    path,
+                    format!(
+                        "pair {} -> {}: the success limits must be positive (rms_limit_px {}, \
+                         rot_limit_deg {})",
+                        p.src, p.dst, p.rms_limit_px, p.rot_limit_deg
+                    ),
+                ));
+            }
         }
         Ok(set)
     }

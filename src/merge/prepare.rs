@@ -33,6 +33,35 @@ pub fn prepared_bytes(width: u32, height: u32) -> u64 {
         .saturating_add((3 * tasks + 3) * n * n * 8)
 }
 
+/// The part of `map` a preparation holds: its known area's bounding box plus [`PAD`] px, within the map
+/// (the whole map when nothing is known), as (x0, y0, x1, y1), ends exclusive.
+pub fn crop_box(map: &OccupancyMap) -> (usize, usize, usize, usize) {
+    let classes = ClassTable::new(&map.thresholds);
+    let img = &map.image;
+    let (fw, fh) = (img.width() as usize, img.height() as usize);
+    let (mut x0, mut y0, mut x1, mut y1) = (fw, fh, 0, 0);
+    for (y, row) in img.pixels().chunks_exact(fw.max(1)).enumerate() {
+        let known = |v: &u8| classes.state(*v) != CellState::Unknown;
+        let (Some(first), Some(last)) = (row.iter().position(known), row.iter().rposition(known))
+        else {
+            continue;
+        };
+        (x0, y0, x1, y1) = (x0.min(first), y0.min(y), x1.max(last + 1), y1.max(y + 1));
+    }
+    if x1 <= x0 {
+        return (0, 0, fw, fh);
+    }
+    (
+        x0.saturating_sub(PAD),
+        y0.saturating_sub(PAD),
+        (x1 + PAD).min(fw),
+        (y1 + PAD).min(fh),
+    )
+}
+
+/// The margin a preparation keeps around a map's known area, pixels.
+pub const CROP_PAD: usize = PAD;
+
 /// A map prepared for alignment.
 pub struct Prepared {
     /// Crop origin in the map, pixels.
@@ -142,21 +171,9 @@ impl Prepared {
     pub fn new(map: &OccupancyMap) -> Prepared {
         let classes = ClassTable::new(&map.thresholds);
         let img = &map.image;
-        let (fw, fh) = (img.width() as usize, img.height() as usize);
+        let fw = img.width() as usize;
         let state = |x: usize, y: usize| classes.state(img.pixels()[y * fw + x]);
-        let (mut x0, mut y0, mut x1, mut y1) = (fw, fh, 0, 0);
-        for y in 0..fh {
-            for x in 0..fw {
-                if state(x, y) != CellState::Unknown {
-                    (x0, y0, x1, y1) = (x0.min(x), y0.min(y), x1.max(x + 1), y1.max(y + 1));
-                }
-            }
-        }
-        if x1 <= x0 {
-            (x0, y0, x1, y1) = (0, 0, fw, fh);
-        }
-        let (x0, y0) = (x0.saturating_sub(PAD), y0.saturating_sub(PAD));
-        let (x1, y1) = ((x1 + PAD).min(fw), (y1 + PAD).min(fh));
+        let (x0, y0, x1, y1) = crop_box(map);
         let (w, h) = (x1 - x0, y1 - y0);
         let mut occ = vec![false; w * h];
         let mut free = vec![false; w * h];

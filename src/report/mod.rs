@@ -2,9 +2,12 @@
 //! self-contained page, `DIR/index.html`, with inline CSS and a little vanilla JavaScript (tables sorted by
 //! a click on a column), and PNG pictures beside it. No server, no network: it opens from `file://`.
 //!
-//! Pictures are written as they are made (each atomically, [`crate::files::write_png`]) so a report of
-//! hundreds of pairs holds one picture at a time; the page is written last, atomically, so a reader sees
-//! the previous page or the whole new one.
+//! Pictures are written as they are made (so a report of hundreds of pairs holds one picture at a time),
+//! into a hidden staging folder inside the report's folder; the page is written last, and only then are
+//! the pictures and the page moved into the folder (the page last) and the previous report's pictures that
+//! the new page does not show removed. A run stopped or failed before then leaves the folder as it was
+//! (the previous report whole) and no staging folder; files in the folder that are not a report's are
+//! never touched.
 
 mod html;
 
@@ -23,8 +26,18 @@ pub const INDEX: &str = "index.html";
 /// A report being written into a folder.
 pub struct Report {
     dir: PathBuf,
+    /// Where the pictures and the page are written before they are moved into `dir`.
+    staging: files::StagingDir,
     title: String,
     blocks: Vec<Block>,
+}
+
+/// A report written into its staging folder, not yet moved into its folder ([`Staged::commit`]): how a
+/// command commits its other outputs only once the report could be written, and the report after them.
+pub struct Staged {
+    dir: PathBuf,
+    staging: files::StagingDir,
+    pictures: Vec<String>,
 }
 
 /// One part of the page, in order.
@@ -173,6 +186,7 @@ impl Report {
         files::create_dir(dir)?;
         Ok(Report {
             dir: dir.to_path_buf(),
+            staging: files::StagingDir::new_in(dir)?,
             title: title.into(),
             blocks: Vec::new(),
         })
@@ -216,7 +230,7 @@ impl Report {
         picture: &RgbImage,
         caption: Vec<String>,
     ) -> Result<Figure> {
-        files::write_png(&self.dir.join(name), picture)?;
+        files::write_png(&self.staging.path().join(name), picture)?;
         Ok(Figure {
             src: name.to_string(),
             caption,
@@ -238,13 +252,67 @@ impl Report {
         }
     }
 
-    /// Writes the page (atomically) and returns its path.
+    /// Writes the page and moves the report into its folder ([`Report::stage`], [`Staged::commit`]);
+    /// returns the page's path.
     pub fn finish(self) -> Result<PathBuf> {
-        let path = self.index();
-        let page = html::page(&self.title, &self.blocks);
-        files::write_atomic(&path, |out| out.write_all(page.as_bytes()))?;
-        Ok(path)
+        self.stage()?.commit()
     }
+
+    /// Writes the page into the staging folder, beside the pictures.
+    pub fn stage(self) -> Result<Staged> {
+        let page = html::page(&self.title, &self.blocks);
+        let staged = self.staging.path().join(INDEX);
+        files::write_atomic(&staged, |out| out.write_all(page.as_bytes()))?;
+        Ok(Staged {
+            pictures: pictures_of(&page),
+            dir: self.dir,
+            staging: self.staging,
+        })
+    }
+}
+
+impl Staged {
+    /// Moves the pictures, then the page, into the report's folder, and removes the pictures of the
+    /// report it replaces that the new page does not show; returns the page's path.
+    pub fn commit(self) -> Result<PathBuf> {
+        let index = self.dir.join(INDEX);
+        let old: Vec<String> = std::fs::read_to_string(&index)
+            .map(|page| pictures_of(&page))
+            .unwrap_or_default();
+        let from = self.staging.path();
+        let mut names: Vec<std::ffi::OsString> = std::fs::read_dir(from)
+            .map_err(|e| crate::Error::output(from, e))?
+            .filter_map(|e| e.ok().map(|e| e.file_name()))
+            .filter(|n| n != INDEX)
+            .collect();
+        names.sort();
+        names.push(INDEX.into());
+        for name in names {
+            let target = self.dir.join(&name);
+            std::fs::rename(from.join(&name), &target)
+                .map_err(|e| crate::Error::output(&target, e))?;
+        }
+        for stale in old.iter().filter(|p| !self.pictures.contains(p)) {
+            let _ = std::fs::remove_file(self.dir.join(stale));
+        }
+        Ok(index)
+    }
+}
+
+/// The pictures a page shows: its `<img src="...">` names that are plain file names (no folder), as
+/// [`Report::picture`] writes them.
+fn pictures_of(page: &str) -> Vec<String> {
+    page.split("<img src=\"")
+        .skip(1)
+        .filter_map(|rest| rest.split('"').next())
+        .filter(|name| {
+            !name.is_empty()
+                && !name.contains(['/', '\\'])
+                && !name.starts_with('.')
+                && name.ends_with(".png")
+        })
+        .map(str::to_string)
+        .collect()
 }
 
 /// A picture's file name for a label: letters, digits, `-` and `_` kept, anything else `_`, with `n` (an

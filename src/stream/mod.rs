@@ -189,7 +189,7 @@ pub fn write_pgm(path: &std::path::Path, source: &mut dyn RowSource) -> Result<(
     use std::io::Write;
     let (w, h) = (source.width(), source.height());
     let mut file = crate::files::AtomicFile::create(path)?;
-    let io = |e: std::io::Error| Error::output(path, e);
+    let io = |e: std::io::Error| Error::write(path, e);
     crate::map::write_pgm_header(&mut file, w, h).map_err(io)?;
     // Whole rows a megabyte or so at a time: few calls, bounded memory.
     let rows = (((1usize << 20) / w as usize).max(1)).min(h as usize);

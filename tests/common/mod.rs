@@ -3,6 +3,8 @@
 
 use std::path::PathBuf;
 
+pub mod run;
+
 use ogm_corners::synth::{FREE, OCCUPIED, UNKNOWN};
 use ogm_corners::{DetectOptions, Detector, Keypoint, MapImage, OccupancyMap, RuleSet};
 

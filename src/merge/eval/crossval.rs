@@ -285,7 +285,7 @@ pub fn write_folds(out: &mut dyn Write, rows: &[FoldRow]) -> io::Result<()> {
         writeln!(
             out,
             "| {} | {} | {} ({:.1}%) | {} | {} of {} | {} | {rule} |",
-            r.building,
+            crate::output::md_cell(&r.building),
             r.pairs,
             r.accepted_accurate,
             100.0 * r.accepted_accurate as f64 / r.pairs.max(1) as f64,

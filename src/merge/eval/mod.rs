@@ -55,7 +55,8 @@ pub fn map_path(maps: &Path, name: &str) -> std::path::PathBuf {
     ["yaml", "png", "pgm"]
         .iter()
         .map(|e| maps.join(format!("{name}.{e}")))
-        .find(|p| p.is_file())
+        // Anything there, not only a regular file: loading then says what it is (a fifo, a device).
+        .find(|p| p.exists())
         .unwrap_or_else(|| maps.join(format!("{name}.png")))
 }
 
@@ -606,7 +607,8 @@ pub fn write_summary(out: &mut dyn Write, rows: &[PairRecord], costs: &MapCosts)
         let pct = |k: usize| 100.0 * k as f64 / n.max(1) as f64;
         writeln!(
             out,
-            "| {g} | {n} | {ok} ({:.1}%) | {could} ({:.1}%) | {found} ({:.1}%) | {wrong} | {:.0} | {:.0} |",
+            "| {} | {n} | {ok} ({:.1}%) | {could} ({:.1}%) | {found} ({:.1}%) | {wrong} | {:.0} | {:.0} |",
+            crate::output::md_cell(g),
             pct(ok),
             pct(could),
             pct(found),

@@ -242,7 +242,7 @@ pub fn write_rows(out: &mut dyn Write, rows: &[SetRow]) -> io::Result<()> {
         writeln!(
             out,
             "| {} | {} | {} | {} | {} | {} | {} | {} | {} ({:.1}%) | {} | {} ({:.1}%) | {} | {} ({:.1}%) | {} | {} | {} | {} | {:.2} | {:.2} | {:.2} | {:.2} |",
-            r.label,
+            crate::output::md_cell(&r.label),
             r.maps,
             r.placed,
             r.correct,

@@ -1,11 +1,11 @@
 //! The `merge A B C ... --html` page: every map's placement (maps left out first), every pair's verdict,
 //! the merges the placement dropped, each group's picture with its maps' colours, and each map alone.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use super::merged::ManyMerge;
 use crate::error::Result;
-use crate::report::{file_name, Cell, Report, Table};
+use crate::report::{file_name, Cell, Report, Staged, Table};
 
 /// Width of the box a group's picture is fitted into, pixels.
 pub const GROUP_PICTURE: u32 = 1000;
@@ -125,8 +125,9 @@ pub fn create(dir: &Path) -> Result<Report> {
     Report::create(dir, "ogm-corners merge")
 }
 
-/// Writes the whole page (made by [`create`]) and returns its path.
-pub fn write(mut page: Report, many: &ManyMerge) -> Result<PathBuf> {
+/// Writes the whole page (made by [`create`]) into its staging folder; [`Staged::commit`] moves it into
+/// place.
+pub fn write(mut page: Report, many: &ManyMerge) -> Result<Staged> {
     let doc = &many.report;
     let placed = doc.maps.iter().filter(|m| m.placed).count();
     page.text(format!(
@@ -190,5 +191,5 @@ pub fn write(mut page: Report, many: &ManyMerge) -> Result<PathBuf> {
         figures.push(figure);
     }
     page.figures_at(figures, 240);
-    page.finish()
+    page.stage()
 }

@@ -171,13 +171,17 @@ pub fn poses(
 
 /// The text verdict: a line per map, then the groups and the totals.
 pub fn write_text(out: &mut dyn Write, doc: &Poses) -> io::Result<()> {
+    use crate::error::one_line;
     for m in &doc.maps {
+        // Names escaped, as errors are: a newline in a file name must not split a record, an escape
+        // sequence must not reach the terminal.
+        let (name, copy_of) = (one_line(&m.map), m.copy_of.as_deref().map(one_line));
         match (&m.group, &m.transform) {
             (Some(g), Some(t)) => {
                 write!(
                     out,
                     "{}: group {g}, {:.2} deg, ({:.1}, {:.1}) px",
-                    m.map, t.theta_deg, t.tx, t.ty
+                    name, t.theta_deg, t.tx, t.ty
                 )?;
                 if let Some(w) = m.world {
                     write!(out, " = {w}")?;
@@ -188,7 +192,7 @@ pub fn write_text(out: &mut dyn Write, doc: &Poses) -> io::Result<()> {
                         " (resampled: {k} merged-map pixels a pixel of its own)"
                     )?;
                 }
-                if let Some(c) = &m.copy_of {
+                if let Some(c) = &copy_of {
                     write!(out, " (a copy of {c})")?;
                 }
                 writeln!(out)?;
@@ -196,8 +200,8 @@ pub fn write_text(out: &mut dyn Write, doc: &Poses) -> io::Result<()> {
             _ => writeln!(
                 out,
                 "{}: not placed: {}",
-                m.map,
-                m.reason.as_deref().unwrap_or("not confident")
+                name,
+                one_line(m.reason.as_deref().unwrap_or("not confident"))
             )?,
         }
     }
@@ -218,8 +222,11 @@ pub fn write_text(out: &mut dyn Write, doc: &Poses) -> io::Result<()> {
 /// The multirobot_map_merge parameters of the placed maps (`rosparam load` format): per robot (the map's
 /// file stem; a repeated stem gets its map's number), `map_merge/init_pose_{x,y,z,yaw}`: the pose of
 /// its map frame in its group's merged frame, after a comment naming the map. Maps without a yaml or not
-/// placed are listed as comments.
-pub fn init_poses_yaml(doc: &Poses) -> String {
+/// placed are listed as comments. A robot name that is not a plain identifier is written quoted (a
+/// newline or a colon in a file name stays inside its key); a pose that is not finite (an origin so
+/// large that it overflows) is refused, naming the map: a YAML reader would take `inf` for a string.
+pub fn init_poses_yaml(doc: &Poses) -> crate::error::Result<String> {
+    use crate::error::one_line;
     let mut s = String::from(
         "# multirobot_map_merge with known_init_poses: each robot's map frame in the merged frame of its\n\
          # group (the frame of the group's first map), as found by ogm-corners merge.\n",
@@ -237,24 +244,58 @@ pub fn init_poses_yaml(doc: &Poses) -> String {
             robot = format!("{stem}_{extra}");
             extra += 1;
         }
-        s.push_str(&format!("# {}\n", m.map.replace('\n', " ")));
-        let robot = serde_yaml::to_string(&robot).unwrap_or_default();
-        let robot = robot.trim_end();
+        s.push_str(&format!("# {}\n", one_line(&m.map)));
+        let robot = yaml_key(&robot);
         match (m.world, m.group) {
-            (Some(w), Some(g)) => s.push_str(&format!(
-                // `{:?}` keeps a decimal point: YAML reads `0` as an integer, `0.0` as a float.
-                "{robot}:  # group {g}\n  map_merge:\n    init_pose_x: {:?}\n    init_pose_y: {:?}\n    \
-                 init_pose_z: 0.0\n    init_pose_yaw: {:?}\n",
-                w.x, w.y, w.yaw
-            )),
+            (Some(w), Some(g)) => {
+                if ![w.x, w.y, w.yaw].iter().all(|v| v.is_finite()) {
+                    return Err(crate::error::Error::invalid(format!(
+                        "{}: its pose in the merged frame is not finite (x {}, y {}, yaw {}): its yaml's \
+                         origin or resolution is out of range; no --init-poses written",
+                        one_line(&m.map),
+                        w.x,
+                        w.y,
+                        w.yaw
+                    )));
+                }
+                s.push_str(&format!(
+                    // `{:?}` keeps a decimal point: YAML reads `0` as an integer, `0.0` as a float.
+                    "{robot}:  # group {g}\n  map_merge:\n    init_pose_x: {:?}\n    init_pose_y: {:?}\n    \
+                     init_pose_z: 0.0\n    init_pose_yaw: {:?}\n",
+                    w.x, w.y, w.yaw
+                ))
+            }
             (None, Some(g)) => s.push_str(&format!(
-                "# {robot}: group {g}, but it or its group's first map has no yaml (no world frame)\n"
+                "# {}: group {g}, but it or its group's first map has no yaml (no world frame)\n",
+                one_line(&robot)
             )),
             _ => s.push_str(&format!(
-                "# {robot}: not placed: {}\n",
-                m.reason.as_deref().unwrap_or("not confident")
+                "# {}: not placed: {}\n",
+                one_line(&robot),
+                one_line(m.reason.as_deref().unwrap_or("not confident"))
             )),
         }
     }
-    s
+    Ok(s)
+}
+
+/// `name` as a YAML mapping key: as it is when it is a plain identifier (what ROS names are) that YAML
+/// reads as a string, else double-quoted with JSON's escapes (which YAML's double quotes read alike).
+fn yaml_key(name: &str) -> String {
+    let plain = name
+        .chars()
+        .next()
+        .is_some_and(|c| c.is_ascii_alphabetic() || c == '_')
+        && name
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || matches!(c, '_' | '-' | '.' | '/'))
+        && !matches!(
+            name.to_ascii_lowercase().as_str(),
+            "true" | "false" | "yes" | "no" | "on" | "off" | "y" | "n" | "null" | "nan" | "inf"
+        );
+    if plain {
+        name.to_string()
+    } else {
+        serde_json::to_string(name).unwrap_or_else(|_| "\"robot\"".to_string())
+    }
 }
