@@ -131,8 +131,8 @@ pub(super) fn run(a: MergeEvalArgs, budget: &Budget) -> Result<()> {
         (Some(pairs), _) => {
             let set = PairSet::load(pairs)?;
             let maps = maps_folder(&a, pairs);
-            check_set_memory(&set, &maps, budget)?;
             if a.ablation {
+                check_set_memory(&set, &maps, budget)?;
                 let rows = eval::ablation(&set, &maps, &mut |h| {
                     ogm_corners::say!("ogm-corners: merge-eval: hypotheses {h}")
                 })?;
@@ -150,6 +150,7 @@ pub(super) fn run(a: MergeEvalArgs, budget: &Budget) -> Result<()> {
                         a.only.join(",")
                     )));
                 }
+                check_set_memory(&set, &maps, budget)?;
                 let options = MergeOptions {
                     always_verify: true,
                     ..MergeOptions::default()
@@ -160,6 +161,7 @@ pub(super) fn run(a: MergeEvalArgs, budget: &Budget) -> Result<()> {
                     eval::crossval::write_folds(out, &folds)
                 });
             }
+            check_set_memory(&set, &maps, budget)?;
             eval::run_with(&set, &maps, &MergeOptions::default(), &mut on_pair)?
         }
         (None, sources) => {
