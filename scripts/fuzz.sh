@@ -2,12 +2,17 @@
 # Runs the coverage-guided fuzz targets (cargo-fuzz, libFuzzer) for a given time each, keeps what they
 # find, and prints the executions run and the crashes found per target. Not part of CI.
 #
-#   scripts/fuzz.sh [SECONDS_PER_TARGET] [TARGET...]      (default: 600 s; targets decode yaml detect)
+#   scripts/fuzz.sh [SECONDS_PER_TARGET] [TARGET...]      (default: 600 s; targets decode yaml detect
+#                                                          merge pairs grid)
 #   scripts/fuzz.sh --runs N [TARGET...]                  (N executions per target instead of a time)
+#   FUZZ_RUNS=N scripts/fuzz.sh SECONDS [TARGET...]        (whichever comes first)
 #
 # With a nightly toolchain the targets run under AddressSanitizer; without one, on stable with
 # `--sanitizer none` (coverage guidance works the same). FUZZ_SANITIZER=none forces the latter (about 4x the
-# executions a second on the detect target). cargo-fuzz is installed when missing.
+# executions a second on the detect target). cargo-fuzz is installed when missing. The targets are built
+# with debug assertions (overflow checks included), as tests/fuzz_regressions.rs replays the corpus in the
+# test profile: an input that only overflows there is a crash here too. FUZZ_DEBUG_ASSERTIONS=0 leaves
+# them out (faster).
 # Afterwards: the corpus (fuzz/corpus/TARGET) is minimised with `cargo fuzz cmin`, and every crash
 # (fuzz/artifacts/TARGET) is copied to fuzz/regressions/TARGET, which tests/fuzz_regressions.rs replays
 # in the ordinary test suite. Commit both.
@@ -22,9 +27,13 @@ if [ "${1:-}" = "--runs" ]; then
     shift 2
 else
     shift || true
+    if [ -n "${FUZZ_RUNS:-}" ]; then
+        limit+=(-runs="$FUZZ_RUNS")
+        label="$label or $FUZZ_RUNS runs"
+    fi
 fi
 targets=("$@")
-[ ${#targets[@]} -gt 0 ] || targets=(decode yaml detect)
+[ ${#targets[@]} -gt 0 ] || targets=(decode yaml detect merge pairs grid)
 
 if ! cargo fuzz --version >/dev/null 2>&1; then
     echo "scripts/fuzz.sh: installing cargo-fuzz" >&2
@@ -38,6 +47,9 @@ else
     fuzz=(cargo fuzz)
     sanitizer=(--sanitizer none)
     echo "scripts/fuzz.sh: running on stable without a sanitizer (FUZZ_SANITIZER=none, or no nightly)" >&2
+fi
+if [ "${FUZZ_DEBUG_ASSERTIONS:-1}" != 0 ]; then
+    sanitizer+=(--debug-assertions)
 fi
 
 summary=()

@@ -172,12 +172,14 @@ pub(super) fn run(a: MergeArgs, budget: &Budget) -> Result<()> {
                 .unwrap_or_else(|| "not confident".to_string()),
         ));
     }
-    // The merged map and the picture are as large as the canvas: counted before they are made.
+    // The merged map and the picture are as large as the canvas: counted before they are made (the
+    // transform moves B at A's cells).
+    let side = |v: u64| u32::try_from(v).unwrap_or(u32::MAX);
     let canvas = compose::Canvas::of(
         map_a.image.width(),
         map_a.image.height(),
-        map_b.image.width(),
-        map_b.image.height(),
+        side(fb.width),
+        side(fb.height),
         &al.transform,
     );
     let per_px = u64::from(pgm_out.is_some()) + 6 * u64::from(a.overlay.is_some());

@@ -1,0 +1,7 @@
+//! Fuzz target `merge`: see [`harness::merge`] (shared with the regression test that replays the corpus).
+#![no_main]
+
+#[path = "../harness.rs"]
+mod harness;
+
+libfuzzer_sys::fuzz_target!(|data: &[u8]| harness::merge(data));
