@@ -426,25 +426,12 @@ fn merge_options(flags: u8, b: &mut Bytes) -> MergeOptions {
 /// negate, thresholds, mode) or none, checked against a memory budget as the CLI checks them, then
 /// merged: B brought to A's resolution, aligned, the verdict, the merged map and the picture. A panic is
 /// a bug; so is a verdict that contradicts itself, or a merged map and a picture on different canvases.
-/// Leaves out what [`KNOWN_CANVAS_OVERFLOW`] says, so the fuzzer looks for other bugs meanwhile.
+/// Transforms include non-finite ones and ones past any canvas: refused, never overflowed.
 pub fn merge(data: &[u8]) {
-    merge_with(data, false);
+    merge_with(data);
 }
 
-/// Known library bug, left out of [`merge`] until fixed: `compose::Canvas::of` adds 1 to a pixel
-/// coordinate cast to i64, which overflows (a panic under overflow checks: the test suite, `cargo fuzz
-/// -a`) for a transform that places B beyond 9.2e18 px, such as tx = 1e19 or infinity, given to
-/// `compose_pair` / `overlay_pair` (the Python `compose` / `overlay`). Transforms past this many pixels
-/// are not composed by [`merge`]; `tests/fuzz_regressions.rs` replays the saved input through
-/// [`merge_known_bugs`] and expects the panic.
-pub const KNOWN_CANVAS_OVERFLOW: f64 = 1e15;
-
-/// [`merge`] with the known library bugs included.
-pub fn merge_known_bugs(data: &[u8]) {
-    merge_with(data, true);
-}
-
-fn merge_with(data: &[u8], known_bugs: bool) {
+fn merge_with(data: &[u8]) {
     let mut b = Bytes(data);
     // Bits: 1 A without yaml, 2 B without yaml, 4 B cut from A, 8 raw pixels, 0x10 also on the
     // reference backend, 0x20 no symmetry check, 0x40 always verify, 0x80 composed with the bytes' own
@@ -568,18 +555,17 @@ fn merge_with(data: &[u8], known_bugs: bool) {
     // B at A's resolution: the transforms map its pixels.
     let (bw, bh) = (fb.width as u32, fb.height as u32);
     for t in transforms {
-        if !known_bugs
-            && (t.tx.abs() >= KNOWN_CANVAS_OVERFLOW || t.ty.abs() >= KNOWN_CANVAS_OVERFLOW)
-        {
-            continue;
-        }
         // The canvas, known before anything is drawn on it: refused past a few times the two maps
         // (before allocating), else counted against the budget as `merge A B` counts it.
-        let canvas = Canvas::of(wa, ha, bw, bh, &t);
-        let (cw, ch) = (canvas.width(), canvas.height());
         let limit = (u64::from(wa * ha) + u64::from(bw) * u64::from(bh)) * MAX_CANVAS_FACTOR;
-        let refused =
-            cw.saturating_mul(ch) > limit || cw > u64::from(u32::MAX) || ch > u64::from(u32::MAX);
+        let (cw, ch, refused) = match Canvas::of(wa, ha, bw, bh, &t) {
+            Ok(c) => (c.width(), c.height(), c.pixels() > limit),
+            Err(e) => {
+                let e = e.to_string();
+                assert!(!e.contains('\n'), "{e:?}");
+                (0, 0, true)
+            }
+        };
         if !refused && budget.check("the canvas", cw * ch * 7).is_err() {
             continue;
         }

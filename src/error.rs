@@ -26,6 +26,8 @@ pub enum Error {
     Internal(String),
     /// `merge` was not confident enough to merge (the verdict has been printed; exit status 3).
     Declined(String),
+    /// The caller stopped the work ([`crate::stop`]; Ctrl-C in Python).
+    Interrupted,
 }
 
 impl Error {
@@ -69,13 +71,14 @@ impl Error {
         Error::output(path, e)
     }
 
-    /// The process exit status the command-line tool uses: 2 for bad input, 3 for a declined merge, 1
-    /// otherwise.
+    /// The process exit status the command-line tool uses: 2 for bad input, 3 for a declined merge, 130
+    /// when interrupted (as a shell reports SIGINT), 1 otherwise.
     pub fn exit_code(&self) -> i32 {
         match self {
             Error::Input { .. } => 2,
             Error::Output { .. } | Error::Unavailable(_) | Error::Internal(_) => 1,
             Error::Declined(_) => 3,
+            Error::Interrupted => 130,
         }
     }
 }
@@ -100,6 +103,7 @@ impl fmt::Display for Error {
             Error::Unavailable(m) => write!(f, "{}", one_line(m)),
             Error::Internal(m) => write!(f, "internal error: {}", one_line(m)),
             Error::Declined(m) => write!(f, "not merged: {}", one_line(m)),
+            Error::Interrupted => write!(f, "interrupted"),
         }
     }
 }

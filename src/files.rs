@@ -145,11 +145,7 @@ impl AtomicFile {
         }
         // Write beside the file a link points to (also one that does not exist yet), so the rename
         // replaces or creates that file and keeps the link.
-        let real = resolve(target);
-        let dir = match real.parent() {
-            Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
-            _ => PathBuf::from("."),
-        };
+        let (real, dir) = rename_folder(target);
         let name = real
             .file_name()
             .ok_or_else(|| out_err(&"not a file name"))?
@@ -341,6 +337,17 @@ fn descriptor_number(path: &Path) -> Option<u32> {
     .and_then(|n| n.parse().ok())
 }
 
+/// The file `path` names once links are followed, and the folder its temporary file is written in and
+/// renamed from ([`AtomicFile`]).
+fn rename_folder(path: &Path) -> (PathBuf, PathBuf) {
+    let real = resolve(path);
+    let dir = match real.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    (real, dir)
+}
+
 /// Refuses, before any work, an output whose folder does not exist or cannot be written (a read-only
 /// folder or file system); a device or descriptor (`/dev/null`, `/dev/stdout`) is written in place and
 /// passes.
@@ -352,11 +359,7 @@ pub fn check_writable(path: &Path) -> Result<()> {
     if fs::metadata(path).is_ok_and(|m| !m.is_file()) {
         return Ok(());
     }
-    let real = resolve(path);
-    let dir = match real.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
-        _ => PathBuf::from("."),
-    };
+    let (_, dir) = rename_folder(path);
     if !dir.is_dir() {
         return Err(Error::input(path, "its folder does not exist"));
     }

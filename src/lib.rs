@@ -54,6 +54,7 @@ pub mod robust;
 pub mod rules;
 pub mod states;
 mod stats;
+pub mod stop;
 pub mod stream;
 pub mod streamed;
 pub mod synth;

@@ -68,31 +68,3 @@ fn pairs_corpus_and_regressions() {
 fn grid_corpus_and_regressions() {
     replay("grid", harness::grid);
 }
-
-/// Inputs of library bugs that the harness leaves out until they are fixed, so the fuzzer keeps looking
-/// for others (target, file under `fuzz/regressions/TARGET`, the harness with the bug included; see
-/// `harness::KNOWN_CANVAS_OVERFLOW`). Each must still fail: once one passes, the bug is fixed, and its
-/// entry here and its skip in `fuzz/harness.rs` go.
-const KNOWN_LIBRARY_BUGS: &[(&str, &str, Harness)] = &[(
-    "merge",
-    "known-compose-canvas-overflow",
-    harness::merge_known_bugs,
-)];
-
-#[test]
-fn known_library_bugs_are_still_there() {
-    // Overflow checks (on in the test profile) are what turn these into panics.
-    if !cfg!(debug_assertions) {
-        return;
-    }
-    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("fuzz/regressions");
-    for (target, name, run) in KNOWN_LIBRARY_BUGS {
-        let data = std::fs::read(root.join(target).join(name)).unwrap();
-        let r = std::panic::catch_unwind(|| run(&data));
-        assert!(
-            r.is_err(),
-            "fuzz/regressions/{target}/{name} passes now: the bug is fixed; take it off \
-             KNOWN_LIBRARY_BUGS and its skip out of fuzz/harness.rs"
-        );
-    }
-}

@@ -187,6 +187,25 @@ fn unrelated_or_empty_maps_are_declined_and_identical_ones_merge_in_place() {
 }
 
 #[test]
+fn corner_hypotheses_are_prepared_by_align_itself() {
+    use ogm_corners::backend::DetectorKind;
+    use ogm_corners::merge::hypotheses::Hypotheses;
+    let a = OccupancyMap::from_image(common::cluttered_office(400, 300, 3));
+    for h in [
+        Hypotheses::Corners(DetectorKind::OgmRobust),
+        Hypotheses::Both(DetectorKind::Ogm),
+    ] {
+        let options = MergeOptions {
+            hypotheses: h,
+            ..MergeOptions::default()
+        };
+        let same = align(&a, &a, &options).unwrap();
+        assert!(same.accepted, "{h:?}: {:?}", same.reason);
+        assert!(same.transform.tx.hypot(same.transform.ty) < 1.0, "{h:?}");
+    }
+}
+
+#[test]
 fn the_merged_map_keeps_a_in_place_and_grows_to_hold_b() {
     let t = Rigid {
         theta_deg: 30.0,

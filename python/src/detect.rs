@@ -14,7 +14,7 @@ use ogm_corners::{
     RuleSet,
 };
 
-use crate::errors::{to_py, unlocked, within_budget};
+use crate::errors::{interruptible, to_py, unlocked, within_budget};
 use crate::map::{image_of, Map};
 
 /// One keypoint as the package's numpy dtype lays it out (`ogm_corners._keypoints.RECORD`): 40 bytes,
@@ -186,7 +186,7 @@ impl Detector {
     ) -> PyResult<(Bound<'py, PyArray1<u64>>, Option<f64>)> {
         let m = &map.inner;
         self.check_budget(m.image.width(), m.image.height())?;
-        let (words, angle) = unlocked(py, || {
+        let (words, angle) = detecting(py, m.image.len() as u64, || {
             let found = self.lock().detect(m)?;
             Ok((records(&found, m.georef), angle_of(&found)))
         })?;
@@ -232,7 +232,7 @@ impl Detector {
         } else {
             None
         };
-        let (words, angle) = unlocked(py, || {
+        let (words, angle) = detecting(py, image.len() as u64, || {
             let mut d = self.lock();
             let found = match &classes {
                 Some(c) => d.detect_classified(&image, c)?,
@@ -258,6 +258,25 @@ impl Detector {
     /// The detector; a panic in an earlier call (reported then as an exception) does not stop later ones.
     fn lock(&self) -> std::sync::MutexGuard<'_, ogm_corners::Detector> {
         self.inner.lock().unwrap_or_else(|p| p.into_inner())
+    }
+}
+
+/// Maps past this many pixels are detected so that Ctrl-C stops the call ([`interruptible`]: a worker
+/// thread, some tens of microseconds more a call); below it the fast path ends in milliseconds and the
+/// slowest detectors in about a second.
+const INTERRUPTIBLE_FROM: u64 = 1 << 22;
+
+/// Runs a detection in a map of `pixels` pixels: [`interruptible`] past [`INTERRUPTIBLE_FROM`], else
+/// [`unlocked`].
+fn detecting<T: Send>(
+    py: Python<'_>,
+    pixels: u64,
+    f: impl FnOnce() -> ogm_corners::Result<T> + Send,
+) -> PyResult<T> {
+    if pixels > INTERRUPTIBLE_FROM {
+        interruptible(py, f)
+    } else {
+        unlocked(py, f)
     }
 }
 

@@ -1,10 +1,13 @@
-//! The library's errors as Python exceptions, and the one way this module runs library code: with the
-//! interpreter's lock released and a panic turned into an exception.
+//! The library's errors as Python exceptions, and the two ways this module runs library code: with the
+//! interpreter's lock released and a panic turned into an exception, and for long work also stopped by
+//! Ctrl-C ([`interruptible`]).
 
 use std::panic::{catch_unwind, AssertUnwindSafe};
 
 use ogm_corners::Error;
-use pyo3::exceptions::{PyMemoryError, PyOSError, PyRuntimeError, PyValueError};
+use pyo3::exceptions::{
+    PyKeyboardInterrupt, PyMemoryError, PyOSError, PyRuntimeError, PyValueError,
+};
 use pyo3::prelude::*;
 
 pyo3::create_exception!(
@@ -23,6 +26,7 @@ pub fn to_py(e: Error) -> PyErr {
         Error::Output { .. } => PyOSError::new_err(message),
         Error::Unavailable(_) => BackendUnavailableError::new_err(message),
         Error::Internal(_) | Error::Declined(_) => PyRuntimeError::new_err(message),
+        Error::Interrupted => PyKeyboardInterrupt::new_err(message),
     }
 }
 
@@ -33,15 +37,66 @@ pub fn unlocked<T: Send>(
     f: impl FnOnce() -> ogm_corners::Result<T> + Send,
 ) -> PyResult<T> {
     py.detach(|| catch_unwind(AssertUnwindSafe(f)))
-        .map_err(|panic| {
-            let what = panic
-                .downcast_ref::<&str>()
-                .map(|s| s.to_string())
-                .or_else(|| panic.downcast_ref::<String>().cloned())
-                .unwrap_or_else(|| "unknown panic".to_string());
-            PyRuntimeError::new_err(format!("internal error: {what}"))
-        })?
+        .map_err(panic_error)?
         .map_err(to_py)
+}
+
+/// How often a long call looks for a signal (Ctrl-C) while it waits for the work.
+const SIGNAL_POLL: std::time::Duration = std::time::Duration::from_millis(50);
+
+/// [`unlocked`] for long work (detection, alignment, merging): `f` runs on a worker thread under an
+/// [`ogm_corners::stop::Stop`] while this thread looks for signals every [`SIGNAL_POLL`]. When a signal
+/// handler raises (Ctrl-C: `KeyboardInterrupt`), the stop is raised, the work ends at its next check
+/// (between stages, maps or pairs) and the handler's exception is raised here, instead of the call
+/// running to its end with the interpreter deaf to Ctrl-C.
+pub fn interruptible<T: Send>(
+    py: Python<'_>,
+    f: impl FnOnce() -> ogm_corners::Result<T> + Send,
+) -> PyResult<T> {
+    use std::sync::mpsc::{channel, RecvTimeoutError};
+    let stop = ogm_corners::stop::Stop::new();
+    let (done, finished) = channel::<()>();
+    let (outcome, signal) = std::thread::scope(|s| {
+        let worker = {
+            let stop = stop.clone();
+            s.spawn(move || {
+                let r = catch_unwind(AssertUnwindSafe(|| stop.run(f)));
+                // The receiver may be gone already; nothing to tell then.
+                let _ = done.send(());
+                r
+            })
+        };
+        let signal = py.detach(move || loop {
+            match finished.recv_timeout(SIGNAL_POLL) {
+                Ok(()) | Err(RecvTimeoutError::Disconnected) => break None,
+                Err(RecvTimeoutError::Timeout) => {
+                    // Signal handlers run on the main thread only; elsewhere this finds nothing.
+                    if let Err(e) = Python::attach(|py| py.check_signals()) {
+                        stop.raise();
+                        break Some(e);
+                    }
+                }
+            }
+        });
+        (worker.join(), signal)
+    });
+    if let Some(e) = signal {
+        return Err(e);
+    }
+    outcome
+        .unwrap_or_else(Err)
+        .map_err(panic_error)?
+        .map_err(to_py)
+}
+
+/// A panic's message as a `RuntimeError`.
+fn panic_error(panic: Box<dyn std::any::Any + Send>) -> PyErr {
+    let what = panic
+        .downcast_ref::<&str>()
+        .map(|s| s.to_string())
+        .or_else(|| panic.downcast_ref::<String>().cloned())
+        .unwrap_or_else(|| "unknown panic".to_string());
+    PyRuntimeError::new_err(format!("internal error: {what}"))
 }
 
 /// Refuses, as a `MemoryError` naming the estimate and the limit, what would take more than the memory

@@ -9,9 +9,9 @@ use ogm_corners::merge::{MergeOptions, Rigid};
 use ogm_corners::{BackendChoice, Error};
 use pyo3::prelude::*;
 
-use crate::errors::{finite_transform, to_py, unlocked, within_budget};
+use crate::errors::{finite_transform, interruptible, to_py, unlocked, within_budget};
 use crate::map::Map;
-use ogm_corners::merge::footprint::{check_alignable, footprint};
+use ogm_corners::merge::footprint::{self, check_alignable};
 
 /// A picture as a (height, width, 3) uint8 array.
 fn rgb_array(py: Python<'_>, picture: image::RgbImage) -> PyResult<Bound<'_, PyArray3<u8>>> {
@@ -33,8 +33,7 @@ fn backend(py: Python<'_>, name: &str) -> PyResult<Box<dyn ogm_corners::Backend>
 pub fn merge(py: Python<'_>, a: &Map, b: &Map, backend: &str) -> PyResult<String> {
     let (ma, mb) = (&a.inner, &b.inner);
     // B at A's resolution and both preparations, counted before any is allocated (as the command line).
-    let fa = footprint(ma, None).map_err(to_py)?;
-    let fb = footprint(mb, ma.georef.map(|g| g.resolution)).map_err(to_py)?;
+    let (fa, fb) = footprint::pair(ma, mb).map_err(to_py)?;
     within_budget(
         format_args!(
             "merging a {}x{} map and a {}x{} one (at the first's cells)",
@@ -44,7 +43,7 @@ pub fn merge(py: Python<'_>, a: &Map, b: &Map, backend: &str) -> PyResult<String
     )?;
     check_alignable(&fa, &fb).map_err(to_py)?;
     let mut on = self::backend(py, backend)?;
-    let merged = unlocked(py, || {
+    let merged = interruptible(py, || {
         pair::merge_pair(ma, mb, &MergeOptions::default(), on.as_mut())
     })?;
     serde_json::to_string(&merged.verdict()).map_err(|e| to_py(Error::Internal(e.to_string())))
@@ -56,7 +55,7 @@ pub fn compose(py: Python<'_>, a: &Map, b: &Map, transform: (f64, f64, f64)) -> 
     let t = rigid(finite_transform(transform)?);
     let (ma, mb) = (&a.inner, &b.inner);
     canvas_within_budget(ma, mb, &t, 1)?;
-    unlocked(py, || pair::compose_pair(ma, mb, &t)).map(Map::wrap)
+    interruptible(py, || pair::compose_pair(ma, mb, &t)).map(Map::wrap)
 }
 
 /// The picture of an alignment: A's and B's walls in two colours, agreement and conflicts.
@@ -70,7 +69,7 @@ pub fn overlay<'py>(
     let t = rigid(finite_transform(transform)?);
     let (ma, mb) = (&a.inner, &b.inner);
     canvas_within_budget(ma, mb, &t, 6)?;
-    let picture = unlocked(py, || pair::overlay_pair(ma, mb, &t))?;
+    let picture = interruptible(py, || pair::overlay_pair(ma, mb, &t))?;
     rgb_array(py, picture)
 }
 
@@ -82,19 +81,13 @@ fn canvas_within_budget(
     t: &Rigid,
     per_px: u64,
 ) -> PyResult<()> {
-    let fb = footprint(b, a.georef.map(|g| g.resolution)).map_err(to_py)?;
-    let side = |v: u64| u32::try_from(v).unwrap_or(u32::MAX);
-    let canvas = ogm_corners::merge::compose::Canvas::of(
-        a.image.width(),
-        a.image.height(),
-        side(fb.width),
-        side(fb.height),
-        t,
-    );
-    let px = canvas.width().saturating_mul(canvas.height());
+    let (_, fb) = footprint::pair(a, b).map_err(to_py)?;
+    let canvas = footprint::canvas(a, &fb, t).map_err(to_py)?;
     within_budget(
         format_args!("a merged canvas of {}x{}", canvas.width(), canvas.height()),
-        px.saturating_mul(per_px)
+        canvas
+            .pixels()
+            .saturating_mul(per_px)
             .saturating_add(fb.width.saturating_mul(fb.height)),
     )
 }
@@ -120,14 +113,14 @@ impl ManyMerge {
     fn _merged(&self, py: Python<'_>, g: usize) -> PyResult<Map> {
         self.check(g)?;
         let m = &self.inner;
-        unlocked(py, || m.merged(g)).map(Map::wrap)
+        interruptible(py, || m.merged(g)).map(Map::wrap)
     }
 
     /// Group `g`'s picture, each map's walls in its own colour.
     fn _overlay<'py>(&self, py: Python<'py>, g: usize) -> PyResult<Bound<'py, PyArray3<u8>>> {
         self.check(g)?;
         let m = &self.inner;
-        let picture = unlocked(py, || m.overlay(g))?;
+        let picture = interruptible(py, || m.overlay(g))?;
         rgb_array(py, picture)
     }
 }
@@ -167,22 +160,14 @@ pub fn merge_many(
         ))));
     }
     // Every map at the first georeferenced map's cells and its preparation, held at once.
-    let resolution = maps
-        .iter()
-        .find_map(|m| m.inner.georef)
-        .map(|g| g.resolution);
-    let mut held = 0u64;
-    for m in &maps {
-        held = held.saturating_add(footprint(&m.inner, resolution).map_err(to_py)?.bytes());
-    }
     within_budget(
         format_args!("{} maps and their preparation", maps.len()),
-        held,
+        footprint::many_bytes(maps.iter().map(|m| &m.inner)).map_err(to_py)?,
     )?;
     let mut on = self::backend(py, backend)?;
     // Clones share the pixels (Map::wrap), so this copies no image.
     let owned: Vec<ogm_corners::OccupancyMap> = maps.iter().map(|m| m.inner.clone()).collect();
-    let inner = unlocked(py, || {
+    let inner = interruptible(py, || {
         global::merge_maps(
             owned,
             &names,

@@ -5,6 +5,7 @@ their names, standard output written in place. Each test fails on the code befor
 from __future__ import annotations
 
 import dataclasses
+import json
 import os
 import subprocess
 import sys
@@ -144,3 +145,30 @@ def test_save_through_standard_output_appends(office, tmp_path):
     data = log.read_bytes()
     assert data.startswith(b"earlier line\nP5"), data[:40]
     assert link.is_symlink()
+
+
+def test_ctrl_c_stops_a_long_merge_within_a_second_and_the_package_works_after():
+    # merge_many of 24 small maps takes about 10 s on a 2-core machine; SIGINT (Ctrl-C) half a second in must
+    # raise KeyboardInterrupt at the work's next check, not when the call would have ended.
+    code = """
+import json, os, signal, threading, time
+import ogm_corners as oc
+maps = [oc.synthetic.office(240, 180, seed=s) for s in range(24)]
+threading.Timer(0.5, os.kill, (os.getpid(), signal.SIGINT)).start()
+t = time.perf_counter()
+try:
+    oc.merge_many(maps)
+    out = {"raised": False}
+except KeyboardInterrupt:
+    out = {"raised": True}
+out["seconds"] = time.perf_counter() - t
+a = oc.synthetic.office(300, 200, seed=2)
+out["after"] = oc.merge(a, a).accepted
+print(json.dumps(out))
+"""
+    r = run_python(code)
+    assert r.returncode == 0, r.stderr
+    out = json.loads(r.stdout.strip().splitlines()[-1])
+    assert out["raised"], out
+    assert out["seconds"] < 3.0, out
+    assert out["after"] is True, out

@@ -11,7 +11,7 @@ use serde::Serialize;
 use ogm_corners::files;
 use ogm_corners::map::{save_names, yaml_text};
 use ogm_corners::memory::Budget;
-use ogm_corners::merge::footprint::{check_alignable, footprint};
+use ogm_corners::merge::footprint::{self, check_alignable};
 use ogm_corners::merge::pair::{self, Verdict};
 use ogm_corners::merge::{compose, MergeOptions};
 use ogm_corners::{Error, OccupancyMap, Result};
@@ -104,8 +104,7 @@ pub(super) fn run(a: MergeArgs, budget: &Budget) -> Result<()> {
         ogm_corners::say!("ogm-corners: warning: {}", ogm_corners::error::one_line(w));
     }
     // B at A's resolution and both preparations over their explored parts, before any is allocated.
-    let fa = footprint(&map_a, None)?;
-    let fb = footprint(&map_b, map_a.georef.map(|g| g.resolution))?;
+    let (fa, fb) = footprint::pair(&map_a, &map_b)?;
     budget.check(
         format_args!(
             "merging {} ({}x{}, explored {}x{}) and {} ({}x{} at A's cells, explored {}x{})",
@@ -174,14 +173,7 @@ pub(super) fn run(a: MergeArgs, budget: &Budget) -> Result<()> {
     }
     // The merged map and the picture are as large as the canvas: counted before they are made (the
     // transform moves B at A's cells).
-    let side = |v: u64| u32::try_from(v).unwrap_or(u32::MAX);
-    let canvas = compose::Canvas::of(
-        map_a.image.width(),
-        map_a.image.height(),
-        side(fb.width),
-        side(fb.height),
-        &al.transform,
-    );
+    let canvas = footprint::canvas(&map_a, &fb, &al.transform)?;
     let per_px = u64::from(pgm_out.is_some()) + 6 * u64::from(a.overlay.is_some());
     budget.check(
         format_args!(
@@ -189,12 +181,7 @@ pub(super) fn run(a: MergeArgs, budget: &Budget) -> Result<()> {
             canvas.width(),
             canvas.height()
         ),
-        (fa.bytes() + fb.bytes()).saturating_add(
-            canvas
-                .width()
-                .saturating_mul(canvas.height())
-                .saturating_mul(per_px),
-        ),
+        (fa.bytes() + fb.bytes()).saturating_add(canvas.pixels().saturating_mul(per_px)),
     )?;
     // The merged map, its yaml and the picture renamed into place together: a failure leaves none.
     let mut staged = files::Staged::default();

@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use ogm_corners::files;
 use ogm_corners::map::{save_names, yaml_text};
 use ogm_corners::memory::Budget;
-use ogm_corners::merge::footprint::footprint;
+use ogm_corners::merge::footprint;
 use ogm_corners::merge::global::{merge_maps, page, report, GlobalOptions};
 use ogm_corners::{Error, OccupancyMap, Result};
 
@@ -86,14 +86,9 @@ pub(super) fn run(a: MergeArgs, budget: &Budget) -> Result<()> {
         ogm_corners::say!("ogm-corners: warning: {}", ogm_corners::error::one_line(w));
     }
     // Each map at the first georeferenced map's cells, and its preparation over its explored part.
-    let resolution = maps.iter().find_map(|m| m.georef).map(|g| g.resolution);
-    let mut held: u64 = 0;
-    for m in &maps {
-        held = held.saturating_add(footprint(m, resolution)?.bytes());
-    }
     budget.check(
         format_args!("{} maps and their preparation", maps.len()),
-        held,
+        footprint::many_bytes(&maps)?,
     )?;
     let bar = indicatif::ProgressBar::new(0);
     bar.set_style(

@@ -114,7 +114,15 @@ pub struct Alignment {
 
 /// Aligns B onto A: the best transform from B's pixels to A's, verified.
 pub fn align(a: &OccupancyMap, b: &OccupancyMap, options: &MergeOptions) -> Result<Alignment> {
-    align_prepared(&Prepared::new(a), &Prepared::new(b), options)
+    align_with(a, b, options, &mut CpuBackend)
+}
+
+/// `map` prepared as `options` need it: with its corners when the hypotheses use them.
+fn prepare_for(map: &OccupancyMap, options: &MergeOptions) -> Result<Prepared> {
+    match options.hypotheses.detector() {
+        Some(detector) => Prepared::with_corners(map, detector),
+        None => Ok(Prepared::new(map)),
+    }
 }
 
 /// [`align`] with the candidates scored on `backend` ([`align_prepared_with`]).
@@ -124,7 +132,12 @@ pub fn align_with(
     options: &MergeOptions,
     backend: &mut dyn Backend,
 ) -> Result<Alignment> {
-    align_prepared_with(&Prepared::new(a), &Prepared::new(b), options, backend)
+    align_prepared_with(
+        &prepare_for(a, options)?,
+        &prepare_for(b, options)?,
+        options,
+        backend,
+    )
 }
 
 /// [`align`] on prepared maps (prepare each map once when aligning it with many).
@@ -152,6 +165,8 @@ pub fn align_prepared_with(
         list: coarse,
         unit: coarse_unit,
     } = coarse_hypotheses(src, dst, &options.hypotheses)?;
+    // Between stages, a raised stop (Ctrl-C in Python) ends the alignment.
+    crate::stop::check()?;
     if coarse.is_empty() {
         return Ok(declined(
             "no hypothesis: the maps' corners agree on no placement",
@@ -161,6 +176,7 @@ pub fn align_prepared_with(
     // shifts around it: a coarse peak is off by up to half a cell, and the walls of a
     // building of many like rooms correlate almost as well with a wrong placement at the coarse level.
     let [tolerant, strict] = screen(src, dst, &coarse, cell as f64, backend)?;
+    crate::stop::check()?;
     let mut picked: Vec<(f64, Crop)> = Vec::new();
     for (order, most) in [(&tolerant, REFINED), (&strict, REFINED + STRICT)] {
         for &(i, t) in order {
@@ -185,6 +201,7 @@ pub fn align_prepared_with(
     };
     let crops: Vec<Rigid> = icped.iter().map(|r| r.1).collect();
     let verified = verify(src, dst, &crops, backend)?;
+    crate::stop::check()?;
     // Every candidate's local agreement: the choice below and its margin over the runner-up need them all.
     let top = icped.iter().map(|r| r.0).fold(f64::MIN, f64::max).max(1e-9);
     let locals: Vec<(f64, f64, f64)> = {
@@ -237,6 +254,7 @@ pub fn align_prepared_with(
         }
     }
     let again = verify(src, dst, &[polished], backend)?[0];
+    crate::stop::check()?;
     refined[0].1 = to_full(&polished);
     refined[0].2 = Features {
         coarse: refined[0].2.coarse,

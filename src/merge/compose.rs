@@ -29,8 +29,15 @@ pub struct Canvas {
 }
 
 impl Canvas {
-    /// The canvas holding A (`wa` x `ha`) and B (`wb` x `hb`) placed by `t`.
-    pub fn of(wa: u32, ha: u32, wb: u32, hb: u32, t: &Rigid) -> Canvas {
+    /// The canvas holding A (`wa` x `ha`) and B (`wb` x `hb`) placed by `t`. Refused when `t` is not
+    /// finite or the canvas would be wider or higher than a map can be (B placed absurdly far from A).
+    pub fn of(wa: u32, ha: u32, wb: u32, hb: u32, t: &Rigid) -> Result<Canvas> {
+        if !(t.theta_deg.is_finite() && t.tx.is_finite() && t.ty.is_finite()) {
+            return Err(Error::invalid(format!(
+                "the transform ({} deg, {}, {}) is not a placement: it must be finite",
+                t.theta_deg, t.tx, t.ty
+            )));
+        }
         // The canvas pixels are those whose centres B's pixel centres reach (nearest neighbour).
         let (mut x0, mut y0, mut x1, mut y1) =
             (0f64, 0f64, f64::from(wa) - 1.0, f64::from(ha) - 1.0);
@@ -42,12 +49,24 @@ impl Canvas {
             x1 = x1.max(px.round());
             y1 = y1.max(py.round());
         }
-        Canvas {
+        // Both spans hold 0, so a span within u32 keeps every bound well inside i64.
+        let (w, h) = (x1 - x0 + 1.0, y1 - y0 + 1.0);
+        if w > f64::from(u32::MAX) || h > f64::from(u32::MAX) {
+            return Err(Error::invalid(format!(
+                "the merged map would be {w:.3e} x {h:.3e} pixels: B lands far from A"
+            )));
+        }
+        Ok(Canvas {
             x0: x0 as i64,
             y0: y0 as i64,
             x1: x1 as i64 + 1,
             y1: y1 as i64 + 1,
-        }
+        })
+    }
+
+    /// Pixels, width times height.
+    pub fn pixels(&self) -> u64 {
+        self.width().saturating_mul(self.height())
     }
 
     /// Width, pixels.
@@ -74,17 +93,13 @@ struct Placed<'a> {
 }
 
 impl<'a> Placed<'a> {
-    /// Fails when the canvas would be larger than [`MAX_CANVAS_FACTOR`] times the two maps (or wider or
-    /// higher than a map can be).
+    /// Fails when the transform is not finite or the canvas would be larger than [`MAX_CANVAS_FACTOR`]
+    /// times the two maps.
     fn new(a: &'a OccupancyMap, b: &'a OccupancyMap, t: &Rigid) -> Result<Self> {
         let (ia, ib) = (&a.image, &b.image);
-        let canvas = Canvas::of(ia.width(), ia.height(), ib.width(), ib.height(), t);
+        let canvas = Canvas::of(ia.width(), ia.height(), ib.width(), ib.height(), t)?;
         let limit = (ia.len() as u64 + ib.len() as u64).saturating_mul(MAX_CANVAS_FACTOR);
-        let px = canvas.width().saturating_mul(canvas.height());
-        if px > limit
-            || canvas.width() > u64::from(u32::MAX)
-            || canvas.height() > u64::from(u32::MAX)
-        {
+        if canvas.pixels() > limit {
             return Err(Error::invalid(format!(
                 "the merged map would be {}x{}: B lands far from A",
                 canvas.width(),
@@ -142,8 +157,8 @@ pub fn merge_cell(a: CellState, b: CellState) -> CellState {
     }
 }
 
-/// The merged map of `a` and `b`, B placed by `t` (B's pixels to A's). Fails when the canvas would be
-/// larger than [`MAX_CANVAS_FACTOR`] times the two maps.
+/// The merged map of `a` and `b`, B placed by `t` (B's pixels to A's). Fails when `t` is not finite or
+/// the canvas would be larger than [`MAX_CANVAS_FACTOR`] times the two maps.
 pub fn compose(a: &OccupancyMap, b: &OccupancyMap, t: &Rigid) -> Result<OccupancyMap> {
     let placed = Placed::new(a, b, t)?;
     let canvas = placed.canvas;
@@ -236,56 +251,6 @@ pub fn overlay(a: &OccupancyMap, b: &OccupancyMap, t: &Rigid) -> Result<image::R
     ))
 }
 
-/// `map` at `resolution` (metres a pixel): resampled ([`resample`]) when it is georeferenced at another
-/// resolution, with its resolution over the new one; otherwise as it is, with `None`. How the two-map and
-/// the many-map merges bring every map to the reference map's resolution.
-pub fn at_resolution(
-    map: &OccupancyMap,
-    resolution: f64,
-) -> Result<(std::borrow::Cow<'_, OccupancyMap>, Option<f64>)> {
-    use std::borrow::Cow;
-    match map.georef {
-        Some(g) if (g.resolution - resolution).abs() > 1e-9 * resolution => Ok((
-            Cow::Owned(resample(map, resolution)?),
-            Some(g.resolution / resolution),
-        )),
-        _ => Ok((Cow::Borrowed(map), None)),
-    }
-}
-
-/// `map` resampled by nearest neighbour to `resolution` (metres a pixel), keeping its origin: how a map
-/// of another resolution is brought to the reference map's before aligning.
-pub fn resample(map: &OccupancyMap, resolution: f64) -> Result<OccupancyMap> {
-    let Some(g) = map.georef else {
-        return Ok(map.clone());
-    };
-    let k = g.resolution / resolution; // new pixels per old pixel
-    let (w, h) = (map.image.width(), map.image.height());
-    // Refused, in plain words, past the largest map; the caller's budget counted it before.
-    let (nw, nh) = super::footprint::resampled_size(map, resolution)?;
-    let (nw, nh) = (nw as u32, nh as u32);
-    let mut px = Vec::with_capacity(nw as usize * nh as usize);
-    for y in 0..nh {
-        // Pixel centres: old = (new + 0.5) / k - 0.5, rows counted from the bottom so the origin stays.
-        let from_bottom = f64::from(nh - 1 - y);
-        let oy = ((from_bottom + 0.5) / k - 0.5)
-            .round()
-            .clamp(0.0, f64::from(h - 1)) as u32;
-        let sy = h - 1 - oy;
-        for x in 0..nw {
-            let sx = ((f64::from(x) + 0.5) / k - 0.5)
-                .round()
-                .clamp(0.0, f64::from(w - 1)) as u32;
-            px.push(map.image.get(sx, sy));
-        }
-    }
-    Ok(OccupancyMap {
-        image: MapImage::new(nw, nh, px)?,
-        georef: Some(GeoRef { resolution, ..g }),
-        ..map.clone()
-    })
-}
-
 /// A reference map's georeference for a grown canvas whose first column is `x0` and whose row after its
 /// last is `y1` (in the reference map's pixels; `h0` its height): the origin (the pose of the lower-left
 /// corner) moves to the canvas's lower-left corner, so the reference map's cells keep their world
@@ -308,32 +273,6 @@ pub(super) fn grown_georef(g: &GeoRef, h0: u32, x0: i64, y1: i64) -> GeoRef {
 mod tests {
     use super::*;
     use crate::states::{FREE, OCCUPIED, UNKNOWN};
-
-    #[test]
-    fn resampling_to_a_finer_resolution_keeps_the_world_frame() {
-        let mut img = MapImage::filled(10, 6, 254).unwrap();
-        img.pixels_mut()[2 * 10 + 3] = 0; // pixel (3, 2)
-        let m = OccupancyMap {
-            georef: Some(GeoRef {
-                resolution: 0.1,
-                origin: [1.0, -2.0, 0.0],
-            }),
-            ..OccupancyMap::from_image(img)
-        };
-        let r = resample(&m, 0.05).unwrap();
-        assert_eq!((r.image.width(), r.image.height()), (20, 12));
-        let (g, gr) = (m.georef.unwrap(), r.georef.unwrap());
-        assert_eq!(gr.origin, g.origin);
-        // The occupied pixel's world centre falls in one of the four fine pixels it became.
-        let (wx, wy) = g.pixel_to_world(3, 2, 6);
-        let (fx, fy) = (
-            ((wx - gr.origin[0]) / 0.05).floor() as u32,
-            (12.0 - (wy - gr.origin[1]) / 0.05).floor() as u32,
-        );
-        assert_eq!(r.image.get(fx, fy), 0);
-        assert_eq!(r.image.pixels().iter().filter(|&&v| v == 0).count(), 4);
-        assert!(resample(&m, f64::NAN).is_err());
-    }
 
     #[test]
     fn a_cells_keep_their_world_coordinates_and_the_rule_is_conservative() {
@@ -374,5 +313,43 @@ mod tests {
             }
         )
         .is_err());
+    }
+
+    #[test]
+    fn a_transform_not_finite_or_past_any_canvas_is_refused_not_overflowed() {
+        let a = OccupancyMap::from_image(MapImage::filled(20, 10, 254).unwrap());
+        let b = OccupancyMap::from_image(MapImage::filled(8, 8, 0).unwrap());
+        for (theta_deg, tx, ty) in [
+            (f64::NAN, 0.0, 0.0),
+            (0.0, f64::NAN, 0.0),
+            (0.0, 0.0, f64::INFINITY),
+            (f64::INFINITY, 0.0, 0.0),
+            (0.0, 1e19, 0.0),
+            (0.0, -1e300, 1e300),
+            (0.0, 9.3e18, 0.0),
+            (0.0, f64::from(u32::MAX), 0.0),
+        ] {
+            let t = Rigid { theta_deg, tx, ty };
+            let e = compose(&a, &b, &t).unwrap_err().to_string();
+            assert!(
+                e.contains("finite") || e.contains("far from A"),
+                "{t:?}: {e}"
+            );
+            assert!(overlay(&a, &b, &t).is_err(), "{t:?}");
+            assert!(Canvas::of(20, 10, 8, 8, &t).is_err(), "{t:?}");
+        }
+        // The largest span a canvas may have is still a canvas (refused later for its size alone).
+        let c = Canvas::of(
+            1,
+            1,
+            1,
+            1,
+            &Rigid {
+                tx: f64::from(u32::MAX) - 1.0,
+                ..Rigid::IDENTITY
+            },
+        )
+        .unwrap();
+        assert_eq!(c.width(), u64::from(u32::MAX));
     }
 }

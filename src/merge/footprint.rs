@@ -3,13 +3,12 @@
 //! a run over its budget is refused with the estimate instead of aborting half way, and a huge canvas
 //! holding one small room is not refused for the canvas.
 
+use super::compose::Canvas;
 use super::prepare::{crop_box, prepared_bytes, CROP_PAD};
-use crate::error::{Error, Result};
+use super::resample::resampled_size;
+use super::transform::Rigid;
+use crate::error::Result;
 use crate::map::OccupancyMap;
-
-/// Most pixels a map resampled to another's resolution may have (4 Gi: an index past this would not fit
-/// the 32-bit image sizes the tool uses).
-pub const MAX_RESAMPLED: f64 = 4.0 * (1u64 << 30) as f64;
 
 /// A map as the merge holds it.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -43,17 +42,9 @@ impl Footprint {
     }
 }
 
-/// The name a message gives `map`: its yaml, else its image, else "the map".
-pub fn name_of(map: &OccupancyMap) -> String {
-    map.yaml_path
-        .as_deref()
-        .or(map.image_path.as_deref())
-        .map_or_else(|| "the map".to_string(), |p| p.display().to_string())
-}
-
 /// `map`'s footprint once brought to `resolution` (metres a pixel; `None`: kept as it is), as
 /// [`at_resolution`](super::compose::at_resolution) would bring it. Refused, naming the map, both
-/// resolutions and the size, when the resampled map would be over [`MAX_RESAMPLED`] pixels.
+/// resolutions and the size, when the resampled map would be over [`MAX_RESAMPLED`](super::resample::MAX_RESAMPLED) pixels.
 pub fn footprint(map: &OccupancyMap, resolution: Option<f64>) -> Result<Footprint> {
     let (w, h) = (u64::from(map.image.width()), u64::from(map.image.height()));
     let (x0, y0, x1, y1) = crop_box(map);
@@ -85,58 +76,40 @@ pub fn footprint(map: &OccupancyMap, resolution: Option<f64>) -> Result<Footprin
     })
 }
 
-/// The size of `map` resampled to `resolution`, refused (naming the map, both resolutions and the size in
-/// plain units) when over [`MAX_RESAMPLED`] pixels or not a resolution.
-pub fn resampled_size(map: &OccupancyMap, resolution: f64) -> Result<(u64, u64)> {
-    let name = name_of(map);
-    let Some(g) = map.georef else {
-        return Ok((u64::from(map.image.width()), u64::from(map.image.height())));
-    };
-    if !(resolution.is_finite() && resolution > 0.0) {
-        return Err(Error::invalid(format!(
-            "{name}: cannot be brought to a resolution of {resolution} m a pixel"
-        )));
-    }
-    let k = g.resolution / resolution;
-    let (w, h) = (map.image.width(), map.image.height());
-    let (nw, nh) = (
-        (f64::from(w) * k).round().max(1.0),
-        (f64::from(h) * k).round().max(1.0),
-    );
-    let px = nw * nh;
-    if px.is_nan() || px > MAX_RESAMPLED {
-        return Err(Error::invalid(format!(
-            "{name}: its cells are {} m; brought to the {} m cells of the map it is merged with, this \
-             {w}x{h} map would be {} x {} pixels, over the {} pixels a map may have; resample it to \
-             a resolution nearer {} m first",
-            short(g.resolution),
-            short(resolution),
-            count(nw),
-            count(nh),
-            count(MAX_RESAMPLED),
-            short(resolution)
-        )));
-    }
-    Ok((nw as u64, nh as u64))
+/// The two maps of a two-map merge as it holds them: A as it is, B brought to A's cells.
+pub fn pair(a: &OccupancyMap, b: &OccupancyMap) -> Result<(Footprint, Footprint)> {
+    Ok((
+        footprint(a, None)?,
+        footprint(b, a.georef.map(|g| g.resolution))?,
+    ))
 }
 
-/// A count for people: an integer up to a trillion, else in powers of ten (`3.1e+15`).
-fn count(v: f64) -> String {
-    if v < 1e12 {
-        format!("{v:.0}")
-    } else {
-        format!("{v:.1e}")
+/// Bytes a many-map merge holds at once: every map at the first georeferenced map's cells (the
+/// resolution [`merge_maps`](super::global::merge_maps) brings them to) with its preparation.
+pub fn many_bytes<'m>(maps: impl IntoIterator<Item = &'m OccupancyMap> + Clone) -> Result<u64> {
+    let resolution = maps
+        .clone()
+        .into_iter()
+        .find_map(|m| m.georef)
+        .map(|g| g.resolution);
+    let mut held = 0u64;
+    for m in maps {
+        held = held.saturating_add(footprint(m, resolution)?.bytes());
     }
+    Ok(held)
 }
 
-/// A resolution for people: up to six significant digits, no trailing zeros, powers of ten when tiny or
-/// huge.
-fn short(v: f64) -> String {
-    if v != 0.0 && !(1e-4..1e6).contains(&v.abs()) {
-        return format!("{v:.3e}");
-    }
-    let s = format!("{v:.6}");
-    s.trim_end_matches('0').trim_end_matches('.').to_string()
+/// The merged canvas of `a` and B (`b`: B's footprint at A's cells, from [`pair`]) placed by `t`,
+/// known before anything is drawn on it; refused as [`Canvas::of`] refuses.
+pub fn canvas(a: &OccupancyMap, b: &Footprint, t: &Rigid) -> Result<Canvas> {
+    let side = |v: u64| u32::try_from(v).unwrap_or(u32::MAX);
+    Canvas::of(
+        a.image.width(),
+        a.image.height(),
+        side(b.width),
+        side(b.height),
+        t,
+    )
 }
 
 /// Refuses, before anything is prepared, two maps whose explored parts are too large to align with each

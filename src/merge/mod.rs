@@ -29,6 +29,7 @@ pub mod pairs;
 mod prepare;
 mod refine;
 pub mod report;
+pub mod resample;
 mod score;
 pub mod synthetic;
 pub mod transform;

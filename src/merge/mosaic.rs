@@ -148,8 +148,10 @@ fn for_each_cell(
     poses: &[Rigid],
     f: &Frame,
     mut visit: impl FnMut(usize, usize, CellState),
-) {
+) -> Result<()> {
     for (k, (m, pose)) in maps.iter().zip(poses).enumerate() {
+        // Map by map, a raised stop (Ctrl-C in Python) ends the drawing.
+        crate::stop::check()?;
         let classes = ClassTable::new(&m.thresholds);
         let (w, h) = (m.image.width(), m.image.height());
         let Some(known) = known_box(m) else { continue };
@@ -173,6 +175,7 @@ fn for_each_cell(
             }
         }
     }
+    Ok(())
 }
 
 /// The merged map of `maps` placed by `poses` (each map's pixels to the frame of the first map, whose
@@ -183,7 +186,7 @@ pub fn compose_many(maps: &[&OccupancyMap], poses: &[Rigid]) -> Result<(Occupanc
     let mut cells = vec![CellState::Unknown; f.width as usize * f.height as usize];
     for_each_cell(maps, poses, &f, |i, _, s| {
         cells[i] = merge_cell(cells[i], s)
-    });
+    })?;
     let image = MapImage::new(
         f.width,
         f.height,
@@ -232,7 +235,7 @@ pub fn overlay_many(maps: &[&OccupancyMap], poses: &[Rigid]) -> Result<image::Rg
         CellState::Occupied if owner[i] >= FREE => owner[i] = k as u16,
         CellState::Free if owner[i] == NONE => owner[i] = FREE,
         _ => {}
-    });
+    })?;
     Ok(image::RgbImage::from_fn(
         f.width,
         f.height,

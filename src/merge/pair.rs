@@ -6,8 +6,8 @@ use std::borrow::Cow;
 use serde::Serialize;
 
 use super::align::{align_with, Alignment, Features, MergeOptions};
-use super::compose;
 use super::transform::{to_world, Rigid, WorldRigid};
+use super::{compose, resample};
 use crate::backend::Backend;
 use crate::error::Result;
 use crate::map::OccupancyMap;
@@ -71,7 +71,7 @@ pub fn at_resolution_of<'b>(
     b: &'b OccupancyMap,
 ) -> Result<(Cow<'b, OccupancyMap>, f64)> {
     match a.georef {
-        Some(ga) => compose::at_resolution(b, ga.resolution).map(|(b, k)| (b, k.unwrap_or(1.0))),
+        Some(ga) => resample::at_resolution(b, ga.resolution).map(|(b, k)| (b, k.unwrap_or(1.0))),
         None => Ok((Cow::Borrowed(b), 1.0)),
     }
 }

@@ -137,6 +137,8 @@ pub fn detect(
         .angle
         .unwrap_or_else(|| orientation::dominant_angle(image, classes));
     let grid = RotatedGrid::new(image.width(), image.height(), angle)?;
+    // Between stages, a raised stop (Ctrl-C in Python) ends the detection.
+    crate::stop::check()?;
     let coarse = backend.coarsen(image, classes, &grid, &scales)?;
     let sampler = Sampler {
         image,
@@ -145,6 +147,7 @@ pub fn detect(
     };
     let mut found = Vec::new();
     for (&scale, map) in scales.iter().zip(&coarse) {
+        crate::stop::check()?;
         let cells = Cells::new(map);
         for convex in [false, true] {
             if convex && !params.convex {
@@ -161,6 +164,7 @@ pub fn detect(
     // Suppression on the cell positions first, so only the survivors are placed on the map's pixels
     // (placing reads dozens of samples a corner); then again on the placed positions.
     let survivors = suppress_candidates(found, params.nms_radius);
+    crate::stop::check()?;
     let placed: Vec<Keypoint> = survivors
         .par_iter()
         .map(|c| match c.arms {

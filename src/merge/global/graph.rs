@@ -262,6 +262,8 @@ pub fn place(
     let mut ambiguous = vec![false; n];
     let mut contradicted = vec![false; n];
     loop {
+        // Each round may run dense checks of mosaics: a raised stop (Ctrl-C in Python) ends it here.
+        crate::stop::check()?;
         // Every pair of groups' best placement: those a trusted edge stands behind first, the strongest
         // first; then those only cycles or several pairs stand behind (the groups' mosaics must pass the
         // pair test).

@@ -11,7 +11,7 @@ use crate::backend::Backend;
 use crate::error::Result;
 use crate::map::OccupancyMap;
 use crate::merge::mosaic::{self, Frame};
-use crate::merge::{compose, Rigid};
+use crate::merge::{resample, Rigid};
 
 /// Many maps placed, with what it takes to draw each group.
 #[derive(Clone, Debug)]
@@ -41,7 +41,8 @@ pub fn merge_maps(
     let mut scales = vec![None; maps.len()];
     if let Some(res) = maps.iter().find_map(|m| m.georef).map(|g| g.resolution) {
         for (m, s) in maps.iter_mut().zip(&mut scales) {
-            let (at, scale) = compose::at_resolution(m, res)?;
+            crate::stop::check()?;
+            let (at, scale) = resample::at_resolution(m, res)?;
             if let Cow::Owned(resampled) = at {
                 (*m, *s) = (resampled, scale);
             }

@@ -145,7 +145,8 @@ pub struct Pairwise {
 }
 
 /// Aligns every pair of `maps` (map `b` onto map `a` for `a < b`), the pairs in parallel; `progress` is
-/// told after each pair (pairs done, pairs in all) from whichever thread finished it.
+/// told after each pair (pairs done, pairs in all) from whichever thread finished it. Under a raised
+/// [`crate::stop::Stop`] the pairs not started are skipped and the result is [`crate::Error::Interrupted`].
 pub fn align_all(
     maps: &[Prepared],
     options: &GlobalOptions,
@@ -158,13 +159,18 @@ pub fn align_all(
         .collect();
     let done = std::sync::atomic::AtomicUsize::new(0);
     let total = pairs.len();
+    // A raised stop ends each pair at its next check and skips the pairs not started.
+    let stop = crate::stop::current();
     let results: Vec<Result<super::Alignment>> = pairs
         .par_iter()
         .map(|&(a, b)| {
-            let al = align_prepared(&maps[a], &maps[b], &options.pair);
-            let k = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
-            progress(k, total);
-            al
+            crate::stop::with(stop.clone(), || {
+                crate::stop::check()?;
+                let al = align_prepared(&maps[a], &maps[b], &options.pair);
+                let k = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+                progress(k, total);
+                al
+            })
         })
         .collect();
     let mut out = Pairwise {
@@ -349,14 +355,17 @@ pub fn run(
         .filter(|&i| duplicate_of[i].is_none())
         .collect();
     let t = Instant::now();
+    let stop = crate::stop::current();
     let prepared: Vec<Prepared> = unique
         .par_iter()
-        .map(|&i| Prepared::new(&maps[i]))
+        .map(|&i| crate::stop::with(stop.clone(), || Prepared::new(&maps[i])))
         .collect();
     let prepare = t.elapsed().as_secs_f64();
+    crate::stop::check()?;
     let t = Instant::now();
     let mut pairwise = align_all(&prepared, options, progress)?;
     let align = t.elapsed().as_secs_f64();
+    crate::stop::check()?;
     let t = Instant::now();
     let images: Vec<&crate::map::OccupancyMap> = unique.iter().map(|&i| &maps[i]).collect();
     let mut placement = place(&pairwise, &prepared, &images, options, backend)?;
