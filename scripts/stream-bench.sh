@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Streamed detection of a map larger than the machine's taste for it (README "Maps of any size"):
+# Streamed detection of a map larger than the machine's taste for it (docs/guide.md and docs/performance.md, "Maps of any size"):
 # the tool writes a SIDE x SIDE synthetic office PGM row by row, then `ogm-corners detect` reads it back,
 # timed end to end with its peak resident memory, beside the disk's own sequential read (dd) in the same
 # cache state. Cold runs drop the page cache first (root only); warm runs read the file once before.

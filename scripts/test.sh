@@ -80,8 +80,21 @@ python_env "$pyvenv" "import maturin, numpy, pytest, rosbags" "maturin>=1.9.4,<2
 # no libpython, as maturin builds it (PYO3_BUILD_EXTENSION_MODULE). The dev profile is optimised
 # (Cargo.toml), so real maps stay quick.
 export PYO3_BUILD_EXTENSION_MODULE=1
-cargo build --locked --workspace --lib --bins --tests
+cargo build --locked --workspace --lib --bins --tests --examples
 cargo test --locked --workspace
+
+# The runnable examples (examples/), on the demo's robot maps; then the API documentation, warnings as
+# errors (every public item documented, no broken link).
+ex=target/examples-run
+rm -rf "$ex" && mkdir -p "$ex/maps"
+target/debug/ogm-corners demo -o "$ex" >/dev/null 2>&1 || { echo "scripts/test.sh: demo failed" >&2; exit 1; }
+cp "$ex"/robot-*.yaml "$ex"/robot-*.pgm "$ex/maps/"
+cargo run --locked -q --example detect_map -- "$ex/maps/robot-1.yaml" >/dev/null
+cargo run --locked -q --example merge_two -- "$ex/maps/robot-1.yaml" "$ex/maps/robot-2.yaml" "$ex/two.yaml" >/dev/null
+cargo run --locked -q --example merge_folder -- "$ex/maps" "$ex/all.yaml" >/dev/null
+[ -f "$ex/two.yaml" ] && [ -f "$ex/all.yaml" ] || { echo "scripts/test.sh: an example wrote no merged map" >&2; exit 1; }
+echo "scripts/test.sh: examples detect_map, merge_two, merge_folder ran"
+RUSTDOCFLAGS="-D warnings" cargo doc --locked --no-deps -p ogm-corners -q
 
 # The Python package: the extension placed in python/ogm_corners/ as `maturin develop` places it, the
 # package's metadata checked by making its source distribution (`pip install ./python` builds the same

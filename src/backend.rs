@@ -10,7 +10,7 @@ use crate::cpu::merge_score::{FixedRigid, ScoreTarget};
 use crate::error::Result;
 use crate::grid::RotatedGrid;
 use crate::map::MapImage;
-use crate::robust::RobustParams;
+use crate::robust::params::RobustParams;
 use crate::rules::{RuleSet, RuleTable};
 use crate::states::ClassTable;
 use crate::stream::select::CandidateList;
@@ -295,7 +295,7 @@ pub fn reference_working_bytes(options: &DetectOptions, width: u32, height: u32)
     };
     window.saturating_add(match options.detector {
         DetectorKind::Ogm => px,
-        DetectorKind::OgmRobust => crate::robust::robust_working_bytes(width, height),
+        DetectorKind::OgmRobust => crate::robust::params::robust_working_bytes(width, height),
         DetectorKind::Baseline(Baseline::Harris) => px.saturating_mul(25),
         DetectorKind::Baseline(Baseline::ShiTomasi) => px.saturating_mul(25).max(
             px.saturating_mul(8)

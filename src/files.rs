@@ -585,12 +585,9 @@ impl Inputs {
         }
     }
 
-    /// Records the files a map is made of: the path given, its yaml and its image.
-    pub fn add_map(&mut self, map: &crate::map::OccupancyMap) {
-        for p in [map.yaml_path.as_deref(), map.image_path.as_deref()]
-            .into_iter()
-            .flatten()
-        {
+    /// Records every file of `paths` (a map's yaml and image: `OccupancyMap::files`).
+    pub fn add_all<'p>(&mut self, paths: impl IntoIterator<Item = &'p Path>) {
+        for p in paths {
             self.add(p);
         }
     }

@@ -19,6 +19,28 @@
 //! let corners: Vec<(u32, u32)> = found.keypoints.iter().map(|k| (k.x, k.y)).collect();
 //! assert_eq!(corners, vec![(1, 1), (6, 1), (1, 6), (6, 6)]);
 //! ```
+//!
+//! ## The layers, bottom to top
+//!
+//! Each layer imports only the layers below it (`tests/layering.rs` checks that no file imports one that
+//! imports it back, and that maps and detection never reach into merging or the command line):
+//!
+//! 1. **Services**: [`error`], [`stop`], [`memory`], [`files`].
+//! 2. **Maps**: [`decode`] (PGM/PNG), [`map`] (yaml, georeference, thresholds), [`stream`] (maps as rows),
+//!    [`states`] (the three states), [`synth`] (synthetic maps), [`grid`] (a grid turned to the walls).
+//! 3. **Rules, the backend interface and the reference**: [`rules`] (the paper's 256-entry table),
+//!    [`baselines`] (Harris, Shi-Tomasi, Trajkovic-Hedley: parameters and selection), [`backend`] (the
+//!    trait every backend implements, keypoints, options), [`cpu`] (the CPU reference: one file per WGSL
+//!    kernel, its twin).
+//! 4. **Fast backends**: [`fast`] (the fast CPU path), [`gpu`] (wgpu compute kernels, bit-identical to
+//!    the reference).
+//! 5. **Detectors**: [`robust`] (the robust form for real maps), [`detector`] (a backend driven over a
+//!    map, in memory or streamed), [`streamed`] (a map file to keypoint files).
+//! 6. **Merging**: [`merge`] (two maps and many, with no initial poses).
+//! 7. **Measuring and reporting**: [`output`], [`overlay`], [`plot`], [`report`], [`compare`], [`eval`],
+//!    [`bench`](mod@bench).
+//!
+//! The command line (`src/cli/`, one file per subcommand) sits on top, in the binary.
 
 /// Like `eprintln!`, but a standard error that cannot be written (a closed pipe: `2>&1 | head`) drops the
 /// message instead of panicking: a diagnostic must never be what stops a run.
@@ -30,34 +52,41 @@ macro_rules! say {
     }};
 }
 
-pub mod backend;
-pub mod baselines;
-pub mod bench;
-pub mod compare;
-pub mod cpu;
-pub mod decode;
-pub mod detector;
+// 1. Services.
 pub mod error;
-pub mod eval;
-pub mod fast;
 pub mod files;
-pub mod gpu;
+pub mod memory;
+mod stats;
+pub mod stop;
+// 2. Maps.
+pub mod decode;
 pub mod grid;
 pub mod map;
-pub mod memory;
+pub mod states;
+pub mod stream;
+pub mod synth;
+// 3. Rules, the backend interface and the CPU reference.
+pub mod backend;
+pub mod baselines;
+pub mod cpu;
+pub mod rules;
+// 4. Fast backends.
+pub mod fast;
+pub mod gpu;
+// 5. Detectors.
+pub mod detector;
+pub mod robust;
+pub mod streamed;
+// 6. Merging.
 pub mod merge;
+// 7. Measuring and reporting.
+pub mod bench;
+pub mod compare;
+pub mod eval;
 pub mod output;
 pub mod overlay;
 pub mod plot;
 pub mod report;
-pub mod robust;
-pub mod rules;
-pub mod states;
-mod stats;
-pub mod stop;
-pub mod stream;
-pub mod streamed;
-pub mod synth;
 
 pub use baselines::{Baseline, BaselineParams};
 pub use detector::{

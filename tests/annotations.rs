@@ -87,7 +87,7 @@ fn recall_on_the_shared_annotated_maps() {
     // detector finds 273 keypoints, 31 marked points within 5 px and 55 within 10 px (5.8%, 10.3%);
     // Harris 13971 keypoints, 443 and 512 (83.0%, 95.9%), 98 and 223 with its strongest 3 per mark.
     eprintln!("{out}");
-    // The robust detector (README), by default corners with walls of 8 px or more: 587 keypoints (1.1
+    // The robust detector (docs/detectors.md), by default corners with walls of 8 px or more: 587 keypoints (1.1
     // per marked point), 273 marked points within 5 px (51.1%) and 351 within 10 px (65.7%); with the
     // strongest as many as the marked points, 259 and 330, where Harris has 40 and 83.
     assert_eq!(

@@ -171,10 +171,69 @@ fn rules_command_csv_and_text() {
 }
 
 #[test]
+fn demo_merges_the_robots_maps_and_checks_them_against_the_truth() {
+    // What a newcomer runs first: no arguments but the folder.
+    let d = tmpdir("demo-merge");
+    let o = run(&["demo", "-o", d.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = stdout(&o);
+    assert!(out.contains("3 of 3 maps placed in one map"), "{out}");
+    for f in [
+        "robot-1.pgm",
+        "robot-1.yaml",
+        "robot-2.yaml",
+        "robot-3.yaml",
+        "merged.pgm",
+        "merged.yaml",
+        "poses.json",
+        "corners.csv",
+        "demo.png",
+    ] {
+        assert!(d.join(f).is_file(), "{f} missing: {out}");
+    }
+    let poses: serde_json::Value =
+        serde_json::from_str(&fs::read_to_string(d.join("poses.json")).unwrap()).unwrap();
+    let robots = poses["robots"].as_array().unwrap();
+    assert_eq!(robots.len(), 3);
+    for r in robots {
+        assert_eq!(r["group"], 0, "{r}");
+        let (deg, px) = (
+            r["error_deg"].as_f64().unwrap(),
+            r["error_px"].as_f64().unwrap(),
+        );
+        assert!(deg < 0.5 && px < 1.5, "{r}");
+    }
+    // The merged map loads as a map, larger than any robot's; every robot's corners are listed, placed.
+    let merged = ogm_corners::OccupancyMap::load(d.join("merged.yaml")).unwrap();
+    let one = ogm_corners::OccupancyMap::load(d.join("robot-1.yaml")).unwrap();
+    assert!(merged.image.len() > one.image.len());
+    let csv = fs::read_to_string(d.join("corners.csv")).unwrap();
+    for k in 1..=3 {
+        let rows: Vec<&str> = csv
+            .lines()
+            .filter(|l| l.starts_with(&format!("robot-{k},")))
+            .collect();
+        assert!(rows.len() > 10, "robot-{k}: {} corners", rows.len());
+        assert!(
+            rows.iter().all(|l| !l.ends_with(",,")),
+            "robot-{k} unplaced"
+        );
+    }
+    // Bad arguments are refused in one line, before anything is written.
+    let bad = tmpdir("demo-merge-bad");
+    let o = run(&["demo", "-o", bad.to_str().unwrap(), "--robots", "1"]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    let o = run(&["demo", "-o", bad.to_str().unwrap(), "--size", "100x100"]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(!bad.join("poses.json").exists());
+}
+
+#[test]
 fn demo_writes_map_overlay_and_keypoints() {
     let d = tmpdir("demo");
     let o = run(&[
         "demo",
+        "--detect-only",
         "-o",
         d.to_str().unwrap(),
         "--size",
@@ -235,10 +294,16 @@ fn usage_errors_exit_2_and_help_exits_0() {
         Some(2)
     );
     assert_eq!(run(&["frobnicate"]).status.code(), Some(2));
-    assert_eq!(run(&["demo", "--size", "0x5"]).status.code(), Some(2));
+    assert_eq!(
+        run(&["demo", "--detect-only", "--size", "0x5"])
+            .status
+            .code(),
+        Some(2)
+    );
     assert_eq!(
         run(&[
             "demo",
+            "--detect-only",
             "--size",
             "10x10",
             "-o",
@@ -287,6 +352,7 @@ fn gpu_and_cpu_backends_write_the_same_csv() {
     let map = d.join("office");
     let o = run(&[
         "demo",
+        "--detect-only",
         "-o",
         map.to_str().unwrap(),
         "--size",
@@ -666,6 +732,7 @@ fn every_detector_through_the_cli() {
     let d = tmpdir("detectors");
     let o = run(&[
         "demo",
+        "--detect-only",
         "-o",
         d.to_str().unwrap(),
         "--size",
@@ -773,6 +840,7 @@ fn eval_reports_every_detector_and_condition() {
     let d = tmpdir("eval");
     let o = run(&[
         "demo",
+        "--detect-only",
         "-o",
         d.to_str().unwrap(),
         "--size",
@@ -840,6 +908,7 @@ fn compare_writes_the_table_and_a_contact_sheet_per_map() {
     let d = tmpdir("compare");
     let o = run(&[
         "demo",
+        "--detect-only",
         "-o",
         d.to_str().unwrap(),
         "--size",
@@ -905,7 +974,14 @@ fn compare_writes_the_table_and_a_contact_sheet_per_map() {
 #[test]
 fn robust_detector_outputs_strength_scale_and_angle_and_checks_its_options() {
     let d = tmpdir("robust");
-    let o = run(&["demo", "-o", d.to_str().unwrap(), "--size", "400x300"]);
+    let o = run(&[
+        "demo",
+        "--detect-only",
+        "-o",
+        d.to_str().unwrap(),
+        "--size",
+        "400x300",
+    ]);
     assert!(o.status.success(), "{}", stderr(&o));
     let yaml = d.join("demo-map.yaml");
     let y = yaml.to_str().unwrap();
@@ -990,7 +1066,14 @@ fn robust_detector_outputs_strength_scale_and_angle_and_checks_its_options() {
 #[test]
 fn eval_annotations_plot_draws_each_annotated_map() {
     let d = tmpdir("marked");
-    let o = run(&["demo", "-o", d.to_str().unwrap(), "--size", "300x200"]);
+    let o = run(&[
+        "demo",
+        "--detect-only",
+        "-o",
+        d.to_str().unwrap(),
+        "--size",
+        "300x200",
+    ]);
     assert!(o.status.success(), "{}", stderr(&o));
     let marks = d.join("marks.json");
     fs::write(&marks, r#"{"maps": {"demo-map": [[20, 20], [100, 60]]}}"#).unwrap();

@@ -37,7 +37,7 @@ fn pair(seed: u64, t: &Rigid, from_x: f64, to_x: u32) -> (OccupancyMap, Occupanc
 fn synthetic_pairs_are_never_merged_wrongly() {
     // Aperiodic floor plans of thin straight walls, B turned and shifted with exact truth. The coarse
     // correlation (16 px cells) often cannot tell such plans from a shifted copy and declines them as
-    // ambiguous (README, "Merging maps"); what must hold is that an accepted merge is right.
+    // ambiguous (docs/merging.md); what must hold is that an accepted merge is right.
     let mut accepted = 0;
     for (i, theta) in [23.0, -61.0, 137.0, 200.0, 4.0, 90.0]
         .into_iter()
@@ -259,7 +259,7 @@ fn the_real_pairs_of_one_building_merge_and_other_buildings_are_declined() {
         );
         ok += usize::from(al.accepted && p.accurate(&al.transform));
     }
-    // Measured: all 12 (README, "Merging maps").
+    // Measured: all 12 (docs/merging.md).
     assert_eq!(ok, hih.len());
     for n in set
         .negatives
@@ -448,7 +448,7 @@ fn merge_eval_runs_the_synthetic_suite_on_given_maps() {
 
 #[test]
 fn half_overlapping_synthetic_offices_are_merged_and_never_wrongly() {
-    // The first designs accepted these half-turned, then declined them (README, "Synthetic pairs"); the
+    // The first designs accepted these half-turned, then declined them (docs/merging.md, "Synthetic pairs"); the
     // strict screening and the free-space features merge them: whatever is accepted is right, and most are.
     use ogm_corners::merge::synthetic::{synthetic_pair, SyntheticSpec};
     let mut merged = 0;

@@ -437,7 +437,7 @@ fn the_real_buildings_are_placed_whole_and_never_into_each_other() {
         .collect();
     let r = run_maps(names.clone(), &maps, &GlobalOptions::default(), &|_, _| {}).unwrap();
     let groups: Vec<Option<usize>> = r.placement.maps.iter().map(|m| m.group).collect();
-    // Measured: each apartment one group of 4 (README, "Merging many maps").
+    // Measured: each apartment one group of 4 (docs/merging.md, "Merging many maps").
     assert_eq!(r.placement.groups.len(), 2, "{groups:?}");
     assert!(groups[..4].iter().all(|g| g.is_some() && *g == groups[0]));
     assert!(groups[4..].iter().all(|g| g.is_some() && *g == groups[4]));

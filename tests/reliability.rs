@@ -347,6 +347,7 @@ fn commands_that_would_exhaust_memory_are_refused_up_front() {
     let demo_dir = d.path().join("demo");
     let o = ogm(&[
         "demo",
+        "--detect-only",
         "--size",
         "1000000x4000",
         "--max-memory",
@@ -628,7 +629,7 @@ fn usage_errors_lead_with_one_line_and_refusals_come_before_output() {
     // demo refuses a size before it makes its folder.
     let d = tmp();
     let dir = d.path().join("demo");
-    let o = ogm(&["demo", "--size", "10x10", "-o", s(&dir)]);
+    let o = ogm(&["demo", "--detect-only", "--size", "10x10", "-o", s(&dir)]);
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     assert!(!dir.exists());
 }
@@ -698,7 +699,7 @@ fn long_runs_check_every_map_before_they_start() {
     assert!(o.status.success(), "{}", stderr(&o));
     // Rows name the map by its first distinctive path component, not its path.
     assert!(stdout(&o).contains("| good |"), "{}", stdout(&o));
-    let o = ogm(&["demo", "--size", "64x64", "-o", s(&bad)]);
+    let o = ogm(&["demo", "--detect-only", "--size", "64x64", "-o", s(&bad)]);
     refused(&o, "is a file, not a folder");
     let o = ogm(&[]);
     refused(&o, "no command given");

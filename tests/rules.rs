@@ -52,7 +52,7 @@ fn closed_under_rotation_and_mirroring() {
 
 #[test]
 fn canonical_patterns_match_the_reviewed_pictures() {
-    // Reviewed by hand against the README pictures: an independent record of what each reading accepts,
+    // Reviewed by hand against the pictures in docs/detectors.md: an independent record of what each reading accepts,
     // so a change to the formulas or the rotation shows up here.
     let paper = [
         (27, 4),

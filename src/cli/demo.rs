@@ -1,4 +1,6 @@
-//! `ogm-corners demo`: a synthetic office map, its corners, and every output the tool writes.
+//! `ogm-corners demo`: the whole job on a synthetic building: robots explore it, each map's corners are
+//! found, the maps are merged with no known poses and checked against the truth. `--detect-only`: one
+//! synthetic office map, its corners, and every output `detect` writes.
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -17,17 +19,24 @@ use super::{parse_size, write_stdout, DetectOpts};
 pub(super) struct DemoArgs {
     /// Output folder.
     #[arg(short, long, value_name = "DIR", default_value = "demo-out")]
-    output: PathBuf,
+    pub(super) output: PathBuf,
     /// Map size, WIDTHxHEIGHT.
     #[arg(long, value_name = "WxH", default_value = "1024x768", value_parser = parse_size)]
-    size: (u32, u32),
+    pub(super) size: (u32, u32),
     /// Seed of the synthetic map.
     #[arg(long, default_value_t = 1)]
-    seed: u64,
+    pub(super) seed: u64,
+    /// Robots exploring the building.
+    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(2..=12))]
+    pub(super) robots: u32,
+    /// Only the detection: one synthetic office map and its corners (no robots, no merging).
+    #[arg(long)]
+    pub(super) detect_only: bool,
     #[command(flatten)]
-    opts: DetectOpts,
+    pub(super) opts: DetectOpts,
 }
 
+/// `demo --detect-only`: one synthetic office map, its corners, and every output `detect` writes.
 pub(super) fn run(a: DemoArgs, budget: &Budget) -> Result<()> {
     let (w, h) = a.size;
     let dir = &a.output;

@@ -74,7 +74,7 @@ pub(super) fn run(a: DetectArgs, budget: &Budget) -> Result<()> {
     // Outputs are checked against the map's files before anything is computed or written.
     let mut inputs = Inputs::new();
     inputs.add(path);
-    inputs.add_map(&map);
+    inputs.add_all(map.files());
     if let Some(o) = &a.output {
         inputs.claim_output(o, "--output")?;
     }

@@ -1,6 +1,6 @@
 //! `ogm-corners merge A B`: align map B onto map A with no initial pose, and write the merged map when the
 //! alignment is confident (see [`ogm_corners::merge`]). With more maps, a folder, or `--poses` /
-//! `--init-poses`: every map placed at once ([`super::merge_many`]).
+//! `--init-poses`: every map placed at once (`merge_many.rs`).
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -65,16 +65,21 @@ struct Timed {
     seconds: f64,
 }
 
+impl MergeArgs {
+    /// Whether this is the two-map merge (two map files and no output only many-map mode writes);
+    /// otherwise every map is placed at once (`merge_many`).
+    pub(super) fn is_pair(&self) -> bool {
+        self.maps.len() == 2
+            && self.maps.iter().all(|p| !p.is_dir())
+            && self.poses.is_none()
+            && self.init_poses.is_none()
+            && self.html.is_none()
+    }
+}
+
+/// The two-map merge ([`MergeArgs::is_pair`]).
 pub(super) fn run(a: MergeArgs, budget: &Budget) -> Result<()> {
     super::check_stdout()?;
-    let pair = a.maps.len() == 2
-        && a.maps.iter().all(|p| !p.is_dir())
-        && a.poses.is_none()
-        && a.init_poses.is_none()
-        && a.html.is_none();
-    if !pair {
-        return super::merge_many::run(a, budget);
-    }
     let mut inputs = files::Inputs::new();
     // The images first; what merging them needs is counted once they are read (below).
     let mut raw = 0u64;

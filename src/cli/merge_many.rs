@@ -31,6 +31,7 @@ fn group_path(base: &Path, g: usize) -> PathBuf {
 }
 
 pub(super) fn run(a: MergeArgs, budget: &Budget) -> Result<()> {
+    super::check_stdout()?;
     let (paths, mut inputs) = super::map_inputs(&a.maps, budget, &|_, _| 0)?;
     if paths.len() < 2 {
         return Err(Error::invalid(format!(

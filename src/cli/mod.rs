@@ -4,6 +4,7 @@
 mod bench;
 mod compare;
 mod demo;
+mod demo_merge;
 mod detect;
 mod eval;
 mod info;
@@ -352,13 +353,15 @@ pub fn run(cli: Cli) -> Result<()> {
     let budget = Budget::from_option(cli.max_memory)?;
     match cli.command {
         Command::Detect(a) => detect::run(a, &budget),
-        Command::Demo(a) => demo::run(a, &budget),
+        Command::Demo(a) if a.detect_only => demo::run(a, &budget),
+        Command::Demo(a) => demo_merge::run(&a, &budget),
         Command::Rules(a) => rules::run(a),
         Command::Info(a) => info::run(a),
         Command::Bench(a) => bench::bench(a, &budget),
         Command::Eval(a) => eval::run(a, &budget),
         Command::Compare(a) => compare::run(a, &budget),
-        Command::Merge(a) => merge::run(a, &budget),
+        Command::Merge(a) if a.is_pair() => merge::run(a, &budget),
+        Command::Merge(a) => merge_many::run(a, &budget),
         Command::MergeEval(a) => merge_eval::run(a, &budget),
     }
 }

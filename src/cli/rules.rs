@@ -21,7 +21,7 @@ pub(super) struct RulesArgs {
     /// Output format: text with a picture of each code, or CSV `code,rule`.
     #[arg(long, value_enum, default_value = "text")]
     format: RulesFormat,
-    /// Only one code per rotation class (the smallest), as pictured in the README.
+    /// Only one code per rotation class (the smallest), as pictured in docs/detectors.md.
     #[arg(long)]
     canonical: bool,
 }

@@ -3,7 +3,7 @@
 //!
 //! A cell is occupied when at least 15% of its samples are occupied (a jagged wall a pixel or two thick
 //! still fills every cell it crosses), else free when at least 40% are free, else unknown (thresholds
-//! calibrated on half of the annotated maps, see the README).
+//! calibrated on half of the annotated maps, see docs/detectors.md).
 //! Samples outside the map are unknown. The coarse map is written with the values of [`OCCUPIED`],
 //! [`FREE`] and [`UNKNOWN`], so the paper's detector runs on it unchanged.
 

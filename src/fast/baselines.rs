@@ -3,7 +3,7 @@
 //!
 //! Each band streams its rows through a rolling pipeline (`TensorRows` for Harris and Shi-Tomasi,
 //! `TrajkovicRows`), keeping three rows per stage. [`scores`] writes the rows straight into the output
-//! map. [`keypoints`] keeps three rows of scores per band (its rows plus one above and below, for the 3x3
+//! map. `keypoints` keeps three rows of scores per band (its rows plus one above and below, for the 3x3
 //! local maximum) and emits only sparse candidates: local maxima above a floor. The thresholds that depend
 //! on the map's maximum are applied once every band has reported its maximum; until then each band only
 //! drops what fails against the largest maximum known so far, which is never above the final one, so
@@ -125,7 +125,7 @@ fn score_band_impl(kind: Baseline, image: Rows, p: &ExactParams, y0: usize, out:
 }
 
 /// The candidates of rows `core` of a window and the window's part of the map's maximum (see
-/// [`band_candidates`]), `None` when the fast path does not cover `params` (the caller takes the
+/// `band_candidates`), `None` when the fast path does not cover `params` (the caller takes the
 /// reference's route). `known_max` is the largest maximum of the windows before (`i64::MIN` for none):
 /// candidates that fail against it may be left out.
 pub fn window_candidates(

@@ -324,6 +324,13 @@ pub struct OccupancyMap {
 }
 
 impl OccupancyMap {
+    /// The files the map was read from: its yaml and its image (none for a map made in memory).
+    pub fn files(&self) -> impl Iterator<Item = &Path> {
+        [self.yaml_path.as_deref(), self.image_path.as_deref()]
+            .into_iter()
+            .flatten()
+    }
+
     /// A map from an image in memory, with the ROS default thresholds and no georeference.
     pub fn from_image(image: MapImage) -> Self {
         OccupancyMap {

@@ -9,7 +9,7 @@ use serde::Serialize;
 /// of the synthetic suite have 0.6-0.7.
 pub const MAX_FINE_CONFLICT: f64 = 0.55;
 /// Whatever the rule says, a merge is ambiguous when either map matches itself under another transform
-/// this well ([`super::align::self_symmetry`]): the real maps have 0.49 at most, parts of the symmetric
+/// this well (the aligner's `self_symmetry`): the real maps have 0.49 at most, parts of the symmetric
 /// arenas of the synthetic suite 0.43-0.79 (those under the limit are the suite's wrong accepts).
 pub const MAX_SELF_SYMMETRY: f64 = 0.55;
 
@@ -153,7 +153,7 @@ pub struct Features {
     /// alternatives are the chosen pose moved by either map's self-transforms ([`MAX_ALIAS`]; measured
     /// with the self-match, 0 otherwise).
     pub alias: f64,
-    /// The larger of the two maps' [`self_symmetry`], measured for the chosen candidate when the rule
+    /// The larger of the two maps' `self_symmetry` (the aligner's), measured for the chosen candidate when the rule
     /// value is at least -1 (0 otherwise).
     pub self_match: f64,
 }

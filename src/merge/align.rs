@@ -1,5 +1,5 @@
 //! Aligning map B onto map A with no initial pose (designed in a prototype on the shared merge-pairs data,
-//! then extended with the synthetic suite of partial overlaps; the README's "Merging maps" gives the
+//! then extended with the synthetic suite of partial overlaps; docs/merging.md gives the
 //! figures).
 //!
 //! Per map, once ([`Prepared`]): the known area's bounding box (plus 8 px); wall pixels (occupied with a
@@ -23,8 +23,8 @@ pub use super::accept::{
     accepts, contradiction, not_contradicted, Acceptance, Features, MAX_ALIAS, MAX_CONTRADICTION,
     MAX_FINE_CONFLICT, MAX_SELF_SYMMETRY, MIN_SUPPORT,
 };
-pub use super::coarse::FINE_FFT;
 use super::coarse::{coarse_hypotheses, screen, CoarseSet, Crop};
+pub use super::fft::FINE_FFT;
 use super::hypotheses::Hypotheses;
 use super::local::{local_both, local_fit};
 pub use super::prepare::{prepared_bytes, Prepared, Symmetry, CELLS};

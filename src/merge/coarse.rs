@@ -6,6 +6,7 @@ use rustfft::num_complex::Complex32;
 use rustfft::FftPlanner;
 
 use super::fft::{padded, Fft2};
+use super::fft::{FINE_FFT, MAX_FFT};
 use super::hypotheses::{vote, Hypotheses};
 use super::prepare::{Prepared, CELLS};
 use super::score::{score_both, Counts, Probe};
@@ -19,10 +20,6 @@ const LAMBDA: f32 = 1.0;
 const OFFSETS: [f64; 5] = [-2.0, -1.0, 0.0, 1.0, 2.0];
 /// Peaks kept per rotation hypothesis.
 const PEAKS: usize = 32;
-/// Largest coarse correlation side.
-pub(super) const MAX_FFT: usize = 2048;
-/// The finest coarse level whose correlation side is at most this is used.
-pub const FINE_FFT: usize = 256;
 
 /// Rotation matrix entries (cos, sin) of `deg`.
 pub(super) fn cs(deg: f64) -> (f64, f64) {

@@ -5,6 +5,11 @@ use std::sync::Arc;
 use rustfft::num_complex::Complex32;
 use rustfft::{Fft, FftPlanner};
 
+/// Largest coarse correlation side (the preparation keeps its coarse levels within it).
+pub(super) const MAX_FFT: usize = 2048;
+/// The finest coarse level whose correlation side is at most this is used (and prepared).
+pub const FINE_FFT: usize = 256;
+
 /// A square 2-D FFT (rows, then columns), forward or inverse.
 pub(super) struct Fft2 {
     n: usize,

@@ -43,7 +43,7 @@ impl Footprint {
 }
 
 /// `map`'s footprint once brought to `resolution` (metres a pixel; `None`: kept as it is), as
-/// [`at_resolution`](super::compose::at_resolution) would bring it. Refused, naming the map, both
+/// [`at_resolution`](super::resample::at_resolution) would bring it. Refused, naming the map, both
 /// resolutions and the size, when the resampled map would be over [`MAX_RESAMPLED`](super::resample::MAX_RESAMPLED) pixels.
 pub fn footprint(map: &OccupancyMap, resolution: Option<f64>) -> Result<Footprint> {
     let (w, h) = (u64::from(map.image.width()), u64::from(map.image.height()));

@@ -27,7 +27,7 @@ pub fn prepared_bytes(width: u32, height: u32) -> u64 {
     let side = u64::from(width.max(height)).div_ceil(CELLS[CELLS.len() - 1] as u64);
     let n = (side * 5 / 2 + 2)
         .next_power_of_two()
-        .min(super::coarse::MAX_FFT as u64);
+        .min(super::fft::MAX_FFT as u64);
     let tasks = rayon::current_num_threads().clamp(1, 10) as u64;
     px.saturating_mul(42)
         .saturating_add((3 * tasks + 3) * n * n * 8)
@@ -98,7 +98,7 @@ pub struct Prepared {
     pub(super) angle: f64,
     /// Corners for corner hypotheses (crop coordinates), when prepared with them.
     pub(super) corners: Option<Vec<(f64, f64)>>,
-    /// Its self-symmetry, once measured ([`super::align::self_symmetry`]).
+    /// Its self-symmetry, once measured (the aligner's `self_symmetry`).
     pub(super) symmetry: std::sync::OnceLock<Symmetry>,
     /// The coarse masks, one level per cell side of [`CELLS`]: the coarsest always, a finer one when
     /// this map is small enough for it to be chosen.
@@ -109,9 +109,9 @@ pub struct Prepared {
 /// to its own) under which it matches itself well enough to misplace another map by them.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Symmetry {
-    /// [`super::align::self_symmetry`].
+    /// the aligner's `self_symmetry`.
     pub value: f64,
-    /// Self-transforms with a self-match of at least [`super::align::ALIAS_SELF_MATCH`].
+    /// Self-transforms with a self-match of at least the aligner's `ALIAS_SELF_MATCH`.
     pub transforms: Vec<super::transform::Rigid>,
     /// Time its measurement took, milliseconds: `merge-eval` reports it per map, apart from the time
     /// of the pair whose alignment first needed it.
@@ -345,7 +345,7 @@ impl Prepared {
 }
 
 /// The coarse levels of [`CELLS`] a `w` x `h` map may use: the coarsest always, a finer one when the map
-/// spans at most [`super::align::FINE_FFT`] of its cells. Their walls leave out speckle (an occupied pixel
+/// spans at most [`super::fft::FINE_FFT`] of its cells. Their walls leave out speckle (an occupied pixel
 /// with no occupied 8-neighbour).
 fn coarse_levels(occ: &[bool], free: &[bool], w: usize, h: usize) -> Vec<Option<Coarse>> {
     let mut solid = vec![false; w * h];
@@ -363,7 +363,7 @@ fn coarse_levels(occ: &[bool], free: &[bool], w: usize, h: usize) -> Vec<Option<
         .iter()
         .enumerate()
         .map(|(i, &c)| {
-            let usable = w.max(h).div_ceil(c) <= super::align::FINE_FFT;
+            let usable = w.max(h).div_ceil(c) <= super::fft::FINE_FFT;
             (usable || i == CELLS.len() - 1).then(|| Coarse::new(&solid, free, w, h, c))
         })
         .collect()

@@ -411,7 +411,7 @@ def _unwrap(v: Any) -> Any:
 
 def main(argv: list[str] | None = None) -> int:
     """`python3 tests/browser/webdriver.py PAGE.html OUT.png [WIDTH HEIGHT]`: a screenshot of a page (the
-    viewport, WIDTH x HEIGHT, default 1200 x 1500), as the README's picture of a report was taken."""
+    viewport, WIDTH x HEIGHT, default 1200 x 1500), as the picture of a report in docs/guide.md was taken."""
     import sys
 
     args = sys.argv[1:] if argv is None else argv

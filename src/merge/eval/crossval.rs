@@ -7,7 +7,7 @@
 //! inputs (standardised, a unit ridge on the weights, Newton's method), the threshold 0.3 standard
 //! deviations of the rule's values above the highest value of any wrong estimate or negative among the
 //! training pairs, vetoed or not. The vetoes keep their limits (they are stated with the data they were
-//! set on, [`super::super::accept`]); as the threshold does not lean on them, the held-out figures with
+//! set on, in the acceptance module); as the threshold does not lean on them, the held-out figures with
 //! the rule alone are reported too (`rule alone` rows): what the vetoes' hand-set limits add.
 
 use std::collections::HashMap;

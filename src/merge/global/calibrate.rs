@@ -11,7 +11,6 @@
 
 use serde::Serialize;
 
-use super::graph::EdgeEvidence;
 use super::Pairwise;
 
 /// Confirmed pairs needed to measure a set's level: with fewer, no candidate is excluded for it (each
@@ -44,6 +43,34 @@ impl Calibration {
     /// Whether a candidate with this residual conflict is excluded.
     pub fn excludes(&self, residual: f64) -> bool {
         self.limit.is_some_and(|l| residual > l)
+    }
+}
+
+/// What the cycles say about one edge.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct EdgeEvidence {
+    /// Its own weight (the graph's `weight`).
+    pub own: f64,
+    /// Sum over third maps of the weaker of the two edges through it that compose to this one.
+    pub support: f64,
+    /// For an accepted edge: sum over third maps through which no two edges compose to it of the weaker
+    /// of two accepted edges through it that compose to something else.
+    pub contradicted: f64,
+    /// For an accepted edge: two other accepted edges through a third map compose to it.
+    pub confirmed: bool,
+    /// Excluded: its residual conflict is over the set's limit ([`Calibration::limit`]); it neither votes
+    /// nor confirms.
+    pub excluded: bool,
+}
+
+impl EdgeEvidence {
+    /// The weight it votes with: its own plus its support, less its contradiction (at least 0; 0 when
+    /// excluded).
+    pub fn vote(&self) -> f64 {
+        if self.excluded {
+            return 0.0;
+        }
+        (self.own + self.support - self.contradicted).max(0.0)
     }
 }
 

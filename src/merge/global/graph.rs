@@ -5,7 +5,7 @@ use std::collections::{BTreeMap, BTreeSet};
 
 use serde::Serialize;
 
-use super::calibrate::Calibration;
+use super::calibrate::{Calibration, EdgeEvidence};
 use super::{Edge, GlobalOptions, Pairwise};
 use crate::backend::Backend;
 use crate::error::Result;
@@ -46,34 +46,6 @@ pub const DENSE_CONFLICT: f64 = 0.25;
 /// strong pair does not outvote several cycles.
 pub fn weight(e: &Edge) -> f64 {
     (e.score / 8.0).clamp(-4.0, 2.0).exp()
-}
-
-/// What the cycles say about one edge.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
-pub struct EdgeEvidence {
-    /// Its own weight ([`weight`]).
-    pub own: f64,
-    /// Sum over third maps of the weaker of the two edges through it that compose to this one.
-    pub support: f64,
-    /// For an accepted edge: sum over third maps through which no two edges compose to it of the weaker
-    /// of two accepted edges through it that compose to something else.
-    pub contradicted: f64,
-    /// For an accepted edge: two other accepted edges through a third map compose to it.
-    pub confirmed: bool,
-    /// Excluded: its residual conflict is over the set's limit ([`Calibration::limit`]); it neither votes
-    /// nor confirms.
-    pub excluded: bool,
-}
-
-impl EdgeEvidence {
-    /// The weight it votes with: its own plus its support, less its contradiction (at least 0; 0 when
-    /// excluded).
-    pub fn vote(&self) -> f64 {
-        if self.excluded {
-            return 0.0;
-        }
-        (self.own + self.support - self.contradicted).max(0.0)
-    }
 }
 
 /// Whether two transforms of a map into one frame agree at its point `centre` (their rotations and where

@@ -76,7 +76,7 @@ pub struct Edge {
     pub score: f64,
     /// Whether the pair test accepted it (the choice only).
     pub accepted: bool,
-    /// Where it makes the maps overlap, in B's pixels ([`overlap_centre`](super::align)): where it is
+    /// Where it makes the maps overlap, in B's pixels (`overlap_centre` in the aligner): where it is
     /// compared with other estimates of B's placement.
     pub at: (f64, f64),
     /// Its walls in the other map's free space once each tile of the overlap has had a few px of shift

@@ -9,9 +9,11 @@
 //! Both are written with map_server's values (0 occupied, 254 free, 205 unknown).
 
 mod crops;
+mod explore;
 mod layouts;
 
 pub use crops::{synthetic_crops, CropSpec};
+pub use explore::{explore, Exploration};
 pub use layouts::{doors, grid_rooms, warehouse, Layout, LayoutKind};
 
 use super::pairs::TruePair;

@@ -1,0 +1,314 @@
+//! `ogm-corners demo` (no arguments): the whole job on a synthetic building. Robots explore it, each
+//! making a partial map in its own frame; each map's corners are found; the maps are merged with no
+//! known poses; and the placement is checked against the truth the simulation knows. One line a step,
+//! with its time.
+
+use std::time::Instant;
+
+use serde_json::json;
+
+use ogm_corners::files;
+use ogm_corners::map::{yaml_text, GeoRef};
+use ogm_corners::memory::Budget;
+use ogm_corners::merge::footprint;
+use ogm_corners::merge::global::{merge_maps, GlobalOptions};
+use ogm_corners::merge::synthetic::{explore, Exploration, SyntheticCrop};
+use ogm_corners::merge::Rigid;
+use ogm_corners::plot;
+use ogm_corners::{synth, Error, MapImage, OccupancyMap, Result};
+
+use super::demo::DemoArgs;
+use super::write_stdout;
+
+/// The robots' cells, metres (the 5 cm of most ROS maps).
+const RESOLUTION: f64 = 0.05;
+
+/// The smallest building, pixels: a few rooms, so that every robot's map overlaps another's.
+const MIN_SIDE: (u32, u32) = (512, 384);
+
+pub(super) fn run(a: &DemoArgs, budget: &Budget) -> Result<()> {
+    let (w, h) = a.size;
+    let dir = &a.output;
+    super::check_stdout()?;
+    // The office is made at half the size and doubled, so that its rooms are as large in pixels as a
+    // real 5 cm map's (at its own scale a window of it is a dense grid of small alike rooms).
+    if w < MIN_SIDE.0 || h < MIN_SIDE.1 {
+        return Err(Error::invalid(format!(
+            "demo --size {w}x{h}: robots need a building of at least {}x{} to explore and to \
+             overlap; demo --detect-only takes smaller maps",
+            MIN_SIDE.0, MIN_SIDE.1
+        )));
+    }
+    synth::check_office_size(w / 2, h / 2)?;
+    // The building, its states, what the robots see (a few bytes a pixel), then each robot's map.
+    budget.check(
+        format_args!("demo --size {w}x{h}"),
+        u64::from(w) * u64::from(h) * 16,
+    )?;
+    files::create_dir(dir)?;
+    let mut lines = Vec::new();
+    let total = Instant::now();
+
+    let t = Instant::now();
+    let half = synth::office_map(w / 2, h / 2, a.seed)?;
+    let (bw, bh) = (half.width() * 2, half.height() * 2);
+    let px = (0..bh)
+        .flat_map(|y| (0..bw).map(move |x| (x, y)))
+        .map(|(x, y)| half.get(x / 2, y / 2))
+        .collect();
+    let building = OccupancyMap::from_image(MapImage::new(bw, bh, px)?);
+    lines.push(format!(
+        "1. a {bw}x{bh} synthetic office building ({:.0} x {:.0} m at {RESOLUTION} m a cell, seed {}): {}",
+        f64::from(bw) * RESOLUTION,
+        f64::from(bh) * RESOLUTION,
+        a.seed,
+        ms(t)
+    ));
+
+    let t = Instant::now();
+    let how = Exploration {
+        robots: a.robots as usize,
+        ..Exploration::default()
+    };
+    let robots = explore(&building, &how, a.seed).ok_or_else(|| {
+        Error::invalid("the building has no room to drive in; try another --seed")
+    })?;
+    let names: Vec<String> = (1..=robots.len()).map(|k| format!("robot-{k}")).collect();
+    let maps: Vec<OccupancyMap> = robots
+        .iter()
+        .map(|r| OccupancyMap {
+            georef: Some(GeoRef {
+                resolution: RESOLUTION,
+                origin: [0.0; 3],
+            }),
+            ..r.map.clone()
+        })
+        .collect();
+    lines.push(format!(
+        "2. {} robots explored it ({:.0} m sensor range), each map in its own frame, the poses kept from \
+         the merger: {}",
+        robots.len(),
+        how.range * RESOLUTION,
+        ms(t)
+    ));
+
+    let t = Instant::now();
+    let mut detector = a.opts.detector()?;
+    let mut corners = Vec::with_capacity(maps.len());
+    for m in &maps {
+        corners.push(detector.detect(m)?.keypoints);
+    }
+    let counts: Vec<String> = corners.iter().map(|c| c.len().to_string()).collect();
+    lines.push(format!(
+        "3. corners ({}, {}): {} in the robots' maps: {}",
+        detector.options().detector.name(),
+        detector.backend_name(),
+        counts.join(", "),
+        ms(t)
+    ));
+
+    budget.check(
+        format_args!("merging {} robots' maps", maps.len()),
+        footprint::many_bytes(&maps)?,
+    )?;
+    let t = Instant::now();
+    let mut backend = super::backend_on(a.opts.backend)?;
+    let many = merge_maps(
+        maps.clone(),
+        &names,
+        &GlobalOptions::default(),
+        backend.as_mut(),
+        &|_, _| {},
+    )?;
+    let placed: usize = many
+        .run
+        .placement
+        .groups
+        .iter()
+        .map(Vec::len)
+        .max()
+        .unwrap_or(0);
+    lines.push(format!(
+        "4. merged with no initial poses: {placed} of {} maps placed in one map: {}",
+        maps.len(),
+        ms(t)
+    ));
+    // Each robot's placement against the truth, in the frame of its group's first map.
+    let mut report = Vec::new();
+    for (k, name) in names.iter().enumerate() {
+        let group = many
+            .run
+            .placement
+            .groups
+            .iter()
+            .position(|g| g.contains(&k));
+        let entry = match group {
+            Some(g) => {
+                let first = many.run.placement.groups[g][0];
+                let pose = many.run.placement.maps[k].pose;
+                let truth = robots[first].pose.inverse().after(&robots[k].pose);
+                let (deg, px) = errors(&robots[k], &pose, &truth);
+                if k != first {
+                    lines.push(format!(
+                        "   {name}: placed {:.1} deg, ({:.0}, {:.0}) px from {}; the truth differs by \
+                         {deg:.2} deg, {px:.2} px",
+                        pose.theta_deg, pose.tx, pose.ty, names[first]
+                    ));
+                }
+                let to_canvas = many.frames[g].to_canvas(&pose);
+                json!({"name": name, "group": g, "frame_of": names[first],
+                       "pose": rigid_json(&pose), "truth": rigid_json(&truth),
+                       "error_deg": deg, "error_px": px,
+                       "to_merged_px": rigid_json(&to_canvas)})
+            }
+            None => {
+                lines.push(format!("   {name}: not placed"));
+                json!({"name": name, "group": null})
+            }
+        };
+        report.push(entry);
+    }
+
+    // Every output staged, then renamed into place together.
+    let t = Instant::now();
+    let mut staged = files::Staged::default();
+    let mut wrote = Vec::new();
+    for (m, name) in maps.iter().zip(&names) {
+        let pgm = dir.join(format!("{name}.pgm"));
+        let yaml = dir.join(format!("{name}.yaml"));
+        staged.write(&pgm, |out| m.image.write_pgm_to(out))?;
+        let text = yaml_text(&pgm, m, name);
+        staged.write(&yaml, |out| out.write_all(text.as_bytes()))?;
+        wrote.push(yaml);
+    }
+    let csv = dir.join("corners.csv");
+    staged.write(&csv, |out| {
+        writeln!(out, "robot,x,y,merged_x,merged_y")?;
+        for (k, c) in corners.iter().enumerate() {
+            let to_merged = placement_on_canvas(&many, k);
+            for p in c {
+                write!(out, "{},{},{}", names[k], p.x, p.y)?;
+                match to_merged {
+                    Some(t) => {
+                        let (x, y) = t.apply((f64::from(p.x), f64::from(p.y)));
+                        writeln!(out, ",{x:.1},{y:.1}")?;
+                    }
+                    None => writeln!(out, ",,")?,
+                }
+            }
+        }
+        Ok(())
+    })?;
+    wrote.push(csv);
+    if many.groups() > 0 {
+        let g = 0;
+        let merged = many.merged(g)?;
+        let pgm = dir.join("merged.pgm");
+        let yaml = dir.join("merged.yaml");
+        staged.write(&pgm, |out| merged.image.write_pgm_to(out))?;
+        let text = yaml_text(&pgm, &merged, &names[many.run.placement.groups[g][0]]);
+        staged.write(&yaml, |out| out.write_all(text.as_bytes()))?;
+        wrote.push(yaml);
+        let picture = picture(&many, g, &corners)?;
+        let png = dir.join("demo.png");
+        staged.write(&png, |out| files::encode_png(out, &picture))?;
+        wrote.push(png);
+    }
+    let poses = dir.join("poses.json");
+    let doc = json!({"robots": report, "resolution_m": RESOLUTION,
+                     "note": "pose: the robot's map pixels to its group's first map's pixels; truth: the simulation's; to_merged_px: to merged.pgm's pixels"});
+    staged.write(&poses, |out| {
+        serde_json::to_writer_pretty(&mut *out, &doc)?;
+        writeln!(out)
+    })?;
+    wrote.push(poses);
+    staged.commit()?;
+    lines.push(format!("5. outputs written: {}", ms(t)));
+    lines.push(format!("all in {}", ms(total)));
+    write_stdout(|out| {
+        for l in &lines {
+            writeln!(out, "{l}")?;
+        }
+        for p in &wrote {
+            writeln!(
+                out,
+                "wrote {}",
+                ogm_corners::error::one_line(&p.display().to_string())
+            )?;
+        }
+        Ok(())
+    })?;
+    if many.groups() == 0 {
+        return Err(Error::Declined(
+            "the robots' maps could not be placed together with confidence".to_string(),
+        ));
+    }
+    Ok(())
+}
+
+/// Milliseconds since `t`, for people.
+fn ms(t: Instant) -> String {
+    format!("{:.0} ms", t.elapsed().as_secs_f64() * 1e3)
+}
+
+fn rigid_json(t: &Rigid) -> serde_json::Value {
+    json!({"theta_deg": t.theta_deg, "tx": t.tx, "ty": t.ty})
+}
+
+/// A placement's error against the truth: the turn, degrees, and the root-mean-square distance of the
+/// robot's check points (its known area's corners and centre), pixels.
+fn errors(robot: &SyntheticCrop, pose: &Rigid, truth: &Rigid) -> (f64, f64) {
+    let deg = ((pose.theta_deg - truth.theta_deg + 540.0).rem_euclid(360.0) - 180.0).abs();
+    let sq: f64 = robot
+        .check_points
+        .iter()
+        .map(|&p| {
+            let (a, b) = (pose.apply(p), truth.apply(p));
+            (a.0 - b.0).powi(2) + (a.1 - b.1).powi(2)
+        })
+        .sum();
+    (deg, (sq / robot.check_points.len().max(1) as f64).sqrt())
+}
+
+/// Robot `k`'s pixels to its group's merged map's pixels, when it is placed in the first group (the
+/// one written).
+fn placement_on_canvas(many: &ogm_corners::merge::global::ManyMerge, k: usize) -> Option<Rigid> {
+    let g = many.run.placement.groups.first()?;
+    g.contains(&k)
+        .then(|| many.frames[0].to_canvas(&many.run.placement.maps[k].pose))
+}
+
+/// Group `g`'s picture: each robot's walls in its colour, its corners as black crosses, a legend.
+fn picture(
+    many: &ogm_corners::merge::global::ManyMerge,
+    g: usize,
+    corners: &[Vec<ogm_corners::Keypoint>],
+) -> Result<image::RgbImage> {
+    let mut img = many.overlay(g)?;
+    let black = image::Rgb([0, 0, 0]);
+    for &k in &many.run.placement.groups[g] {
+        let t = many.frames[g].to_canvas(&many.run.placement.maps[k].pose);
+        for p in &corners[k] {
+            let (x, y) = t.apply((f64::from(p.x), f64::from(p.y)));
+            let (x, y) = (x.round() as i64, y.round() as i64);
+            for d in -3i64..=3 {
+                for (cx, cy) in [(x + d, y), (x, y + d)] {
+                    if cx >= 0
+                        && cy >= 0
+                        && cx < i64::from(img.width())
+                        && cy < i64::from(img.height())
+                    {
+                        img.put_pixel(cx as u32, cy as u32, black);
+                    }
+                }
+            }
+        }
+    }
+    let mut entries: Vec<(String, image::Rgb<u8>)> = many
+        .legend(g)
+        .into_iter()
+        .map(|(m, c)| (m.to_string(), c))
+        .collect();
+    entries.push(("corners".to_string(), black));
+    Ok(plot::with_legend(&img, &entries))
+}

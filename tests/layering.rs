@@ -1,0 +1,293 @@
+//! The house's layering, checked on the source: no two files of `src/` import each other, directly or
+//! through others (a cycle of `use` and `crate::`/`super::` paths), and the library never reaches into the
+//! command line or the detection layers into merging. Test modules (`#[cfg(test)]`) and comments are not
+//! counted: a test may use anything.
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::Path;
+
+/// Every `.rs` file under `dir`, relative to `root`, `/`-separated.
+fn sources(root: &Path, dir: &Path, out: &mut Vec<String>) {
+    for e in std::fs::read_dir(dir).unwrap() {
+        let p = e.unwrap().path();
+        if p.is_dir() {
+            sources(root, &p, out);
+        } else if p.extension().is_some_and(|x| x == "rs") {
+            let rel = p
+                .strip_prefix(root)
+                .unwrap()
+                .to_string_lossy()
+                .replace('\\', "/");
+            out.push(rel);
+        }
+    }
+}
+
+/// The module path of a file (`merge/align.rs` -> [merge, align]; `lib.rs`, `main.rs` -> []).
+fn module_of(file: &str) -> Vec<String> {
+    let mut p: Vec<String> = file
+        .trim_end_matches(".rs")
+        .split('/')
+        .map(String::from)
+        .collect();
+    if p.last().is_some_and(|s| s == "mod") {
+        p.pop();
+    }
+    if p == ["lib"] || p == ["main"] {
+        p.clear();
+    }
+    p
+}
+
+/// The file holding the longest prefix of `segments` that is a module.
+fn file_of(src: &Path, segments: &[String]) -> Option<String> {
+    let mut best = None;
+    for k in 1..=segments.len() {
+        let base = segments[..k].join("/");
+        for c in [format!("{base}.rs"), format!("{base}/mod.rs")] {
+            if src.join(&c).is_file() {
+                best = Some(c);
+            }
+        }
+    }
+    best
+}
+
+/// `a::{b, c::{d}}` as `a::b`, `a::c::d`.
+fn expand(s: &str) -> Vec<String> {
+    let Some(open) = s.find('{') else {
+        return vec![s.to_string()];
+    };
+    let (head, body) = (&s[..open], &s[open + 1..s.len() - 1]);
+    let (mut parts, mut depth, mut cur) = (Vec::new(), 0, String::new());
+    for ch in body.chars() {
+        match ch {
+            '{' => depth += 1,
+            '}' => depth -= 1,
+            _ => {}
+        }
+        if ch == ',' && depth == 0 {
+            parts.push(std::mem::take(&mut cur));
+        } else {
+            cur.push(ch);
+        }
+    }
+    parts.push(cur);
+    parts
+        .iter()
+        .filter(|p| !p.is_empty())
+        .flat_map(|p| expand(p).into_iter().map(|x| format!("{head}{x}")))
+        .collect()
+}
+
+/// The paths a file's code names: its `use` statements (expanded) and every `crate::`, `super::` and
+/// (in the binary) `ogm_corners::` path elsewhere.
+fn paths_in(code: &str) -> Vec<String> {
+    let mut out = Vec::new();
+    let mut rest = String::new();
+    let mut i = 0;
+    let bytes = code.as_bytes();
+    while i < code.len() {
+        let at_use = code[i..].starts_with("use ")
+            && (i == 0 || !(bytes[i - 1].is_ascii_alphanumeric() || bytes[i - 1] == b'_'));
+        if at_use {
+            let end = code[i..].find(';').map_or(code.len(), |e| i + e);
+            let stmt: String = code[i + 4..end]
+                .chars()
+                .filter(|c| !c.is_whitespace())
+                .collect();
+            out.extend(expand(&stmt));
+            i = end + 1;
+        } else {
+            let ch = code[i..].chars().next().unwrap();
+            rest.push(ch);
+            i += ch.len_utf8();
+        }
+    }
+    let ident = |c: char| c.is_ascii_alphanumeric() || c == '_' || c == ':';
+    for start in ["crate::", "super::", "ogm_corners::"] {
+        let mut from = 0;
+        while let Some(k) = rest[from..].find(start) {
+            let s = from + k;
+            let before = rest[..s].chars().last();
+            let end = rest[s..]
+                .find(|c: char| !ident(c))
+                .map_or(rest.len(), |e| s + e);
+            if !before.is_some_and(|c| c.is_ascii_alphanumeric() || c == '_' || c == ':') {
+                out.push(rest[s..end].trim_end_matches(':').to_string());
+            }
+            from = end.max(s + 1);
+        }
+    }
+    out
+}
+
+/// Each file's code without comments and without its test module.
+fn code_of(text: &str) -> String {
+    let text = text.split("#[cfg(test)]").next().unwrap_or("");
+    text.lines()
+        .map(|l| match l.find("//") {
+            Some(k) => &l[..k],
+            None => l,
+        })
+        .collect::<Vec<_>>()
+        .join("\n")
+}
+
+/// Which files each file imports.
+fn graph() -> BTreeMap<String, BTreeSet<String>> {
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
+    let mut files = Vec::new();
+    sources(&src, &src, &mut files);
+    let mut g = BTreeMap::new();
+    for f in &files {
+        let code = code_of(&std::fs::read_to_string(src.join(f)).unwrap());
+        let me = module_of(f);
+        let mut to = BTreeSet::new();
+        for p in paths_in(&code) {
+            let mut segs: Vec<String> = p.split("::").map(String::from).collect();
+            match segs[0].as_str() {
+                "crate" | "ogm_corners" => {
+                    segs.remove(0);
+                }
+                "super" => {
+                    let mut base = me.clone();
+                    while segs.first().is_some_and(|s| s == "super") {
+                        base.pop();
+                        segs.remove(0);
+                    }
+                    base.extend(segs);
+                    segs = base;
+                }
+                _ => continue,
+            }
+            if let Some(t) = file_of(&src, &segs) {
+                if &t != f {
+                    to.insert(t);
+                }
+            }
+        }
+        g.insert(f.clone(), to);
+    }
+    g
+}
+
+/// The files on a cycle through `start`, if any (the shortest, by breadth-first search).
+fn cycle_through(g: &BTreeMap<String, BTreeSet<String>>, start: &str) -> Option<Vec<String>> {
+    let mut prev: BTreeMap<&str, &str> = BTreeMap::new();
+    let mut queue = std::collections::VecDeque::from([start]);
+    while let Some(v) = queue.pop_front() {
+        for w in &g[v] {
+            if w == start {
+                let mut path = vec![v.to_string()];
+                let mut at = v;
+                while at != start {
+                    at = prev[at];
+                    path.push(at.to_string());
+                }
+                path.reverse();
+                return Some(path);
+            }
+            if !prev.contains_key(w.as_str()) && g.contains_key(w) {
+                prev.insert(w, v);
+                queue.push_back(w);
+            }
+        }
+    }
+    None
+}
+
+#[test]
+fn no_file_imports_one_that_imports_it_back() {
+    let g = graph();
+    assert!(g.len() > 50, "only {} files read", g.len());
+    let cycles: BTreeSet<Vec<String>> = g
+        .keys()
+        .filter_map(|f| cycle_through(&g, f))
+        .map(|mut c| {
+            // One form of each cycle: starting at its smallest file.
+            let k = (0..c.len()).min_by_key(|&i| c[i].clone()).unwrap();
+            c.rotate_left(k);
+            c
+        })
+        .collect();
+    assert!(
+        cycles.is_empty(),
+        "import cycles (each file imports the next, the last the first): {cycles:#?}"
+    );
+}
+
+#[test]
+fn lower_layers_do_not_import_higher_ones() {
+    let g = graph();
+    let under = |f: &str, dirs: &[&str]| {
+        dirs.iter()
+            .any(|d| f == format!("{d}.rs") || f.starts_with(&format!("{d}/")))
+    };
+    // (files, what they may not import)
+    let rules: [(&[&str], &[&str]); 3] = [
+        // The library never reaches into the command line.
+        (
+            &[
+                "lib", "backend", "cpu", "fast", "gpu", "robust", "merge", "map", "stream",
+                "detector",
+            ],
+            &["cli", "main"],
+        ),
+        // Maps, decoding and detection know nothing of merging or of reports.
+        (
+            &[
+                "decode",
+                "map",
+                "stream",
+                "states",
+                "rules",
+                "grid",
+                "cpu",
+                "fast",
+                "gpu",
+                "backend",
+                "robust",
+                "detector",
+                "baselines",
+            ],
+            &["merge", "report", "eval", "compare", "bench"],
+        ),
+        // The basic services import no detection or merging.
+        (
+            &["error", "stop", "memory", "files", "stats"],
+            &[
+                "map", "merge", "detector", "backend", "cpu", "gpu", "fast", "robust",
+            ],
+        ),
+    ];
+    let mut bad = Vec::new();
+    for (lower, higher) in rules {
+        for (f, to) in &g {
+            if !under(f, lower) {
+                continue;
+            }
+            for t in to.iter().filter(|t| under(t, higher)) {
+                bad.push(format!("{f} imports {t}"));
+            }
+        }
+    }
+    assert!(bad.is_empty(), "{bad:#?}");
+}
+
+#[test]
+fn the_checker_sees_use_groups_and_paths() {
+    let p =
+        paths_in("use crate::{a::B, c::{d, e::F}};\nfn x() { super::g::h(); let y = crate::k; }");
+    for want in [
+        "crate::a::B",
+        "crate::c::d",
+        "crate::c::e::F",
+        "super::g::h",
+        "crate::k",
+    ] {
+        assert!(p.iter().any(|x| x == want), "{want} not in {p:?}");
+    }
+    assert_eq!(module_of("merge/global/mod.rs"), ["merge", "global"]);
+    assert!(code_of("a // crate::x\n#[cfg(test)]\nuse crate::y;").trim() == "a");
+}
