@@ -22,8 +22,10 @@
 //!
 //! ## The layers, bottom to top
 //!
-//! Each layer imports only the layers below it (`tests/layering.rs` checks that no file imports one that
-//! imports it back, and that maps and detection never reach into merging or the command line):
+//! `tests/layering.rs` checks that no file imports one that imports it back, that maps, decoding and
+//! detection never reach into merging, reports or the command line, and that the basic services import no
+//! detection or merging. Within that, a few edges still point up the list (the backends read the robust
+//! detector's options and sizes, the streamed path draws its overlay, merging's reports use the plots):
 //!
 //! 1. **Services**: [`error`], [`stop`], [`memory`], [`files`].
 //! 2. **Maps**: [`decode`] (PGM/PNG), [`map`] (yaml, georeference, thresholds), [`stream`] (maps as rows),

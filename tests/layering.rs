@@ -1,7 +1,9 @@
 //! The house's layering, checked on the source: no two files of `src/` import each other, directly or
 //! through others (a cycle of `use` and `crate::`/`super::` paths), and the library never reaches into the
-//! command line or the detection layers into merging. Test modules (`#[cfg(test)]`) and comments are not
-//! counted: a test may use anything.
+//! command line or the detection layers into merging. Test modules (`#[cfg(test)]`), comments and string
+//! literals are not counted: a test may use anything. A module's own children (`use child::...` in its
+//! `mod.rs`, their `super::` back) are part of it and not checked against it; paths inside macros are
+//! read as text, so a macro's `crate::` path counts like any other.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::Path;
@@ -92,10 +94,23 @@ fn paths_in(code: &str) -> Vec<String> {
             && (i == 0 || !(bytes[i - 1].is_ascii_alphanumeric() || bytes[i - 1] == b'_'));
         if at_use {
             let end = code[i..].find(';').map_or(code.len(), |e| i + e);
+            // `a::b as c`: the path is `a::b`.
             let stmt: String = code[i + 4..end]
-                .chars()
-                .filter(|c| !c.is_whitespace())
-                .collect();
+                .split_whitespace()
+                .collect::<Vec<_>>()
+                .join(" ")
+                .split(" as ")
+                .enumerate()
+                .map(|(k, part)| {
+                    if k == 0 {
+                        part
+                    } else {
+                        // Drop the new name, keep what follows it (`, d::e}` in a group).
+                        part.trim_start_matches(|c: char| c.is_alphanumeric() || c == '_')
+                    }
+                })
+                .collect::<String>()
+                .replace(' ', "");
             out.extend(expand(&stmt));
             i = end + 1;
         } else {
@@ -122,16 +137,46 @@ fn paths_in(code: &str) -> Vec<String> {
     out
 }
 
-/// Each file's code without comments and without its test module.
+/// Each file's code without comments, string literals and its test module.
 fn code_of(text: &str) -> String {
     let text = text.split("#[cfg(test)]").next().unwrap_or("");
-    text.lines()
-        .map(|l| match l.find("//") {
-            Some(k) => &l[..k],
-            None => l,
-        })
-        .collect::<Vec<_>>()
-        .join("\n")
+    let mut out = String::with_capacity(text.len());
+    let (mut in_str, mut escaped) = (false, false);
+    let mut chars = text.chars().peekable();
+    while let Some(c) = chars.next() {
+        if in_str {
+            match (escaped, c) {
+                (false, '\\') => escaped = true,
+                (false, '"') => in_str = false,
+                _ => escaped = false,
+            }
+            if c == '\n' {
+                out.push('\n');
+            }
+            continue;
+        }
+        match c {
+            '"' => {
+                in_str = true;
+                out.push_str("\"\"");
+            }
+            // A character literal holding a quote is not a string.
+            '\'' if chars.peek() == Some(&'"') => {
+                chars.next();
+                out.push_str("'\"");
+            }
+            '/' if chars.peek() == Some(&'/') => {
+                for d in chars.by_ref() {
+                    if d == '\n' {
+                        out.push('\n');
+                        break;
+                    }
+                }
+            }
+            _ => out.push(c),
+        }
+    }
+    out
 }
 
 /// Which files each file imports.
@@ -290,4 +335,12 @@ fn the_checker_sees_use_groups_and_paths() {
     }
     assert_eq!(module_of("merge/global/mod.rs"), ["merge", "global"]);
     assert!(code_of("a // crate::x\n#[cfg(test)]\nuse crate::y;").trim() == "a");
+    assert!(!code_of("let s = \"use crate::z; // x\"; crate::w();").contains("crate::z"));
+    let renamed = paths_in("use crate::a::B as C;\nuse crate::{d::E as F, g::H};");
+    for want in ["crate::a::B", "crate::d::E", "crate::g::H"] {
+        assert!(
+            renamed.iter().any(|x| x == want),
+            "{want} not in {renamed:?}"
+        );
+    }
 }

@@ -185,7 +185,7 @@ impl Detector {
         map: &Map,
     ) -> PyResult<(Bound<'py, PyArray1<u64>>, Option<f64>)> {
         let m = &map.inner;
-        self.check_budget(m.image.width(), m.image.height())?;
+        self.check_budget(py, m.image.width(), m.image.height())?;
         let (words, angle) = detecting(py, m.image.len() as u64, || {
             let found = self.lock().detect(m)?;
             Ok((records(&found, m.georef), angle_of(&found)))
@@ -219,7 +219,7 @@ impl Detector {
         free_thresh: f64,
     ) -> PyResult<(Bound<'py, PyArray1<u64>>, Option<f64>)> {
         let image = image_of(&pixels, false)?;
-        self.check_budget(image.width(), image.height())?;
+        self.check_budget(py, image.width(), image.height())?;
         let classes = if grid {
             Some(
                 GridThresholds {
@@ -247,8 +247,9 @@ impl Detector {
 impl Detector {
     /// Refuses a detection whose working memory (the backend's buffers for a `w` x `h` map, as the
     /// command line counts them) is over the budget.
-    fn check_budget(&self, w: u32, h: u32) -> PyResult<()> {
-        let bytes = self.lock().working_bytes(w, h);
+    fn check_budget(&self, py: Python<'_>, w: u32, h: u32) -> PyResult<()> {
+        // The lock may be held by a detection on another thread: waited for with the interpreter free.
+        let bytes = py.detach(|| self.lock().working_bytes(w, h));
         within_budget(
             format_args!("detecting in a {w}x{h} map with {}", self.name),
             bytes,

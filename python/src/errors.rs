@@ -66,17 +66,30 @@ pub fn interruptible<T: Send>(
                 r
             })
         };
-        let signal = py.detach(move || loop {
-            match finished.recv_timeout(SIGNAL_POLL) {
-                Ok(()) | Err(RecvTimeoutError::Disconnected) => break None,
-                Err(RecvTimeoutError::Timeout) => {
-                    // Signal handlers run on the main thread only; elsewhere this finds nothing.
-                    if let Err(e) = Python::attach(|py| py.check_signals()) {
-                        stop.raise();
-                        break Some(e);
+        // Signal handlers run on the main thread only: elsewhere there is nothing to look for.
+        let main = is_main_thread(py);
+        let signal = py.detach(move || {
+            let signal = loop {
+                if !main {
+                    let _ = finished.recv();
+                    break None;
+                }
+                match finished.recv_timeout(SIGNAL_POLL) {
+                    Ok(()) | Err(RecvTimeoutError::Disconnected) => break None,
+                    Err(RecvTimeoutError::Timeout) => {
+                        if let Err(e) = Python::attach(|py| py.check_signals()) {
+                            stop.raise();
+                            break Some(e);
+                        }
                     }
                 }
+            };
+            // The work ends at its next check (or, in a stage without checks, at the stage's end): waited
+            // for here, with the lock released, so that other Python threads run meanwhile.
+            if signal.is_some() {
+                let _ = finished.recv();
             }
+            signal
         });
         (worker.join(), signal)
     });
@@ -87,6 +100,18 @@ pub fn interruptible<T: Send>(
         .unwrap_or_else(Err)
         .map_err(panic_error)?
         .map_err(to_py)
+}
+
+/// Whether this is the interpreter's main thread (where signal handlers run).
+fn is_main_thread(py: Python<'_>) -> bool {
+    let threading = || -> PyResult<bool> {
+        let t = py.import("threading")?;
+        let current = t.call_method0("current_thread")?;
+        let main = t.call_method0("main_thread")?;
+        Ok(current.is(&main))
+    };
+    // Unknown: look for signals (harmless off the main thread).
+    threading().unwrap_or(true)
 }
 
 /// A panic's message as a `RuntimeError`.

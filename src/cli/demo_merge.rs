@@ -23,8 +23,13 @@ use super::write_stdout;
 /// The robots' cells, metres (the 5 cm of most ROS maps).
 const RESOLUTION: f64 = 0.05;
 
-/// The smallest building, pixels: a few rooms, so that every robot's map overlaps another's.
+/// The smallest building, pixels: a few rooms, so that the robots' maps can overlap (seeds 1-6 place
+/// every robot at the default 1024x768; at 512x384 a robot's map may hold too little to place).
 const MIN_SIDE: (u32, u32) = (512, 384);
+
+/// Bytes a pixel of the building the exploration holds at its peak (measured 52-61 at 4096x3072 and
+/// 8192x6144, with margin).
+const BYTES_PER_PIXEL: u64 = 72;
 
 pub(super) fn run(a: &DemoArgs, budget: &Budget) -> Result<()> {
     let (w, h) = a.size;
@@ -39,11 +44,18 @@ pub(super) fn run(a: &DemoArgs, budget: &Budget) -> Result<()> {
             MIN_SIDE.0, MIN_SIDE.1
         )));
     }
+    if u64::from(w) * u64::from(h) > u64::from(u32::MAX) {
+        return Err(Error::invalid(format!(
+            "demo --size {w}x{h}: over the {} pixels a building may have",
+            u32::MAX
+        )));
+    }
     synth::check_office_size(w / 2, h / 2)?;
-    // The building, its states, what the robots see (a few bytes a pixel), then each robot's map.
+    // What the exploration holds at its peak, measured: about 50-60 bytes a pixel of the building (its
+    // states, the drivable cells and their order of reach, the cells each pose sees, the robots' maps).
     budget.check(
         format_args!("demo --size {w}x{h}"),
-        u64::from(w) * u64::from(h) * 16,
+        u64::from(w) * u64::from(h) * BYTES_PER_PIXEL,
     )?;
     files::create_dir(dir)?;
     let mut lines = Vec::new();
@@ -71,7 +83,10 @@ pub(super) fn run(a: &DemoArgs, budget: &Budget) -> Result<()> {
         ..Exploration::default()
     };
     let robots = explore(&building, &how, a.seed).ok_or_else(|| {
-        Error::invalid("the building has no room to drive in; try another --seed")
+        Error::invalid(
+            "the robots found no room to drive in, or a robot's map would be over 16384 px a side: \
+             try another --seed or a smaller --size",
+        )
     })?;
     let names: Vec<String> = (1..=robots.len()).map(|k| format!("robot-{k}")).collect();
     let maps: Vec<OccupancyMap> = robots
@@ -114,12 +129,13 @@ pub(super) fn run(a: &DemoArgs, budget: &Budget) -> Result<()> {
     let t = Instant::now();
     let mut backend = super::backend_on(a.opts.backend)?;
     let many = merge_maps(
-        maps.clone(),
+        maps,
         &names,
         &GlobalOptions::default(),
         backend.as_mut(),
         &|_, _| {},
     )?;
+    let maps = &many.maps;
     let placed: usize = many
         .run
         .placement
@@ -202,6 +218,12 @@ pub(super) fn run(a: &DemoArgs, budget: &Budget) -> Result<()> {
     wrote.push(csv);
     if many.groups() > 0 {
         let g = 0;
+        // The merged map (a byte a pixel) and the picture (three, and two for its owners), counted first.
+        let f = &many.frames[g];
+        budget.check(
+            format_args!("the merged map and picture ({}x{})", f.width, f.height),
+            u64::from(f.width) * u64::from(f.height) * 6,
+        )?;
         let merged = many.merged(g)?;
         let pgm = dir.join("merged.pgm");
         let yaml = dir.join("merged.yaml");

@@ -549,8 +549,14 @@ fn mosaics_agree(
         let poses: Vec<Rigid> = members.iter().map(|&m| groups.pose[m]).collect();
         compose_many(&maps, &poses)
     };
-    // A canvas too large to compose is no evidence either way: not joined.
-    let (Ok((a, fa)), Ok((b, fb))) = (mosaic(g), mosaic(h)) else {
+    // A canvas too large to compose is no evidence either way: not joined. A stop is no verdict: passed on.
+    let (a, b) = (mosaic(g), mosaic(h));
+    for r in [&a, &b] {
+        if let Err(crate::Error::Interrupted) = r {
+            return Err(crate::Error::Interrupted);
+        }
+    }
+    let (Ok((a, fa)), Ok((b, fb))) = (a, b) else {
         return Ok(false);
     };
     let (pa, pb) = (Prepared::new(&a), Prepared::new(&b));

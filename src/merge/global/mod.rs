@@ -369,6 +369,8 @@ pub fn run(
     let t = Instant::now();
     let images: Vec<&crate::map::OccupancyMap> = unique.iter().map(|&i| &maps[i]).collect();
     let mut placement = place(&pairwise, &prepared, &images, options, backend)?;
+    // The placement's last round may have ended at a stop: no placement is returned then.
+    crate::stop::check()?;
     let place = t.elapsed().as_secs_f64();
     // Back to the maps' own indices.
     pairwise.n = maps.len();

@@ -51,6 +51,10 @@ pub fn explore(source: &OccupancyMap, how: &Exploration, seed: u64) -> Option<Ve
     let classes = ClassTable::new(&source.thresholds);
     let img = &source.image;
     let (w, h) = (img.width() as usize, img.height() as usize);
+    // Cells are indexed in 32 bits where the sensor's hits are kept.
+    if (w as u64) * (h as u64) > u64::from(u32::MAX) {
+        return None;
+    }
     let states: Vec<CellState> = img.pixels().iter().map(|&v| classes.state(v)).collect();
     let drivable = drivable(&states, (w, h), how.clearance);
     // The robots start in the largest connected free space (not in a closed room, or a cupboard).
