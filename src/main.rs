@@ -42,6 +42,14 @@ fn checked(ptr: *mut u8, size: usize) -> *mut u8 {
     if !ptr.is_null() || size == 0 {
         return ptr;
     }
+    // Threads that fail together (rayon's workers under one limit) say it once: the first one reports and
+    // exits; the others wait for the exit.
+    static REPORTED: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+    if REPORTED.swap(true, std::sync::atomic::Ordering::SeqCst) {
+        loop {
+            std::thread::park();
+        }
+    }
     use std::io::Write as _;
     let mut line = [0u8; 256];
     let mut cursor = std::io::Cursor::new(&mut line[..]);
