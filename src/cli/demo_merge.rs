@@ -12,7 +12,7 @@ use ogm_corners::map::{yaml_text, GeoRef};
 use ogm_corners::memory::Budget;
 use ogm_corners::merge::footprint;
 use ogm_corners::merge::global::{merge_maps, GlobalOptions};
-use ogm_corners::merge::synthetic::{explore, Exploration, SyntheticCrop};
+use ogm_corners::merge::synthetic::{explore, Exploration};
 use ogm_corners::merge::Rigid;
 use ogm_corners::plot;
 use ogm_corners::{synth, Error, MapImage, OccupancyMap, Result};
@@ -162,8 +162,8 @@ pub(super) fn run(a: &DemoArgs, budget: &Budget) -> Result<()> {
             Some(g) => {
                 let first = many.run.placement.groups[g][0];
                 let pose = many.run.placement.maps[k].pose;
-                let truth = robots[first].pose.inverse().after(&robots[k].pose);
-                let (deg, px) = errors(&robots[k], &pose, &truth);
+                let truth = robots[k].true_pair(&robots[first], name, &names[first]);
+                let (deg, px) = truth.errors(&pose);
                 if k != first {
                     lines.push(format!(
                         "   {name}: placed {:.1} deg, ({:.0}, {:.0}) px from {}; the truth differs by \
@@ -173,7 +173,7 @@ pub(super) fn run(a: &DemoArgs, budget: &Budget) -> Result<()> {
                 }
                 let to_canvas = many.frames[g].to_canvas(&pose);
                 json!({"name": name, "group": g, "frame_of": names[first],
-                       "pose": rigid_json(&pose), "truth": rigid_json(&truth),
+                       "pose": rigid_json(&pose), "truth": json!({"theta_deg": truth.theta_deg, "tx": truth.tx, "ty": truth.ty}),
                        "error_deg": deg, "error_px": px,
                        "to_merged_px": rigid_json(&to_canvas)})
             }
@@ -275,21 +275,6 @@ fn ms(t: Instant) -> String {
 
 fn rigid_json(t: &Rigid) -> serde_json::Value {
     json!({"theta_deg": t.theta_deg, "tx": t.tx, "ty": t.ty})
-}
-
-/// A placement's error against the truth: the turn, degrees, and the root-mean-square distance of the
-/// robot's check points (its known area's corners and centre), pixels.
-fn errors(robot: &SyntheticCrop, pose: &Rigid, truth: &Rigid) -> (f64, f64) {
-    let deg = ((pose.theta_deg - truth.theta_deg + 540.0).rem_euclid(360.0) - 180.0).abs();
-    let sq: f64 = robot
-        .check_points
-        .iter()
-        .map(|&p| {
-            let (a, b) = (pose.apply(p), truth.apply(p));
-            (a.0 - b.0).powi(2) + (a.1 - b.1).powi(2)
-        })
-        .sum();
-    (deg, (sq / robot.check_points.len().max(1) as f64).sqrt())
 }
 
 /// Robot `k`'s pixels to its group's merged map's pixels, when it is placed in the first group (the

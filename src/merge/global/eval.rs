@@ -443,7 +443,7 @@ pub fn synthetic_maps_of(
     n: usize,
     seed: u64,
 ) -> Result<(Vec<String>, Vec<OccupancyMap>, Vec<TruePair>)> {
-    use crate::merge::synthetic::{synthetic_set, SYNTHETIC_RMS_LIMIT_PX, SYNTHETIC_ROT_LIMIT_DEG};
+    use crate::merge::synthetic::synthetic_set;
     let crops = synthetic_set(source, n, 0.0, seed).ok_or_else(|| {
         crate::error::Error::invalid("the synthetic map is too small to cut a set from")
     })?;
@@ -454,26 +454,7 @@ pub fn synthetic_maps_of(
             if s == d {
                 continue;
             }
-            let t = cd.pose.inverse().after(&cs.pose);
-            truths.push(TruePair {
-                src: names[s].clone(),
-                dst: names[d].clone(),
-                building: "synthetic".to_string(),
-                theta_deg: t.theta_deg,
-                tx: t.tx,
-                ty: t.ty,
-                rms_limit_px: SYNTHETIC_RMS_LIMIT_PX,
-                rot_limit_deg: SYNTHETIC_ROT_LIMIT_DEG,
-                src_points: cs.check_points.iter().map(|p| [p.0, p.1]).collect(),
-                dst_points: cs
-                    .check_points
-                    .iter()
-                    .map(|&p| {
-                        let q = t.apply(p);
-                        [q.0, q.1]
-                    })
-                    .collect(),
-            });
+            truths.push(cs.true_pair(cd, &names[s], &names[d]));
         }
     }
     Ok((names, crops.into_iter().map(|c| c.map).collect(), truths))

@@ -503,6 +503,34 @@ pub fn synthetic_set(
     Some(out)
 }
 
+impl SyntheticCrop {
+    /// This map onto `dst`, another of its set, as a pair set's entry named `src` -> `dst_name`: the
+    /// exact transform between their poses, the synthetic limits, and this map's check points with where
+    /// the truth puts them.
+    pub fn true_pair(&self, dst: &SyntheticCrop, src: &str, dst_name: &str) -> TruePair {
+        let t = dst.pose.inverse().after(&self.pose);
+        TruePair {
+            src: src.to_string(),
+            dst: dst_name.to_string(),
+            building: "synthetic".to_string(),
+            theta_deg: t.theta_deg,
+            tx: t.tx,
+            ty: t.ty,
+            rms_limit_px: SYNTHETIC_RMS_LIMIT_PX,
+            rot_limit_deg: SYNTHETIC_ROT_LIMIT_DEG,
+            src_points: self.check_points.iter().map(|p| [p.0, p.1]).collect(),
+            dst_points: self
+                .check_points
+                .iter()
+                .map(|&p| {
+                    let q = t.apply(p);
+                    [q.0, q.1]
+                })
+                .collect(),
+        }
+    }
+}
+
 impl SyntheticPair {
     /// The pair as a pair set's entry: its truth, the success test's limits ([`SYNTHETIC_ROT_LIMIT_DEG`],
     /// [`SYNTHETIC_RMS_LIMIT_PX`]) and the check points in B with where the truth puts them in A.
