@@ -1,6 +1,7 @@
 //! The detector API: a [`Detector`] runs one of the detectors on a backend and returns a [`Detection`].
 
 pub use crate::backend::{Backend, DetectOptions, DetectorKind, Keypoint};
+use crate::baselines::streamed::CandidateList;
 use crate::baselines::Candidate;
 use crate::error::{Error, Result};
 use crate::fast::FastCpuBackend;
@@ -8,7 +9,6 @@ use crate::map::{MapImage, OccupancyMap, Thresholds};
 use crate::robust::RobustInfo;
 use crate::rules::RuleTable;
 use crate::states::ClassTable;
-use crate::stream::select::CandidateList;
 use crate::stream::{for_each_window, RowSource, Rows, Window, WindowPlan};
 
 /// The keypoints found in one map.

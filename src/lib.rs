@@ -22,12 +22,10 @@
 //!
 //! ## The layers, bottom to top
 //!
-//! `tests/layering.rs` checks that no file imports one that imports it back, that maps, decoding and
-//! detection never reach into merging, reports or the command line, and that the basic services import no
-//! detection or merging. Within that, a few edges still point up the list (the backends read the robust
-//! detector's options and sizes, the streamed path draws its overlay, merging's reports use the plots):
+//! A file imports only its own layer and the layers below it, and no file imports one that imports it
+//! back: `tests/layering.rs` checks both on the source.
 //!
-//! 1. **Services**: [`error`], [`stop`], [`memory`], [`files`].
+//! 1. **Services**: [`error`], [`stop`], [`memory`], [`files`], [`plot`] (drawing), [`report`] (HTML pages).
 //! 2. **Maps**: [`decode`] (PGM/PNG), [`map`] (yaml, georeference, thresholds), [`stream`] (maps as rows),
 //!    [`states`] (the three states), [`synth`] (synthetic maps), [`grid`] (a grid turned to the walls).
 //! 3. **Rules, the backend interface and the reference**: [`rules`] (the paper's 256-entry table),
@@ -36,11 +34,11 @@
 //!    kernel, its twin).
 //! 4. **Fast backends**: [`fast`] (the fast CPU path), [`gpu`] (wgpu compute kernels, bit-identical to
 //!    the reference).
-//! 5. **Detectors**: [`robust`] (the robust form for real maps), [`detector`] (a backend driven over a
-//!    map, in memory or streamed), [`streamed`] (a map file to keypoint files).
+//! 5. **Detectors and their outputs**: [`robust`] (the robust form for real maps), [`detector`] (a
+//!    backend driven over a map, in memory or streamed), [`streamed`] (a map file to keypoint files),
+//!    [`output`] (keypoint files), [`overlay`] (keypoints drawn on a map).
 //! 6. **Merging**: [`merge`] (two maps and many, with no initial poses).
-//! 7. **Measuring and reporting**: [`output`], [`overlay`], [`plot`], [`report`], [`compare`], [`eval`],
-//!    [`bench`](mod@bench).
+//! 7. **Measuring**: [`compare`], [`eval`], [`bench`](mod@bench).
 //!
 //! The command line (`src/cli/`, one file per subcommand) sits on top, in the binary.
 
@@ -58,6 +56,8 @@ macro_rules! say {
 pub mod error;
 pub mod files;
 pub mod memory;
+pub mod plot;
+pub mod report;
 mod stats;
 pub mod stop;
 // 2. Maps.
@@ -75,20 +75,18 @@ pub mod rules;
 // 4. Fast backends.
 pub mod fast;
 pub mod gpu;
-// 5. Detectors.
+// 5. Detectors and their outputs.
 pub mod detector;
+pub mod output;
+pub mod overlay;
 pub mod robust;
 pub mod streamed;
 // 6. Merging.
 pub mod merge;
-// 7. Measuring and reporting.
+// 7. Measuring.
 pub mod bench;
 pub mod compare;
 pub mod eval;
-pub mod output;
-pub mod overlay;
-pub mod plot;
-pub mod report;
 
 pub use baselines::{Baseline, BaselineParams};
 pub use detector::{

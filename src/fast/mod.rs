@@ -108,7 +108,9 @@ impl Backend for FastCpuBackend {
         let (w, h) = (u64::from(width), u64::from(height));
         let per_band = match options.detector {
             DetectorKind::Ogm => 7 * 8 * w.div_ceil(64),
-            DetectorKind::OgmRobust => return crate::robust::robust_working_bytes(width, height),
+            DetectorKind::OgmRobust => {
+                return crate::backend::robust_params::robust_working_bytes(width, height)
+            }
             DetectorKind::Baseline(kind) => {
                 let covered = options
                     .baseline

@@ -18,9 +18,10 @@
 
 pub mod corners;
 pub mod orientation;
-pub mod params;
-
-pub use params::{grid_samples, robust_working_bytes, RobustParams};
+/// The options, kept with the backend interface ([`crate::backend::robust_params`]) that every backend is
+/// given; here under their old name too.
+pub use crate::backend::robust_params as params;
+pub use crate::backend::robust_params::{grid_samples, robust_working_bytes, RobustParams};
 
 use crate::backend::{Backend, Keypoint};
 use crate::cpu::coarsen::{FREE, OCCUPIED};

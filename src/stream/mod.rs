@@ -11,8 +11,6 @@
 //!
 //! A map in memory is one window (no copy): the in-memory detection is the streamed one over a slice.
 
-pub mod select;
-
 use std::sync::mpsc;
 
 use crate::error::{Error, Result};

@@ -3,18 +3,20 @@
 //! This is the lower layer: the CPU reference ([`crate::cpu`]), the fast CPU path ([`crate::fast`]) and
 //! the GPU ([`crate::gpu`]) implement it, and [`crate::detector`] drives them.
 
+pub mod robust_params;
+
 use serde::Serialize;
 
+use crate::baselines::streamed::CandidateList;
 use crate::baselines::{Baseline, BaselineParams, Candidate, ExactParams};
 use crate::cpu::merge_score::{FixedRigid, ScoreTarget};
 use crate::error::Result;
 use crate::grid::RotatedGrid;
 use crate::map::MapImage;
-use crate::robust::params::RobustParams;
 use crate::rules::{RuleSet, RuleTable};
 use crate::states::ClassTable;
-use crate::stream::select::CandidateList;
 use crate::stream::Rows;
+use robust_params::RobustParams;
 
 /// A corner: pixel coordinates (origin top-left, x right, y down), the rule that fired and the code.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize)]
@@ -295,7 +297,7 @@ pub fn reference_working_bytes(options: &DetectOptions, width: u32, height: u32)
     };
     window.saturating_add(match options.detector {
         DetectorKind::Ogm => px,
-        DetectorKind::OgmRobust => crate::robust::params::robust_working_bytes(width, height),
+        DetectorKind::OgmRobust => robust_params::robust_working_bytes(width, height),
         DetectorKind::Baseline(Baseline::Harris) => px.saturating_mul(25),
         DetectorKind::Baseline(Baseline::ShiTomasi) => px.saturating_mul(25).max(
             px.saturating_mul(8)

@@ -4,6 +4,8 @@
 //! selection of keypoints from a score map is host code shared by all backends, so the backends agree
 //! bit for bit by construction once their score maps do.
 
+pub mod streamed;
+
 use crate::error::{Error, Result};
 
 /// Which baseline.

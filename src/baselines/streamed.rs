@@ -4,11 +4,11 @@
 //! row. Each window hands over its candidates (positive 3x3 local maxima) and its part of the maximum; the
 //! list drops, from time to time, the candidates that fail against the largest maximum seen so far. That
 //! maximum never exceeds the map's, so nothing that passes the final threshold is dropped, and the final
-//! selection ([`crate::baselines::select_candidates`]: the threshold, then for Shi-Tomasi the greedy
+//! selection ([`super::select_candidates`]: the threshold, then for Shi-Tomasi the greedy
 //! minimum distance in strength order and `max_corners`) sees exactly the candidates it would see on the
 //! whole map. The semantics are the in-memory ones, unchanged.
 
-use crate::baselines::{select_candidates, Baseline, BaselineParams, Candidate};
+use super::{select_candidates, Baseline, BaselineParams, Candidate};
 
 /// Candidates held before the first prune.
 const FIRST_PRUNE: usize = 1 << 16;

@@ -1,5 +1,6 @@
-//! The robust detector's options, apart from the detector so that the options every backend is given
-//! ([`crate::backend::DetectOptions`]) do not depend on the detector that drives the backends.
+//! The robust detector's options and working memory, kept with the backend interface: the options every
+//! backend is given ([`crate::backend::DetectOptions`]) and the memory each one budgets must not depend on
+//! the detector ([`crate::robust`]) that sits a layer above the backends.
 
 use crate::cpu::coarsen::MAX_SCALE;
 use crate::error::{Error, Result};
