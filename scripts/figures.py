@@ -1,0 +1,514 @@
+#!/usr/bin/env python3
+"""The documentation's measured figures, regenerated (scripts/figures.py --help).
+
+"""
+
+import argparse
+import datetime
+import json
+import os
+import platform
+import shlex
+import shutil
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+
+USAGE = """Regenerates the measured figures of the documentation chapters, so that every one is measured on the
+revision that states it, on a named machine.
+
+    scripts/figures.py                 list the figures and where they go
+    scripts/figures.py NAME... | all   measure them and print each block (Markdown) on stdout
+    scripts/figures.py --write NAME... | all
+                                       also put each block into its chapter, between the lines
+                                       <!-- figure:NAME --> and <!-- /figure:NAME --> (temp file, rename)
+
+Each block starts with a line naming the script, the date, the commit, the machine, the commands it ran
+and how long they took; what follows is the tool's own output (its Markdown tables), or a table this script
+builds from the tool's JSON (means over maps, sums, ratios). The prose around a block is written by hand
+and must agree with it: after a run, read the chapter again.
+
+The figures (about 25 minutes in all on the project's 2-core VM, most of it `streamed`, `global`,
+`ablation`, `partial`, `compare` and `python`):
+{figures}
+
+Needs the shared data beside the project (../shared/maps, ../shared/merge-pairs); exits 2 without it.
+Builds the release binary (cargo build --release --locked) unless OGM_BIN names one. Timings on the
+project's VM vary by 20% or more; run on a quiet machine. Not part of CI.
+"""
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+SHARED = os.path.normpath(os.path.join(ROOT, "..", "shared"))
+PAIRS = os.path.join(SHARED, "merge-pairs", "pairs.json")
+CORNERS = os.path.join(SHARED, "merge-pairs", "corners.json")
+PAIR_MAPS = os.path.join(SHARED, "merge-pairs", "maps")
+MAPS = os.path.join(SHARED, "maps")
+WRITE = False  # --write: the chapters, and the pictures a figure draws (docs/results), are rewritten
+DETECTORS = ["ogm", "ogm-robust", "harris", "shi-tomasi", "trajkovic"]
+
+
+def fail(msg, code=1):
+    print(f"figures.py: {msg}", file=sys.stderr)
+    sys.exit(code)
+
+
+def shown(arg):
+    """An argument as the chapters show it: the shared data as ../shared, the work folder as OUT."""
+    s = str(arg).replace(SHARED, "../shared")
+    return s
+
+
+def machine():
+    cpu, mem = "unknown CPU", 0
+    try:
+        for line in open("/proc/cpuinfo"):
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+        for line in open("/proc/meminfo"):
+            if line.startswith("MemTotal"):
+                mem = int(line.split()[1]) / 2**20
+    except OSError:
+        pass
+    return f"{cpu}, {os.cpu_count()} cores, {mem:.0f} GiB, {platform.system()}"
+
+
+def commit():
+    try:
+        c = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True,
+                           text=True, check=True).stdout.strip()
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no", "--", ".",
+                                ":!*.md", ":!docs/results"], cwd=ROOT, capture_output=True,
+                               text=True).stdout.strip()
+        return c + (" with uncommitted changes" if dirty else "")
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"
+
+
+def shared_map_files():
+    """The 26 shared maps as the chapters list them: every yaml, every png, the stage world's pgm files."""
+    out = []
+    for d, _, files in os.walk(MAPS):
+        for f in files:
+            if f.endswith((".yaml", ".png")):
+                out.append(os.path.join(d, f))
+    stage = os.path.join(MAPS, "navigation_tutorials", "navigation_stage", "stage_config", "maps")
+    if os.path.isdir(stage):
+        out += [os.path.join(stage, f) for f in os.listdir(stage) if f.endswith(".pgm")]
+    return sorted(out)
+
+
+class Runner:
+    """Runs commands once each (a figure that needs another's run reuses it), timing them."""
+
+    def __init__(self, binary, work):
+        self.bin, self.work, self.cache = binary, work, {}
+        self.log = []  # (command as shown, seconds) of the current figure
+
+    def run(self, argv, env=None, shown_argv=None):
+        key = tuple(argv)
+        text = " ".join(shlex.quote(shown(a).replace(self.work, "OUT")) for a in (shown_argv or argv))
+        if key not in self.cache:
+            print(f"figures.py: running {text}", file=sys.stderr)
+            t = time.time()
+            p = subprocess.run(argv, capture_output=True, text=True, cwd=ROOT,
+                               env={**os.environ, **(env or {})})
+            secs = time.time() - t
+            if p.returncode != 0:
+                sys.stderr.write(p.stderr[-3000:])
+                fail(f"failed (exit {p.returncode}): {text}")
+            self.cache[key] = (p.stdout, secs)
+        out, secs = self.cache[key]
+        self.log.append((text, secs))
+        return out
+
+    def tool(self, *args):
+        """The tool's standard output."""
+        return self.run([self.bin, *map(str, args)], shown_argv=["ogm-corners", *map(str, args)])
+
+    def json(self, *args):
+        return json.loads(self.tool(*args, "--format", "json"))
+
+
+def pct(x):
+    return "n/a" if x is None else f"{100 * x:.1f}%"
+
+
+def table(header, rows):
+    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    lines += ["| " + " | ".join(str(c) for c in r) + " |" for r in rows]
+    return "\n".join(lines)
+
+
+# ---- The detectors ----
+
+def annotation_runs(r):
+    base = ["eval", "--backend", "cpu", "--annotations", CORNERS, PAIR_MAPS]
+    return r.json(*base), r.json(*base, "--min-strength", "1")
+
+
+def fig_annotations(r):
+    shipped, s1 = annotation_runs(r)
+    names = {"ogm": "ogm (the paper's)", "ogm-unknown-as-occupied": "ogm, unknown as occupied",
+             "ogm-robust": "**ogm-robust**"}
+    rows = []
+
+    def row(rec, name):
+        m = rec["marked"]
+        f = lambda k: "n/a" if rec[k] is None else f"{100 * rec[k] / m:.1f}%"
+        return [name, rec["keypoints"], f("hits_5"), f("hits_10"), f("hits_5_budget_1x"),
+                f("hits_5_budget_3x"), f("hits_10_budget_1x"), f("hits_10_budget_3x")]
+
+    pooled = [x for x in shipped if x["map"] == "all"]
+    for rec in pooled:
+        rows.append(row(rec, names.get(rec["detector"], rec["detector"])))
+        if rec["detector"] == "ogm-robust":
+            rows.append(row(next(x for x in s1 if x["map"] == "all" and x["detector"] == "ogm-robust"),
+                            "ogm-robust `--min-strength 1`"))
+    maps = len({x["map"] for x in shipped if x["map"] != "all"})
+    head = f"Pooled over {maps} maps, {pooled[0]['marked']} marked points:\n\n"
+    return head + table(["detector", "keypoints", "within 5 px", "within 10 px", "5 px, 1x budget",
+                         "5 px, 3x budget", "10 px, 1x budget", "10 px, 3x budget"], rows)
+
+
+def repeatability_means(records):
+    """{(condition, level): {detector: mean repeatability over the maps}}."""
+    acc = {}
+    for x in records:
+        acc.setdefault((x["condition"], x["level"]), {}).setdefault(x["detector"], []).append(x["repeatability"])
+    return {k: {d: statistics.fmean(v) for d, v in m.items()} for k, m in acc.items()}
+
+
+def repeatability_runs(r):
+    maps = shared_map_files()
+    base = ["eval", *maps, "--backend", "cpu", "--trials", "2"]
+    return r.json(*base, "--plot", os.path.join(r.work, "plots")), r.json(*base, "--min-strength", "1")
+
+
+def bench_detectors(r):
+    return r.json("bench", "--size", "4096x4096", "--detector", "all", "--backend", "cpu", "--repeat", "10")
+
+
+def end_to_end(bench, detector, backend="cpu", size=None):
+    for x in bench["records"]:
+        if (x["detector"] == detector and x["backend"] == backend and x["stage"] == "end_to_end"
+                and (size is None or x["width"] == size)):
+            return x
+    return None
+
+
+def fig_robust_summary(r):
+    shipped, s1 = annotation_runs(r)
+    rep, rep1 = (repeatability_means(x) for x in repeatability_runs(r))
+    bench = bench_detectors(r)
+
+    def recall(recs, det, k):
+        x = next(x for x in recs if x["map"] == "all" and x["detector"] == det)
+        return pct(None if x[k] is None else x[k] / x["marked"])
+
+    def per_point(recs, det):
+        x = next(x for x in recs if x["map"] == "all" and x["detector"] == det)
+        return f"{x['keypoints'] / x['marked']:.1f}"
+
+    def span(means, conds, det):
+        v = [m[det] for (c, _), m in means.items() if c in conds and det in m]
+        lo, hi = min(v), max(v)
+        return f"{100 * lo:.0f}-{100 * hi:.0f}%" if round(100 * lo) != round(100 * hi) else f"{100 * lo:.0f}%"
+
+    def speed(det):
+        x = end_to_end(bench, det)
+        return f"{x['median_ms']:.1f} ms, {x['mpx_per_s']:.0f} Mpx/s"
+
+    cols = [(shipped, rep, "ogm"), (shipped, rep, "ogm-robust"), (s1, rep1, "ogm-robust")]
+    turns = ("rot90", "rot180", "rot270", "mirror")
+    rows = [
+        ["marked corners within 5 px, strongest 3 per marked point",
+         *[recall(a, d, "hits_5_budget_3x") for a, _, d in cols], "60%"],
+        ["marked corners within 10 px, strongest 3 per marked point",
+         *[recall(a, d, "hits_10_budget_3x") for a, _, d in cols], "80%"],
+        ["keypoints per marked point", *[per_point(a, d) for a, _, d in cols], "at most 3"],
+        ["repeatability, arbitrary rotation (15-75 deg, the range of the 5 angles' means over 26 maps)",
+         *[span(m, ("rotation",), d) for _, m, d in cols], "85%"],
+        ["repeatability, 90/180/270-degree turns and mirroring",
+         *[span(m, turns, d) for _, m, d in cols], "100%"],
+        ["CPU end to end, 4096^2 synthetic office (median of 10)", speed("ogm"), speed("ogm-robust"), "-",
+         "1000 Mpx/s"],
+    ]
+    return table(["", "paper's OGM", "ogm-robust (default)", "ogm-robust `--min-strength 1`", "target"], rows)
+
+
+def fig_robust_halves(r):
+    files = sorted(os.listdir(PAIR_MAPS))
+    half = {"calibration (even-numbered maps)": [f for f in files if int(f.split("_")[1][:2]) % 2 == 0],
+            "held out (odd-numbered maps)": [f for f in files if int(f.split("_")[1][:2]) % 2 == 1]}
+    rows = []
+    for name, fs in half.items():
+        paths = [os.path.join(PAIR_MAPS, f) for f in fs if f.endswith((".png", ".pgm"))]
+        base = ["eval", "--backend", "cpu", "--annotations", CORNERS, *paths]
+        cells = []
+        for extra in ([], ["--min-strength", "1"]):
+            x = next(x for x in r.json(*base, *extra) if x["map"] == "all" and x["detector"] == "ogm-robust")
+            cells += [pct(x["hits_5_budget_3x"] / x["marked"]), pct(x["hits_10_budget_3x"] / x["marked"])]
+            marked = x["marked"]
+        rows.append([name, len(paths), marked, *cells])
+    return table(["maps", "count", "marked points", "default: 5 px, 3x", "default: 10 px, 3x",
+                  "`--min-strength 1`: 5 px, 3x", "`--min-strength 1`: 10 px, 3x"], rows)
+
+
+def fig_shared_maps(r):
+    maps = shared_map_files()
+    out = os.path.join(r.work, "compare")
+    recs = r.json("compare", *maps, "--backend", "all", "--repeat", "3", "--out", out)
+    per_map = open(os.path.join(out, "compare.md")).read().strip()
+    rows = []
+    for d in DETECTORS:
+        xs = [x for x in recs if x["detector"] == d]
+        mpx = lambda x: x["width"] * x["height"] / 1e6
+        med = lambda k: (f"{statistics.median(x[k] / mpx(x) for x in xs if x[k] is not None):.1f}"
+                         if any(x[k] is not None for x in xs) else "-")
+        rows.append([d, sum(x["keypoints"] for x in xs), med("cpu_end_to_end_ms"),
+                     med("reference_end_to_end_ms"), med("gpu_end_to_end_ms")])
+    summary = table(["detector", f"keypoints, all {len(maps)} maps", "median CPU end-to-end ms per Mpx",
+                     "median reference end-to-end ms per Mpx", "median GPU (lavapipe) end-to-end ms per Mpx"],
+                    rows)
+    return (summary + "\n\n<details><summary>Per map (keypoints and median times, ms)</summary>\n\n"
+            + per_map + "\n\n</details>")
+
+
+def fig_repeatability(r):
+    recs, _ = repeatability_runs(r)
+    if WRITE:
+        for f in ("repeatability-noise.png", "repeatability-rotation.png"):
+            shutil.copy(os.path.join(r.work, "plots", f), os.path.join(ROOT, "docs", "results", f))
+    means = repeatability_means(recs)
+    names = ["OGM", "OGM-robust", "Harris", "Shi-Tomasi", "Trajkovic"]
+    rot = [m for (c, _), m in sorted(means.items()) if c == "rotation"]
+    rows = [["**arbitrary rotation**", "**mean of 15-75 deg**",
+             *[f"**{pct(statistics.fmean(m[d] for m in rot))}**" for d in DETECTORS]]]
+    order = {"rotation": 0, "rot90": 1, "rot180": 2, "rot270": 3, "mirror": 4, "noise": 5, "overlap": 6}
+    for (c, lv), m in sorted(means.items(), key=lambda kv: (order.get(kv[0][0], 9), kv[0][1])):
+        level = {"rotation": f"{lv:g} deg", "noise": f"{100 * lv:g}%", "overlap": f"{100 * lv:g}% shared"}.get(c, "-")
+        rows.append([c, level, *[pct(m.get(d)) for d in DETECTORS]])
+    maps = len({x["map"] for x in recs})
+    return (f"Mean over the {maps} maps; tolerance 2 px; random conditions 2 seeded trials each; ogm-robust at "
+            f"its defaults:\n\n" + table(["condition", "level", *names], rows))
+
+
+# ---- Merging ----
+
+def fig_pairs(r):
+    return r.tool("merge-eval", PAIRS).strip()
+
+
+def fig_ablation(r):
+    return r.tool("merge-eval", PAIRS, "--ablation").strip()
+
+
+def fig_cross_validate(r):
+    return r.tool("merge-eval", PAIRS, "--cross-validate").strip()
+
+
+def fig_families(r):
+    return r.tool("merge-eval", "--synthetic", "--per-map", "8").strip()
+
+
+def fig_partial(r):
+    parts = []
+    for caption, args in [
+        ("The office generator (8 offices, with negatives), `--per-map 4`",
+         ["--synthetic", "--family", "office", "--per-map", "4"]),
+        ("The 26 maps of `../shared/maps`, `--per-map 4`", ["--synthetic", MAPS, "--per-map", "4"]),
+        ("The 22 maps of `../shared/merge-pairs/maps`, `--per-map 2`",
+         ["--synthetic", PAIR_MAPS, "--per-map", "2"]),
+    ]:
+        parts.append(f"**{caption}:**\n\n" + r.tool("merge-eval", *args).strip())
+    return "\n\n".join(parts)
+
+
+def fig_global(r):
+    return r.tool("merge-eval", PAIRS, "--global").strip()
+
+
+# ---- Performance ----
+
+def fig_bench_ogm(r):
+    b = r.json("bench", "--size", "1024x1024", "--size", "4096x4096", "--size", "16384x16384",
+               "--detector", "ogm", "--backend", "cpu,reference", "--repeat", "5")
+    rows = []
+    for x in b["records"]:
+        if x["stage"] != "end_to_end":
+            continue
+        mem = "" if x.get("peak_rss_ratio") is None else f"{x['peak_rss_ratio']:.2f}"
+        rows.append([f"{x['width']}^2", x["backend"], f"{x['median_ms']:.2f}", f"{x['mpx_per_s']:.0f}",
+                     x["keypoints"], mem])
+    return table(["size", "backend", "median ms", "Mpx/s", "keypoints",
+                  "peak resident memory / map bytes"], rows)
+
+
+def fig_bench_detectors(r):
+    b = bench_detectors(r)
+    rows = []
+    for d in DETECTORS:
+        x = end_to_end(b, d)
+        rows.append([d, f"{x['median_ms']:.2f}", f"{x['mpx_per_s']:.0f}", x["keypoints"],
+                     "" if x.get("peak_rss_mb") is None else f"{x['peak_rss_mb']:.0f}"])
+    return ("4096 x 4096 synthetic office, fast CPU path, end to end, median of 10:\n\n"
+            + table(["detector", "median ms", "Mpx/s", "keypoints", "peak resident MB (map 17 MB)"], rows))
+
+
+def fig_gpu_lavapipe(r):
+    ogm = r.json("bench", "--size", "1024x1024", "--size", "4096x4096", "--size", "16384x16384",
+                 "--detector", "ogm", "--backend", "gpu", "--repeat", "5")
+    if not ogm.get("gpu"):
+        fail("gpu-lavapipe: no GPU adapter opened (install mesa-vulkan-drivers for lavapipe)")
+    base = r.json("bench", "--size", "2048x2048", "--detector", "harris,shi-tomasi,trajkovic",
+                  "--backend", "gpu", "--repeat", "5")
+    rows = []
+    for x in ogm["records"] + base["records"]:
+        rows.append([f"{x['width']}^2", x["detector"], x["stage"], f"{x['median_ms']:.1f}",
+                     f"{x['mpx_per_s']:.0f}"])
+    return (f"Adapter: {ogm['gpu']}.\n\n"
+            + table(["size", "detector", "stage", "median ms", "Mpx/s"], rows))
+
+
+def fig_opencv(r):
+    py = os.path.join(ROOT, "target", "opencv-venv", "bin", "python")
+    if not os.path.exists(py):
+        fail("opencv: target/opencv-venv is missing (bash scripts/test.sh creates it)")
+    out = r.run([py, "benches/opencv_compare.py", "--sizes", "1024,4096", "--repeat", "11", "--bin", r.bin],
+                shown_argv=["python3", "benches/opencv_compare.py", "--sizes", "1024,4096", "--repeat", "11"])
+    return out.strip()
+
+
+def fig_streamed(r):
+    free = shutil.disk_usage(os.path.join(ROOT, "target")).free
+    if free < 12e9:
+        fail(f"streamed: needs 12 GB free under target/, has {free / 1e9:.1f}")
+    d = os.path.join(ROOT, "target", "stream-bench")
+    out = r.run(["bash", "scripts/stream-bench.sh", "100000", d], env={"RUNS": "3", "BASELINE_RUNS": "1"},
+                shown_argv=["RUNS=3", "BASELINE_RUNS=1", "scripts/stream-bench.sh", "100000"])
+    lines = [l for l in out.splitlines() if l.startswith("|")]
+    return "\n".join(lines)
+
+
+def fig_python(r):
+    ext = os.path.join(r.work, "python")
+    shutil.copytree(os.path.join(ROOT, "python", "ogm_corners"), os.path.join(ext, "ogm_corners"))
+    r.run(["cargo", "build", "--release", "--locked", "-p", "ogm-corners-python", "--lib"],
+          env={"PYO3_BUILD_EXTENSION_MODULE": "1"})
+    r.log.pop()  # the build is not a measurement
+    shutil.copy(os.path.join(ROOT, "target", "release", "lib_core.so"),
+                os.path.join(ext, "ogm_corners", "_core.abi3.so"))
+    py = os.environ.get("OGM_PYTHON", os.path.join(ROOT, "target", "python-venv", "bin", "python"))
+    if not os.path.exists(py):
+        fail(f"python: no Python with numpy at {py} (set OGM_PYTHON)")
+    out = r.run([py, "python/benches/overhead.py", "--cli", r.bin], env={"PYTHONPATH": ext},
+                shown_argv=["python", "python/benches/overhead.py", "--cli", "target/release/ogm-corners"])
+    return out.strip()
+
+
+FIGURES = {
+    "annotations": ("docs/detectors.md", fig_annotations,
+                    "hand-marked corners, pooled (eval --annotations, twice)"),
+    "robust-summary": ("docs/detectors.md", fig_robust_summary,
+                       "the robust detector against its targets"),
+    "robust-halves": ("docs/detectors.md", fig_robust_halves,
+                      "the robust detector on the maps its thresholds were set on and the others"),
+    "shared-maps": ("docs/detectors.md", fig_shared_maps,
+                    "every detector on the 26 shared maps (compare --backend all)"),
+    "repeatability": ("docs/detectors.md", fig_repeatability,
+                      "repeatability on the 26 shared maps, mean over the maps (eval)"),
+    "pairs": ("docs/merging.md", fig_pairs,
+              "the real pairs (merge-eval)"),
+    "ablation": ("docs/merging.md", fig_ablation,
+                 "where the hypotheses come from (merge-eval --ablation)"),
+    "cross-validate": ("docs/merging.md", fig_cross_validate,
+                       "leave-one-building-out (merge-eval --cross-validate)"),
+    "families": ("docs/merging.md", fig_families,
+                 "hard synthetic families (merge-eval --synthetic --per-map 8)"),
+    "partial": ("docs/merging.md", fig_partial,
+                "partial overlaps cut from the generator and the shared maps"),
+    "global": ("docs/merging.md", fig_global,
+               "many maps at once (merge-eval --global)"),
+    "bench-ogm": ("docs/performance.md", fig_bench_ogm,
+                  "the paper's detector, 1024^2 to 16384^2, fast path and reference"),
+    "bench-detectors": ("docs/performance.md", fig_bench_detectors,
+                        "all five detectors at 4096^2, fast path"),
+    "gpu-lavapipe": ("docs/performance.md", fig_gpu_lavapipe,
+                     "the GPU path on the software adapter (lavapipe)"),
+    "opencv": ("docs/performance.md", fig_opencv,
+               "against OpenCV (benches/opencv_compare.py)"),
+    "streamed": ("docs/performance.md", fig_streamed,
+                 "a 100000^2 map streamed from disk (scripts/stream-bench.sh)"),
+    "python": ("docs/performance.md", fig_python,
+               "what the Python package adds (python/benches/overhead.py)"),
+}
+
+
+def splice(doc, name, block):
+    """The chapter's text with the block between the figure's markers (one pair of them, in order)."""
+    path = os.path.join(ROOT, doc)
+    lines = open(path, encoding="utf-8").read().split("\n")
+    begin, end = f"<!-- figure:{name} -->", f"<!-- /figure:{name} -->"
+    if lines.count(begin) != 1 or lines.count(end) != 1 or lines.index(begin) > lines.index(end):
+        fail(f"{doc} needs one line '{begin}' before one line '{end}'", 2)
+    i, j = lines.index(begin), lines.index(end)
+    return "\n".join(lines[: i + 1] + block.split("\n") + lines[j:])
+
+
+def write_atomic(path, text):
+    fd, tmp = tempfile.mkstemp(dir=os.path.dirname(path), prefix="." + os.path.basename(path) + ".")
+    with os.fdopen(fd, "w", encoding="utf-8") as f:
+        f.write(text)
+    os.replace(tmp, path)
+
+
+def main():
+    ap = argparse.ArgumentParser(add_help=False)
+    ap.add_argument("--write", action="store_true")
+    ap.add_argument("-h", "--help", action="store_true")
+    ap.add_argument("names", nargs="*")
+    a = ap.parse_args()
+    if a.help or not a.names:
+        print(USAGE.format(figures="\n".join(f"  {n:16} {doc}: {d}" for n, (doc, _, d) in FIGURES.items())))
+        return
+    global WRITE
+    WRITE = a.write
+    names = list(FIGURES) if a.names == ["all"] else a.names
+    for n in names:
+        if n not in FIGURES:
+            fail(f"unknown figure '{n}' (scripts/figures.py lists them)", 2)
+    for need in (PAIRS, CORNERS, PAIR_MAPS, MAPS):
+        if not os.path.exists(need):
+            fail(f"needs the shared data beside the project: {need} is missing", 2)
+    if a.write:  # every chapter's markers checked before an hour of measuring
+        for n in names:
+            splice(FIGURES[n][0], n, "")
+    rev, mach, day = commit(), machine(), datetime.date.today().isoformat()
+    binary = os.environ.get("OGM_BIN")
+    if binary:
+        binary = os.path.abspath(binary)
+    else:
+        subprocess.run(["cargo", "build", "--release", "--locked", "-q", "--bin", "ogm-corners"], cwd=ROOT,
+                       check=True)
+        binary = os.path.join(ROOT, "target", "release", "ogm-corners")
+    with tempfile.TemporaryDirectory(prefix="figures.") as work:
+        r = Runner(binary, work)
+        for n in names:
+            doc, make, _ = FIGURES[n]
+            r.log = []
+            body = make(r)
+            ran = "; ".join(f"`{c}` ({s:.0f} s)" for c, s in r.log)
+            stamp = (f"<sub>Measured by `scripts/figures.py {n}` on {day}, commit {rev}, {mach}: {ran}."
+                     f"</sub>")
+            block = stamp + "\n\n" + body
+            print(f"## {n} ({doc})\n\n{block}\n")
+            if a.write:
+                write_atomic(os.path.join(ROOT, doc), splice(doc, n, block))
+                print(f"figures.py: wrote {n} into {doc}", file=sys.stderr)
+
+
+if __name__ == "__main__":
+    main()
