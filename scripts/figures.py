@@ -110,6 +110,9 @@ class Runner:
     def run(self, argv, env=None, shown_argv=None):
         key = tuple(argv)
         text = " ".join(shlex.quote(shown(a).replace(self.work, "OUT")) for a in (shown_argv or argv))
+        # The 26 shared maps are named MAPS in the stamp, not one by one.
+        maps = " ".join(shlex.quote(shown(m)) for m in shared_map_files())
+        text = text.replace(maps, "MAPS")
         if key not in self.cache:
             print(f"figures.py: running {text}", file=sys.stderr)
             t = time.time()
@@ -177,6 +180,8 @@ def repeatability_means(records):
     """{(condition, level): {detector: mean repeatability over the maps}}."""
     acc = {}
     for x in records:
+        if x["repeatability"] is None:  # no keypoint in the region both see: nothing to repeat
+            continue
         acc.setdefault((x["condition"], x["level"]), {}).setdefault(x["detector"], []).append(x["repeatability"])
     return {k: {d: statistics.fmean(v) for d, v in m.items()} for k, m in acc.items()}
 
@@ -292,8 +297,9 @@ def fig_repeatability(r):
         level = {"rotation": f"{lv:g} deg", "noise": f"{100 * lv:g}%", "overlap": f"{100 * lv:g}% shared"}.get(c, "-")
         rows.append([c, level, *[pct(m.get(d)) for d in DETECTORS]])
     maps = len({x["map"] for x in recs})
-    return (f"Mean over the {maps} maps; tolerance 2 px; random conditions 2 seeded trials each; ogm-robust at "
-            f"its defaults:\n\n" + table(["condition", "level", *names], rows))
+    return (f"Mean over the {maps} maps (over those where the detector has keypoints to repeat: the robust "
+            f"detector finds none on some); tolerance 2 px; random conditions 2 seeded trials each; ogm-robust "
+            f"at its defaults:\n\n" + table(["condition", "level", *names], rows))
 
 
 # ---- Merging ----
@@ -409,6 +415,35 @@ def fig_python(r):
     return out.strip()
 
 
+# ---- The README and the guide ----
+
+def fig_demo(r):
+    out = r.tool("demo", "--output", os.path.join(r.work, "demo"))
+    return "```text\n" + out.strip() + "\n```"
+
+
+def peak_run(r, *args):
+    """The tool run under /usr/bin/time: (seconds, peak resident MB)."""
+    rss = os.path.join(r.work, "time.txt")
+    r.run(["/usr/bin/time", "-f", "%M", "-o", rss, r.bin, *map(str, args)],
+          shown_argv=["ogm-corners", *map(str, args)])
+    return r.log[-1][1], int(open(rss).read().split()[-1]) / 1024
+
+
+def fig_html_cost(r):
+    html = os.path.join(r.work, "html")
+    plain_s, plain_mb = peak_run(r, "merge-eval", PAIRS)
+    html_s, html_mb = peak_run(r, "merge-eval", PAIRS, "--html", html)
+    files = [os.path.join(d, f) for d, _, fs in os.walk(html) for f in fs]
+    pngs = sum(f.endswith(".png") for f in files)
+    size = sum(os.path.getsize(f) for f in files) / 1e6
+    return table(["run", "wall s", "peak resident MB", "files written"], [
+        ["`merge-eval pairs.json`", f"{plain_s:.1f}", f"{plain_mb:.0f}", "-"],
+        ["`merge-eval pairs.json --html DIR`", f"{html_s:.1f}", f"{html_mb:.0f}",
+         f"{pngs} pictures, {size:.1f} MB in all"],
+    ])
+
+
 FIGURES = {
     "annotations": ("docs/detectors.md", fig_annotations,
                     "hand-marked corners, pooled (eval --annotations, twice)"),
@@ -442,6 +477,10 @@ FIGURES = {
                "against OpenCV (benches/opencv_compare.py)"),
     "streamed": ("docs/performance.md", fig_streamed,
                  "a 100000^2 map streamed from disk (scripts/stream-bench.sh)"),
+    "demo": ("README.md", fig_demo,
+             "what `demo` prints"),
+    "html-cost": ("docs/guide.md", fig_html_cost,
+                  "what an HTML report costs on the real pairs (merge-eval --html)"),
     "python": ("docs/performance.md", fig_python,
                "what the Python package adds (python/benches/overhead.py)"),
 }
@@ -501,6 +540,9 @@ def main():
             r.log = []
             body = make(r)
             ran = "; ".join(f"`{c}` ({s:.0f} s)" for c, s in r.log)
+            if " MAPS" in ran:
+                ran += (f"; MAPS: the {len(shared_map_files())} maps of `../shared/maps` (every yaml and png, and"
+                        " the stage world's pgm files)")
             stamp = (f"<sub>Measured by `scripts/figures.py {n}` on {day}, commit {rev}, {mach}: {ran}."
                      f"</sub>")
             block = stamp + "\n\n" + body

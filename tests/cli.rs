@@ -219,6 +219,17 @@ fn demo_merges_the_robots_maps_and_checks_them_against_the_truth() {
             "robot-{k} unplaced"
         );
     }
+    // Run again with fewer robots into the same folder: robot-3's files are not this run's, and it says so.
+    let o = run(&["demo", "-o", d.to_str().unwrap(), "--robots", "2"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let err = stderr(&o);
+    for f in ["robot-3.pgm", "robot-3.yaml"] {
+        assert!(
+            err.contains(&format!("{f} is from an earlier run, not this one")),
+            "{err}"
+        );
+    }
+    assert!(!err.contains("robot-2.pgm is from"), "{err}");
     // Bad arguments are refused in one line, before anything is written.
     let bad = tmpdir("demo-merge-bad");
     let o = run(&["demo", "-o", bad.to_str().unwrap(), "--robots", "1"]);

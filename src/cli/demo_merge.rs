@@ -245,6 +245,14 @@ pub(super) fn run(a: &DemoArgs, budget: &Budget) -> Result<()> {
     })?;
     wrote.push(poses);
     staged.commit()?;
+    // A folder used before may hold outputs this run did not write (more robots then, or a merge this
+    // run declined): said, so that nobody reads them as this run's. They are the user's files to keep.
+    for p in earlier_outputs(dir, names.len(), many.groups() > 0) {
+        ogm_corners::say!(
+            "ogm-corners: note: {} is from an earlier run, not this one",
+            ogm_corners::error::one_line(&p.display().to_string())
+        );
+    }
     lines.push(format!("5. outputs written: {}", ms(t)));
     lines.push(format!("all in {}", ms(total)));
     write_stdout(|out| {
@@ -266,6 +274,36 @@ pub(super) fn run(a: &DemoArgs, budget: &Budget) -> Result<()> {
         ));
     }
     Ok(())
+}
+
+/// The demo's outputs in `dir` that a run of `robots` robots (`merged`: the merge written) did not write:
+/// `robot-K.pgm`/`.yaml` for K past `robots`, and the merged map and picture of a declined merge.
+fn earlier_outputs(dir: &std::path::Path, robots: usize, merged: bool) -> Vec<std::path::PathBuf> {
+    let mut out: Vec<std::path::PathBuf> = std::fs::read_dir(dir)
+        .into_iter()
+        .flatten()
+        .flatten()
+        .map(|e| e.path())
+        .filter(|p| {
+            let name = p.file_name().and_then(|n| n.to_str()).unwrap_or("");
+            let stem = name
+                .strip_suffix(".pgm")
+                .or_else(|| name.strip_suffix(".yaml"));
+            stem.and_then(|s| s.strip_prefix("robot-"))
+                .and_then(|k| k.parse::<usize>().ok())
+                .is_some_and(|k| k > robots)
+        })
+        .collect();
+    if !merged {
+        out.extend(
+            ["merged.pgm", "merged.yaml", "demo.png"]
+                .iter()
+                .map(|n| dir.join(n))
+                .filter(|p| p.exists()),
+        );
+    }
+    out.sort();
+    out
 }
 
 /// Milliseconds since `t`, for people.

@@ -1,0 +1,232 @@
+//! The documentation's own checks: every measured block between figure markers is one that
+//! `scripts/figures.py` writes (so it can be measured again on the revision that states it), every link
+//! between the pages reaches a file and a heading that exist, and the product never names the tracker's
+//! issue numbers.
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::{Path, PathBuf};
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// README, CHANGELOG, CONTRIBUTING and every chapter under docs/, as (path relative to the root, text).
+fn pages() -> Vec<(String, String)> {
+    let mut names = vec![
+        "README.md".to_string(),
+        "CHANGELOG.md".to_string(),
+        "CONTRIBUTING.md".to_string(),
+    ];
+    for e in std::fs::read_dir(root().join("docs")).unwrap() {
+        let p = e.unwrap().path();
+        if p.extension().is_some_and(|x| x == "md") {
+            names.push(format!("docs/{}", p.file_name().unwrap().to_string_lossy()));
+        }
+    }
+    names.sort();
+    names
+        .into_iter()
+        .map(|n| {
+            let t = std::fs::read_to_string(root().join(&n)).unwrap();
+            (n, t)
+        })
+        .collect()
+}
+
+/// The figures `scripts/figures.py` knows: name -> the chapter it writes into.
+fn script_figures() -> BTreeMap<String, String> {
+    let text = std::fs::read_to_string(root().join("scripts/figures.py")).unwrap();
+    let body = text
+        .split("FIGURES = {")
+        .nth(1)
+        .expect("FIGURES in scripts/figures.py");
+    let body = &body[..body.find("\n}").unwrap()];
+    let mut out = BTreeMap::new();
+    for line in body.lines() {
+        // `    "name": ("docs/chapter.md", fig_name,`
+        let l = line.trim();
+        if let Some(rest) = l.strip_prefix('"') {
+            let name = &rest[..rest.find('"').unwrap()];
+            let doc = l.split("(\"").nth(1).unwrap();
+            out.insert(name.to_string(), doc[..doc.find('"').unwrap()].to_string());
+        }
+    }
+    out
+}
+
+/// (name, chapter, the block's text) for every figure block in the pages.
+fn blocks(pages: &[(String, String)]) -> Vec<(String, String, String)> {
+    let mut out = Vec::new();
+    for (page, text) in pages {
+        let mut rest = text.as_str();
+        while let Some(i) = rest.find("<!-- figure:") {
+            let after = &rest[i + "<!-- figure:".len()..];
+            let name = after[..after.find(" -->").expect("figure marker closed")].to_string();
+            let end = format!("<!-- /figure:{name} -->");
+            let body_start = i + "<!-- figure:".len() + name.len() + " -->".len();
+            let j = rest[body_start..]
+                .find(&end)
+                .unwrap_or_else(|| panic!("{page}: figure {name} has no end marker"));
+            out.push((
+                name.clone(),
+                page.clone(),
+                rest[body_start..body_start + j].trim().to_string(),
+            ));
+            rest = &rest[body_start + j + end.len()..];
+        }
+    }
+    out
+}
+
+#[test]
+fn every_figure_block_is_one_the_script_writes_and_every_one_is_placed() {
+    let pages = pages();
+    let known = script_figures();
+    assert!(known.len() >= 10, "only {} figures read", known.len());
+    let found = blocks(&pages);
+    let mut seen = BTreeSet::new();
+    for (name, page, body) in &found {
+        let doc = known
+            .get(name)
+            .unwrap_or_else(|| panic!("{page}: figure {name} is not in scripts/figures.py"));
+        assert_eq!(doc, page, "figure {name} is written into {doc}, placed in {page}");
+        assert!(seen.insert(name.clone()), "figure {name} placed twice");
+        let stamp = format!("<sub>Measured by `scripts/figures.py {name}` on ");
+        assert!(
+            body.starts_with(&stamp),
+            "{page}: figure {name} is empty or not the script's (run scripts/figures.py --write {name})"
+        );
+    }
+    for name in known.keys() {
+        assert!(seen.contains(name), "figure {name} has no markers in its chapter");
+    }
+}
+
+/// A heading's anchor as GitHub makes it: lower case, punctuation other than `-` and `_` dropped, spaces
+/// as `-`.
+fn slug(heading: &str) -> String {
+    heading
+        .trim()
+        .to_lowercase()
+        .chars()
+        .filter(|c| c.is_alphanumeric() || *c == ' ' || *c == '-' || *c == '_')
+        .map(|c| if c == ' ' { '-' } else { c })
+        .collect()
+}
+
+fn anchors(text: &str) -> BTreeSet<String> {
+    let mut in_code = false;
+    let mut out = BTreeSet::new();
+    for line in text.lines() {
+        if line.starts_with("```") {
+            in_code = !in_code;
+        }
+        if !in_code && line.starts_with('#') {
+            out.insert(slug(line.trim_start_matches('#')));
+        }
+    }
+    out
+}
+
+/// Every `](target)` of a page, outside code blocks.
+fn links(text: &str) -> Vec<String> {
+    let mut out = Vec::new();
+    let mut in_code = false;
+    for line in text.lines() {
+        if line.starts_with("```") {
+            in_code = !in_code;
+            continue;
+        }
+        if in_code {
+            continue;
+        }
+        let mut rest = line;
+        while let Some(i) = rest.find("](") {
+            let after = &rest[i + 2..];
+            let Some(j) = after.find(')') else { break };
+            out.push(after[..j].to_string());
+            rest = &after[j..];
+        }
+    }
+    out
+}
+
+#[test]
+fn links_between_the_pages_reach_their_files_and_headings() {
+    let pages = pages();
+    let texts: BTreeMap<String, &String> = pages.iter().map(|(n, t)| (n.clone(), t)).collect();
+    let mut bad = Vec::new();
+    for (page, text) in &pages {
+        let dir = Path::new(page).parent().unwrap_or(Path::new(""));
+        for link in links(text) {
+            if link.contains("://") || link.starts_with("mailto:") {
+                continue;
+            }
+            let (file, anchor) = match link.split_once('#') {
+                Some((f, a)) => (f.to_string(), Some(a.to_string())),
+                None => (link.clone(), None),
+            };
+            let target = if file.is_empty() {
+                page.clone()
+            } else {
+                let p = dir.join(&file);
+                // Normalise `docs/../README.md` to `README.md`.
+                let mut parts: Vec<String> = Vec::new();
+                for c in p.components() {
+                    match c {
+                        std::path::Component::ParentDir => {
+                            parts.pop();
+                        }
+                        std::path::Component::Normal(s) => parts.push(s.to_string_lossy().into()),
+                        _ => {}
+                    }
+                }
+                parts.join("/")
+            };
+            if !root().join(&target).exists() {
+                bad.push(format!("{page}: {link}: no file {target}"));
+                continue;
+            }
+            if let (Some(a), Some(t)) = (anchor, texts.get(&target)) {
+                if !anchors(t).contains(&a) {
+                    bad.push(format!("{page}: {link}: no heading #{a} in {target}"));
+                }
+            }
+        }
+    }
+    assert!(bad.is_empty(), "{bad:#?}");
+}
+
+#[test]
+fn the_pages_name_no_tracker_issue() {
+    let mut bad = Vec::new();
+    for (page, text) in pages() {
+        for (n, line) in text.lines().enumerate() {
+            let l = line.to_lowercase();
+            let mut rest = l.as_str();
+            while let Some(i) = rest.find("issue") {
+                let after = rest[i + 5..].trim_start_matches([' ', '#', 's']);
+                if after.starts_with(|c: char| c.is_ascii_digit()) {
+                    bad.push(format!("{page}:{}: {line}", n + 1));
+                    break;
+                }
+                rest = &rest[i + 5..];
+            }
+        }
+    }
+    assert!(bad.is_empty(), "{bad:#?}");
+}
+
+#[test]
+fn the_checks_see_what_they_look_for() {
+    assert_eq!(
+        slug(" Merging many maps (`merge A B C ...`, `merge-eval --global`)"),
+        "merging-many-maps-merge-a-b-c--merge-eval---global"
+    );
+    assert_eq!(links("see [a](b.md#c) and [d](https://e)"), ["b.md#c", "https://e"]);
+    let b = blocks(&[(
+        "x.md".into(),
+        "a\n<!-- figure:f -->\n<sub>Measured by\n<!-- /figure:f -->\n".into(),
+    )]);
+    assert_eq!(b, [("f".into(), "x.md".into(), "<sub>Measured by".into())]);
+}
