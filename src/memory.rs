@@ -37,7 +37,12 @@ impl Budget {
     /// 80% of the machine's memory (the cgroup limit, or what this process's address space and data
     /// limits leave, when lower), leaving room for the rest of the system; 8 GiB when none can be read.
     pub fn machine() -> Self {
-        let total = [physical_memory(), cgroup_limit(), process_limit()]
+        // The machine's memory and its cgroup's limit are read once a process: reading them costs about
+        // 90 us, which the Python package paid on every detection (a 0.1 ms call on a small map). The
+        // process's own limit is a system call and is read every time (a test may lower it).
+        static FILES: std::sync::OnceLock<[Option<u64>; 2]> = std::sync::OnceLock::new();
+        let [physical, cgroup] = *FILES.get_or_init(|| [physical_memory(), cgroup_limit()]);
+        let total = [physical, cgroup, process_limit()]
             .into_iter()
             .flatten()
             .min();

@@ -45,7 +45,7 @@ fn script_figures() -> BTreeMap<String, String> {
     for line in body.lines() {
         // `    "name": ("docs/chapter.md", fig_name,`
         let l = line.trim();
-        if let Some(rest) = l.strip_prefix('"') {
+        if let Some(rest) = l.strip_prefix('"').filter(|r| r.contains("\": (\"")) {
             let name = &rest[..rest.find('"').unwrap()];
             let doc = l.split("(\"").nth(1).unwrap();
             out.insert(name.to_string(), doc[..doc.find('"').unwrap()].to_string());
@@ -54,26 +54,35 @@ fn script_figures() -> BTreeMap<String, String> {
     out
 }
 
-/// (name, chapter, the block's text) for every figure block in the pages.
+/// (name, chapter, the block's text) for every figure block in the pages: a line that is only
+/// `<!-- figure:NAME -->` opens one, `<!-- /figure:NAME -->` closes it (a marker quoted in a sentence is not
+/// one).
 fn blocks(pages: &[(String, String)]) -> Vec<(String, String, String)> {
     let mut out = Vec::new();
     for (page, text) in pages {
-        let mut rest = text.as_str();
-        while let Some(i) = rest.find("<!-- figure:") {
-            let after = &rest[i + "<!-- figure:".len()..];
-            let name = after[..after.find(" -->").expect("figure marker closed")].to_string();
-            let end = format!("<!-- /figure:{name} -->");
-            let body_start = i + "<!-- figure:".len() + name.len() + " -->".len();
-            let j = rest[body_start..]
-                .find(&end)
-                .unwrap_or_else(|| panic!("{page}: figure {name} has no end marker"));
-            out.push((
-                name.clone(),
-                page.clone(),
-                rest[body_start..body_start + j].trim().to_string(),
-            ));
-            rest = &rest[body_start + j + end.len()..];
+        let mut open: Option<(String, Vec<&str>)> = None;
+        for line in text.lines() {
+            let l = line.trim();
+            if let Some(name) = l
+                .strip_prefix("<!-- figure:")
+                .and_then(|r| r.strip_suffix(" -->"))
+            {
+                assert!(open.is_none(), "{page}: figure {name} opens inside another");
+                open = Some((name.to_string(), Vec::new()));
+            } else if let Some(name) = l
+                .strip_prefix("<!-- /figure:")
+                .and_then(|r| r.strip_suffix(" -->"))
+            {
+                let (n, body) = open
+                    .take()
+                    .unwrap_or_else(|| panic!("{page}: figure {name} closes without opening"));
+                assert_eq!(n, name, "{page}: figure {n} closed as {name}");
+                out.push((n, page.clone(), body.join("\n").trim().to_string()));
+            } else if let Some((_, body)) = open.as_mut() {
+                body.push(line);
+            }
         }
+        assert!(open.is_none(), "{page}: a figure block is never closed");
     }
     out
 }
@@ -89,7 +98,10 @@ fn every_figure_block_is_one_the_script_writes_and_every_one_is_placed() {
         let doc = known
             .get(name)
             .unwrap_or_else(|| panic!("{page}: figure {name} is not in scripts/figures.py"));
-        assert_eq!(doc, page, "figure {name} is written into {doc}, placed in {page}");
+        assert_eq!(
+            doc, page,
+            "figure {name} is written into {doc}, placed in {page}"
+        );
         assert!(seen.insert(name.clone()), "figure {name} placed twice");
         let stamp = format!("<sub>Measured by `scripts/figures.py {name}` on ");
         assert!(
@@ -98,7 +110,10 @@ fn every_figure_block_is_one_the_script_writes_and_every_one_is_placed() {
         );
     }
     for name in known.keys() {
-        assert!(seen.contains(name), "figure {name} has no markers in its chapter");
+        assert!(
+            seen.contains(name),
+            "figure {name} has no markers in its chapter"
+        );
     }
 }
 
@@ -223,7 +238,10 @@ fn the_checks_see_what_they_look_for() {
         slug(" Merging many maps (`merge A B C ...`, `merge-eval --global`)"),
         "merging-many-maps-merge-a-b-c--merge-eval---global"
     );
-    assert_eq!(links("see [a](b.md#c) and [d](https://e)"), ["b.md#c", "https://e"]);
+    assert_eq!(
+        links("see [a](b.md#c) and [d](https://e)"),
+        ["b.md#c", "https://e"]
+    );
     let b = blocks(&[(
         "x.md".into(),
         "a\n<!-- figure:f -->\n<sub>Measured by\n<!-- /figure:f -->\n".into(),
