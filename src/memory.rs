@@ -154,6 +154,11 @@ fn process_limit() -> Option<u64> {
     #[cfg(target_os = "linux")]
     {
         use rustix::process::{getrlimit, Resource};
+        let limits = [Resource::As, Resource::Data].map(|r| getrlimit(r).current);
+        if limits.iter().all(Option::is_none) {
+            // No limit (the usual case): no need to read what is in use (a file read, tens of us).
+            return None;
+        }
         let status = std::fs::read_to_string("/proc/self/status").unwrap_or_default();
         let used = |key: &str| -> u64 {
             status
@@ -162,13 +167,10 @@ fn process_limit() -> Option<u64> {
                 .and_then(|v| v.split_whitespace().next()?.parse::<u64>().ok())
                 .map_or(0, |kib| kib.saturating_mul(1024))
         };
-        [
-            (Resource::As, used("VmSize:")),
-            (Resource::Data, used("VmData:")),
-        ]
-        .into_iter()
-        .filter_map(|(r, used)| Some(getrlimit(r).current?.saturating_sub(used)))
-        .min()
+        [(limits[0], used("VmSize:")), (limits[1], used("VmData:"))]
+            .into_iter()
+            .filter_map(|(limit, used)| Some(limit?.saturating_sub(used)))
+            .min()
     }
     #[cfg(not(target_os = "linux"))]
     {
