@@ -71,9 +71,11 @@ fi
 # OpenCV (for the Harris / Shi-Tomasi agreement test).
 python_env target/opencv-venv "import cv2, numpy" opencv-python-headless numpy
 # The Python package's build tool (its metadata check) and test tools (rosbags: the ROS bag example, no ROS
-# install needed).
+# install needed; the ROS 2 Jazzy wheels: the map_merge node's tests, its `ros` extra).
 pyvenv=target/python-venv
-python_env "$pyvenv" "import maturin, numpy, pytest, rosbags" "maturin>=1.9.4,<2" numpy pytest rosbags
+python_env "$pyvenv" "import maturin, numpy, pytest, rosbags, rclpy, nav_msgs.msg, geometry_msgs.msg" \
+    "maturin>=1.9.4,<2" numpy pytest rosbags \
+    ros-jazzy-rclpy ros-jazzy-nav-msgs ros-jazzy-geometry-msgs ros-jazzy-rmw-fastrtps-cpp
 
 # Unit, integration and doc tests, and the Python extension, in one build: with the same dependency graph
 # (feature unification spans the selected packages) the extension costs only itself. The extension links

@@ -1,0 +1,120 @@
+"""The map-merge node's logic without ROS (``ogm_corners.ros.live``): growing maps of simulated robots in,
+world poses against the truth and a stable merged grid out."""
+
+import math
+
+import numpy as np
+import pytest
+
+from ogm_corners import synthetic
+from ogm_corners.ros.live import Grid, LiveMerge, Options, check_grid, pose_distance
+
+
+def frame_of_pixels(height: int, res: float) -> np.ndarray:
+    """Pixel (column, row; row 0 at the top) to the map frame (metres, y up) of a map with origin 0."""
+    return np.array([[res, 0, 0.5 * res], [0, -res, (height - 0.5) * res], [0, 0, 1.0]])
+
+
+def pixel_pose(theta_deg: float, tx: float, ty: float) -> np.ndarray:
+    c, s = math.cos(math.radians(theta_deg)), math.sin(math.radians(theta_deg))
+    return np.array([[c, -s, tx], [s, c, ty], [0, 0, 1.0]])
+
+
+@pytest.fixture(scope="module")
+def robots():
+    """Three robots' maps of one office, each with its map frame's true pose in robot 0's map frame."""
+    office = synthetic.office(1024, 768, seed=3)
+    res = office.resolution
+    out = []
+    for m, (theta, tx, ty) in synthetic.robot_maps(office, 3, seed=2):
+        g = m.to_occupancy_grid()
+        cells = g.data.reshape(g.height, g.width)
+        frame = frame_of_pixels(office.height, res) @ pixel_pose(theta, tx, ty) @ np.linalg.inv(
+            frame_of_pixels(m.height, res)
+        )
+        out.append((cells, res, frame))
+    base = np.linalg.inv(out[0][2])
+    return [(c, r, base @ f) for c, r, f in out]
+
+
+def revealed(cells: np.ndarray, share: float) -> np.ndarray:
+    """What a robot has seen so far: its known cells within a growing disc about their centre."""
+    ys, xs = np.nonzero(cells >= 0)
+    cy, cx = ys.mean(), xs.mean()
+    radius = share * np.hypot(ys - cy, xs - cx).max()
+    yy, xx = np.mgrid[0 : cells.shape[0], 0 : cells.shape[1]]
+    out = cells.copy()
+    out[np.hypot(yy - cy, xx - cx) > radius] = -1
+    return out
+
+
+def truth_pose(m: np.ndarray):
+    return (m[0, 2], m[1, 2], math.atan2(m[1, 0], m[0, 0]))
+
+
+def test_growing_maps_are_placed_right_and_never_jump(robots):
+    live = LiveMerge(Options())
+    seen = {}
+    for stage, share in enumerate([0.55, 0.8, 1.0]):
+        for i, (cells, res, _) in enumerate(robots):
+            live.update(f"robot{i + 1}", Grid(revealed(cells, share), res, (0.0, 0.0, 0.0), float(stage)))
+        assert live.needs_estimation()
+        events = live.estimate()
+        assert not live.needs_estimation()
+        assert not [e for e in events if e.kind == "moved"], events
+        for name, pose in live.poses().items():
+            i = int(name[5:]) - 1
+            d, deg = pose_distance(pose, truth_pose(robots[i][2]), 50.0)
+            assert d < 0.5 and deg < 1.0, (stage, name, pose, truth_pose(robots[i][2]))
+            if name in seen:
+                # Once placed, a robot's pose only refines.
+                assert pose_distance(pose, seen[name], 50.0)[0] < 0.5
+            seen[name] = pose
+    assert sorted(seen) == ["robot1", "robot2", "robot3"], live.reasons()
+    cells, res, origin = live.merged()
+    # The merged grid holds every robot's free space: more known cells than any one map.
+    assert np.count_nonzero(cells >= 0) > max(np.count_nonzero(c >= 0) for c, _, _ in robots)
+    assert res == pytest.approx(robots[0][1])
+    # Cells stay on the world grid: the origin is a multiple of the resolution.
+    assert origin[0] / res == pytest.approx(round(origin[0] / res))
+
+
+def test_a_pose_moves_only_when_a_change_is_seen_twice_and_never_flips():
+    live = LiveMerge(Options(pose_tolerance_m=0.5, pose_tolerance_deg=3.0, confirm=2))
+    reach = 10.0
+    a, b = (1.0, 2.0, 0.1), (4.0, 2.0, 0.1)
+    assert [e.kind for e in live._fold("r", a, reach)] == ["placed"]
+    assert live._fold("r", (1.1, 2.0, 0.1), reach) == []  # a refinement, smoothed
+    assert live._placements["r"].pose[0] == pytest.approx(1.05)
+    # Two answers in turn: the pose never leaves the first.
+    for _ in range(3):
+        assert [e.kind for e in live._fold("r", b, reach)] == ["held"]
+        live._fold("r", a, reach)
+    assert live._placements["r"].pose[0] < 1.2
+    # The same change seen twice in a row is taken, and said.
+    live._fold("r", b, reach)
+    moved = live._fold("r", b, reach)
+    assert [e.kind for e in moved] == ["moved"] and "seen in 2 estimations" in moved[0].text
+    assert live._placements["r"].pose == b
+
+
+def test_known_poses_are_used_and_a_contradiction_is_reported(robots):
+    wrong = (5.0, -3.0, 0.5)
+    init = {"robot1": (0.0, 0.0, 0.0), "robot2": wrong, "robot3": truth_pose(robots[2][2])}
+    live = LiveMerge(Options(init_poses=init))
+    for i, (cells, res, _) in enumerate(robots):
+        live.update(f"robot{i + 1}", Grid(cells, res, (0.0, 0.0, 0.0), 0.0))
+    events = live.estimate()
+    assert live.poses()["robot2"] == wrong  # given, kept
+    said = [e for e in events if e.kind == "contradicts"]
+    assert len(said) == 1 and said[0].robot == "robot2" and "given pose is kept" in said[0].text
+
+
+def test_bad_messages_are_named():
+    ok = dict(width=4, height=2, resolution=0.05, origin=(0.0, 0.0, 0.0), max_cells=100)
+    assert check_grid(b"\0" * 8, **ok) is None
+    assert "7 cells for a 4 x 2 grid" in check_grid(b"\0" * 7, **ok)
+    assert "resolution nan" in check_grid(b"\0" * 8, **{**ok, "resolution": float("nan")})
+    assert "not finite" in check_grid(b"\0" * 8, **{**ok, "origin": (float("inf"), 0.0, 0.0)})
+    assert "over the limit" in check_grid(b"", **{**ok, "width": 10**5, "height": 10**4})
+    assert "empty" in check_grid(b"", **{**ok, "width": 0})
