@@ -55,6 +55,7 @@ def truth_pose(m: np.ndarray):
 def test_growing_maps_are_placed_right_and_never_jump(robots):
     live = LiveMerge(Options())
     seen = {}
+    origins = []
     for stage, share in enumerate([0.55, 0.8, 1.0]):
         for i, (cells, res, _) in enumerate(robots):
             live.update(f"robot{i + 1}", Grid(revealed(cells, share), res, (0.0, 0.0, 0.0), float(stage)))
@@ -70,13 +71,19 @@ def test_growing_maps_are_placed_right_and_never_jump(robots):
                 # Once placed, a robot's pose only refines.
                 assert pose_distance(pose, seen[name], 50.0)[0] < 0.5
             seen[name] = pose
+        origins.append(live.merged()[2])
     assert sorted(seen) == ["robot1", "robot2", "robot3"], live.reasons()
     cells, res, origin = live.merged()
     # The merged grid holds every robot's free space: more known cells than any one map.
     assert np.count_nonzero(cells >= 0) > max(np.count_nonzero(c >= 0) for c, _, _ in robots)
     assert res == pytest.approx(robots[0][1])
-    # Cells stay on the world grid: the origin is a multiple of the resolution.
-    assert origin[0] / res == pytest.approx(round(origin[0] / res))
+    # Cells stay put as the maps grow: the origin moves by whole cells.
+    for a, b in zip(origins, origins[1:]):
+        for k in (0, 1):
+            assert (b[k] - a[k]) / res == pytest.approx(round((b[k] - a[k]) / res), abs=1e-6)
+    # A merged map past max_cells is refused before it is drawn.
+    with pytest.raises(ValueError, match="over max_cells"):
+        live.merged(max_cells=1000)
 
 
 def test_a_pose_moves_only_when_a_change_is_seen_twice_and_never_flips():
@@ -98,16 +105,24 @@ def test_a_pose_moves_only_when_a_change_is_seen_twice_and_never_flips():
     assert live._placements["r"].pose == b
 
 
-def test_known_poses_are_used_and_a_contradiction_is_reported(robots):
+@pytest.mark.parametrize("wrong_robot", ["robot1", "robot2"])
+def test_known_poses_are_used_and_the_one_the_maps_contradict_is_named(robots, wrong_robot):
+    # robot1 is the first to arrive (the anchor of the estimate): a wrong pose there is found too.
     wrong = (5.0, -3.0, 0.5)
-    init = {"robot1": (0.0, 0.0, 0.0), "robot2": wrong, "robot3": truth_pose(robots[2][2])}
+    init = {f"robot{i + 1}": truth_pose(robots[i][2]) for i in range(3)}
+    init[wrong_robot] = wrong
     live = LiveMerge(Options(init_poses=init))
     for i, (cells, res, _) in enumerate(robots):
         live.update(f"robot{i + 1}", Grid(cells, res, (0.0, 0.0, 0.0), 0.0))
     events = live.estimate()
-    assert live.poses()["robot2"] == wrong  # given, kept
+    assert live.poses()[wrong_robot] == wrong  # given, kept
     said = [e for e in events if e.kind == "contradicts"]
-    assert len(said) == 1 and said[0].robot == "robot2" and "given pose is kept" in said[0].text
+    assert [e.robot for e in said] == [wrong_robot], said
+    assert "given pose is kept" in said[0].text
+    assert live.reasons()[wrong_robot] == said[0].text  # in the status too
+    # Said once: the next estimation finds the same and says nothing new.
+    live.update("robot1", Grid(robots[0][0], robots[0][1], (0.0, 0.0, 0.0), 1.0))
+    assert not [e for e in live.estimate() if e.kind == "contradicts"]
 
 
 def test_bad_messages_are_named():

@@ -94,7 +94,7 @@ def test_live_robots_are_merged_right_latched_and_the_node_stops_cleanly(robots,
         subs.append(node.create_subscription(OccupancyGrid, "/map", lambda m: merged.append(m), latched()))
         stages = [0.55, 0.8, 1.0]
         deadline = time.monotonic() + 120
-        stage, next_stage = 0, 0.0
+        stage, next_stage, after_last = 0, 0.0, None
         while time.monotonic() < deadline:
             now = time.monotonic()
             if stage < len(stages) and now >= next_stage:
@@ -107,11 +107,19 @@ def test_live_robots_are_merged_right_latched_and_the_node_stops_cleanly(robots,
                     m.data = [0] * 7  # 7 cells for a 10 x 10 grid
                     bad.publish(m)
                 stage, next_stage = stage + 1, now + 4.0
+                if stage == len(stages):
+                    after_last = len(merged)
             rclpy.spin_once(node, timeout_sec=0.1)
-            if stage == len(stages) and len(poses) == len(pubs) and all(d < 0.5 and deg < 1.0 for _, d, deg in poses.values()):
+            # Done when a merged map drawn from the full maps has come and every pose is accurate.
+            done = after_last is not None and len(merged) > after_last and len(poses) == len(pubs)
+            if done and all(d < 0.5 and deg < 1.0 for _, d, deg in poses.values()):
                 break
+        tail = open(tmp_path / "node.log").read()[-3000:]
         assert not wrong, wrong
-        assert sorted(poses) == sorted(pubs), (poses, open(tmp_path / "node.log").read()[-3000:])
+        assert sorted(poses) == sorted(pubs), (poses, tail)
+        for name, (pose, d, deg) in poses.items():
+            assert d < 0.5 and deg < 1.0, (name, pose, d, deg, tail)
+        assert after_last is not None and len(merged) > after_last, ("no merged map after the last maps", tail)
         assert merged, "no merged map"
         last = merged[-1]
         assert last.header.frame_id == "world"
@@ -134,10 +142,10 @@ def test_live_robots_are_merged_right_latched_and_the_node_stops_cleanly(robots,
         if node_proc.poll() is None:
             node_proc.send_signal(signal.SIGINT)
         try:
-            code = node_proc.wait(timeout=15)
+            code = node_proc.wait(timeout=30)
         except subprocess.TimeoutExpired:
             node_proc.kill()
-            code = "did not stop in 15 s"
+            code = "did not stop in 30 s"
     text = open(tmp_path / "node.log").read()
     assert code == 0, (code, text[-3000:])
     assert "robot /robot9: map ignored: 7 cells for a 10 x 10 grid" in text, text[-3000:]
@@ -181,17 +189,16 @@ def test_a_multirobot_map_merge_params_file_loads_unchanged(robots, env, tmp_pat
             rclpy.spin_once(node, timeout_sec=0.1)
         for r, p in given.items():
             assert poses.get(r) == pytest.approx(p, abs=1e-6), (r, poses, open(tmp_path / "node.log").read()[-2000:])
-        assert len(subs) == 3
     finally:
         node.destroy_node()
         rclpy.try_shutdown()
         proc.send_signal(signal.SIGINT)
         try:
-            code = proc.wait(timeout=15)
+            code = proc.wait(timeout=30)
         except subprocess.TimeoutExpired:
             proc.kill()
-            code = "did not stop in 15 s"
+            code = "did not stop in 30 s"
     text = open(tmp_path / "node.log").read()
     assert code == 0, (code, text[-3000:])
     assert "/robot3: the maps contradict its given pose" in text, text[-3000:]
-    assert "/robot2: the maps contradict" not in text, text[-3000:]
+    assert "/robot1: the maps contradict" not in text and "/robot2: the maps contradict" not in text, text[-3000:]

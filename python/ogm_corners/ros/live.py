@@ -77,10 +77,12 @@ def check_grid(
         return f"a grid of {width} x {height} cells, over the limit of {max_cells} (max_cells)"
     if len(data) != width * height:
         return f"{len(data)} cells for a {width} x {height} grid"
-    if not (math.isfinite(resolution) and resolution > 0):
-        return f"resolution {resolution} is not a positive number"
+    if not (math.isfinite(resolution) and 1e-4 <= resolution <= 1e3):
+        return f"resolution {resolution} is not a number of metres between 0.0001 and 1000"
     if not all(math.isfinite(v) for v in origin):
         return f"origin {origin} is not finite"
+    if max(abs(origin[0]), abs(origin[1])) > 1e8:
+        return f"origin {origin} is over 100000 km from the map frame's origin"
     return None
 
 
@@ -139,20 +141,23 @@ class LiveMerge:
     """Robots' maps in, world poses and the merged grid out. Thread-safe: ``update`` from message
     callbacks, ``estimate`` from a worker, ``merged``/``poses`` from a timer."""
 
-    def __init__(self, options: Options = Options()) -> None:
-        self.options = options
+    def __init__(self, options: Optional[Options] = None) -> None:
+        self.options = options if options is not None else Options()
         self._lock = threading.Lock()
         self._grids: Dict[str, Grid] = {}
         self._estimated_known: Dict[str, int] = {}
         self._placements: Dict[str, Placement] = {}
         self._anchor: Optional[str] = None
         self._reasons: Dict[str, str] = {}
+        self._warnings: Dict[str, str] = {}  # about placed robots: a given pose the maps contradict
+        self._arrival: Dict[str, int] = {}
         self._version = 0  # bumped when a grid or a pose changes: the merged grid is redrawn then
 
     # ---- input ----
 
     def update(self, robot: str, grid: Grid) -> None:
         with self._lock:
+            self._arrival.setdefault(robot, len(self._arrival))
             self._grids[robot] = grid
             self._version += 1
 
@@ -185,27 +190,16 @@ class LiveMerge:
         events: List[Event] = []
         init = self.options.init_poses
         with self._lock:
+            if init is not None:
+                events += self._check_given(names, estimates, snapshot)
             for r in names:
                 if init is not None:
                     if r not in init:
                         self._reasons[r] = "no initial pose given (map_merge/init_pose_*)"
                         continue
-                    given = init[r]
                     if r not in self._placements:
-                        self._placements[r] = Placement(given)
-                        events.append(Event(r, "placed", f"{r}: placed at its given pose {fmt(given)}"))
-                    est = estimates.get(r)
-                    anchor = self._anchor
-                    if est is not None and anchor in init:
-                        # The estimate is in the anchor's map frame; the anchor's given pose puts it in the world.
-                        est = matrix_pose(pose_matrix(init[anchor]) @ pose_matrix(est))
-                        d, deg = pose_distance(est, given, snapshot[r].reach)
-                        if d > self.options.contradiction_m or deg > self.options.contradiction_deg:
-                            text = (f"{r}: the maps contradict its given pose {fmt(given)}: they place it at "
-                                    f"{fmt(est)} ({d:.2f} m, {deg:.1f} deg away); the given pose is kept")
-                            if self._reasons.get(r) != text:
-                                events.append(Event(r, "contradicts", text))
-                            self._reasons[r] = text
+                        self._placements[r] = Placement(init[r])
+                        events.append(Event(r, "placed", f"{r}: placed at its given pose {fmt(init[r])}"))
                     continue
                 est = estimates.get(r)
                 if est is None:
@@ -217,6 +211,41 @@ class LiveMerge:
                 self._reasons.pop(r, None)
                 events += self._fold(r, est, snapshot[r].reach)
             self._version += 1
+        return events
+
+    def _check_given(self, names: List[str], est: Dict[str, Pose2], grids: Dict[str, Grid]) -> List[Event]:
+        """Given poses against the maps, pair by pair: where two robots' given poses put them relative to
+        each other, against where their maps do. A robot that disagrees with more than half of the others
+        is named; with two robots only the pair can be named. Said once per finding."""
+        init = self.options.init_poses or {}
+        both = [r for r in names if r in init and r in est]
+        against: Dict[str, List[str]] = {r: [] for r in both}
+        for i, a in enumerate(both):
+            for b in both[i + 1 :]:
+                given = np.linalg.inv(pose_matrix(init[a])) @ pose_matrix(init[b])
+                seen = np.linalg.inv(pose_matrix(est[a])) @ pose_matrix(est[b])
+                # The frames' offset and turn, not a far cell's displacement: a given pose is wrong by
+                # metres or by many degrees, and the merger's own error (a fraction of a degree) must not
+                # read as a contradiction across a large map.
+                d, deg = pose_distance(matrix_pose(seen), matrix_pose(given), 0.0)
+                if d > self.options.contradiction_m or deg > self.options.contradiction_deg:
+                    against[a].append(b)
+                    against[b].append(a)
+        events = []
+        for r in both:
+            others = len(both) - 1
+            if others >= 2 and len(against[r]) * 2 > others:
+                text = (f"{r}: the maps contradict its given pose {fmt(init[r])} (they disagree with it for "
+                        f"{len(against[r])} of the {others} other robots); the given pose is kept")
+            elif others == 1 and against[r] and r == both[0]:
+                text = (f"{r} and {against[r][0]}: their given poses and their maps disagree; which one is "
+                        "wrong cannot be told from two robots; the given poses are kept")
+            else:
+                self._warnings.pop(r, None)
+                continue
+            if self._warnings.get(r) != text:
+                events.append(Event(r, "contradicts", text))
+            self._warnings[r] = text
         return events
 
     def _place(self, names: List[str], grids: Dict[str, Grid]) -> Tuple[Dict[str, Pose2], Dict[str, str]]:
@@ -245,14 +274,17 @@ class LiveMerge:
                 if anchor is not None and anchor not in frames:
                     reasons_anchor = f"the world's anchor {anchor} is not placed in this estimation"
                     return {}, {n: reasons.get(n, reasons_anchor) for n in names}
+                first = sorted(frames, key=lambda n: self._arrival.get(n, 1 << 30))
                 if placed:
                     anchor = placed[0]
-                elif frames:
+                elif first:
+                    # The first to arrive of the largest group (the robot shown alone so far, when it is
+                    # in that group: then the world does not move).
                     sizes: Dict[int, int] = {}
                     for n in frames:
                         sizes[group[n]] = sizes.get(group[n], 0) + 1
-                    best = max(sizes, key=lambda g: (sizes[g], -g))
-                    anchor = next(n for n in names if group.get(n) == best)
+                    best = max(sizes.values())
+                    anchor = next(n for n in first if sizes[group[n]] == best)
                 else:
                     return {}, reasons
                 self._anchor = anchor
@@ -299,23 +331,29 @@ class LiveMerge:
             return {r: p.pose for r, p in self._placements.items() if r in self._grids}
 
     def reasons(self) -> Dict[str, str]:
-        """Why each robot not placed is not (the latest reason)."""
+        """Why each robot not placed is not (the latest reason), and what is wrong with a placed one (a
+        given pose the maps contradict)."""
         with self._lock:
-            return {r: why for r, why in self._reasons.items() if r not in self._placements}
+            out = {r: why for r, why in self._reasons.items() if r not in self._placements}
+            out.update(self._warnings)
+            return out
 
     @property
     def version(self) -> int:
         with self._lock:
             return self._version
 
-    def merged(self, resolution: Optional[float] = None) -> Optional[Tuple[np.ndarray, float, Pose2]]:
+    def merged(
+        self, max_cells: int = 1 << 27, resolution: Optional[float] = None
+    ) -> Optional[Tuple[np.ndarray, float, Pose2]]:
         """The placed maps drawn into one world-aligned grid: (cells int8 row 0 at the bottom, resolution,
-        origin (x, y, 0)); occupied wins over free, free over unknown. None until a robot is placed."""
+        origin (x, y, 0)); occupied wins over free, free over unknown. None until a robot is placed.
+        Raises ValueError, before allocating anything, when the grid would be over ``max_cells``."""
         with self._lock:
             placed = [(self._grids[r], p.pose) for r, p in self._placements.items() if r in self._grids]
             if not placed and self.options.init_poses is None and len(self._grids) == 1:
                 # One robot: its own map is the world until another is placed.
-                only = next(iter(self._grids))
+                only = min(self._grids, key=lambda n: self._arrival.get(n, 0))
                 placed = [(self._grids[only], (0.0, 0.0, 0.0))]
         if not placed:
             return None
@@ -331,6 +369,11 @@ class LiveMerge:
         x0, y0 = math.floor(c[:, 0].min() / res) * res, math.floor(c[:, 1].min() / res) * res
         width = int(math.ceil((c[:, 0].max() - x0) / res))
         height = int(math.ceil((c[:, 1].max() - y0) / res))
+        if width * height > max_cells:
+            raise ValueError(
+                f"the merged map would be {width} x {height} cells, over max_cells ({max_cells}): are the "
+                "robots' origins or given poses far apart?"
+            )
         cells = np.full((height, width), -1, np.int8)
         inverse = [(np.linalg.inv(pose_matrix(pose) @ pose_matrix(g.origin)), g) for g, pose in placed]
         wx = x0 + (np.arange(width) + 0.5) * res

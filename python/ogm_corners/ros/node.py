@@ -60,7 +60,8 @@ def latched(depth: int = 1) -> QoSProfile:
 
 
 def yaw_of(q: Any) -> float:
-    return math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
+    """The yaw of a quaternion, normalised or not (NaN when it is not finite: the message is refused)."""
+    return math.atan2(2.0 * (q.w * q.z + q.x * q.y), q.w * q.w + q.x * q.x - q.y * q.y - q.z * q.z)
 
 
 class MapMerge(Node):
@@ -119,27 +120,45 @@ class MapMerge(Node):
         if v is None:
             return default
         try:
-            # A yaml `4` arrives as an int where a rate is a float; a bool is never a number here.
+            # A yaml `4` arrives as an int where a rate is a float; "false" as a string is false.
             if isinstance(default, bool):
-                return bool(v)
-            return type(default)(v)
+                if isinstance(v, str) and v.strip().lower() in ("true", "false"):
+                    return v.strip().lower() == "true"
+                if isinstance(v, bool):
+                    return v
+                raise ValueError
+            out = type(default)(v)
+            if isinstance(out, float) and not (math.isfinite(out) and out > 0):
+                raise ValueError
+            return out
         except (TypeError, ValueError):
-            self.get_logger().error(f"parameter {name}: {v!r} is not a {type(default).__name__}; using {default!r}")
+            self.get_logger().error(
+                f"parameter {name}: {v!r} is not a valid {type(default).__name__}; using {default!r}"
+            )
             return default
 
     def _init_pose(self, robot: str) -> Optional[Pose2]:
         """``<robot>/map_merge/init_pose_{x,y,yaw}`` (multirobot_map_merge's names; z is read and unused),
         or the nested form ``robot.map_merge.init_pose_x``; metres and radians."""
         values = []
+        nested = robot.strip("/").replace("/", ".")
         for axis in ("x", "y", "z", "yaw"):
             found = None
-            for name in (f"{robot}/map_merge/init_pose_{axis}", f"{robot.strip('/').replace('/', '.')}.map_merge.init_pose_{axis}"):
+            for name in (f"{robot}/map_merge/init_pose_{axis}", f"{nested}.map_merge.init_pose_{axis}"):
                 if self.has_parameter(name):
                     found = self.get_parameter(name).value
                     break
             if found is None:
                 return None
-            values.append(float(found))
+            try:
+                v = float(found)
+            except (TypeError, ValueError):
+                v = math.nan
+            if not math.isfinite(v):
+                self._once(f"init-bad:{robot}", f"{robot}: init_pose_{axis} is {found!r}, not a finite number: "
+                                                "not merged until it is")
+                return None
+            values.append(v)
         return (values[0], values[1], values[3])
 
     # ---- discovery ----
@@ -169,16 +188,25 @@ class MapMerge(Node):
                     continue
                 self.live.options.init_poses[robot] = pose
             infos = self.get_publishers_info_by_topic(name)
-            # A transient-local subscription never hears a volatile publisher: match what is there.
-            durable = bool(infos) and all(
-                i.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL for i in infos
+            if not infos:
+                continue  # only subscribers so far (rviz): its publishers' QoS is known at a later discovery
+            # A transient-local subscription never hears a volatile publisher, a reliable one never a
+            # best-effort publisher: match what is there.
+            durable = all(i.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL for i in infos)
+            reliable = all(i.qos_profile.reliability == ReliabilityPolicy.RELIABLE for i in infos)
+            qos = QoSProfile(
+                history=HistoryPolicy.KEEP_LAST,
+                depth=1,
+                reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
+                durability=DurabilityPolicy.TRANSIENT_LOCAL if durable else DurabilityPolicy.VOLATILE,
             )
-            qos = latched(1) if durable else QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE)
             self.subs[robot] = self.create_subscription(
                 OccupancyGrid, name, lambda msg, r=robot: self.on_map(r, msg), qos
             )
+            self.pose_pubs[robot] = self.create_publisher(PoseStamped, f"{robot}/map_merge/pose", latched())
             self.get_logger().info(
-                f"robot {robot}: subscribed to {name} ({'transient-local' if durable else 'volatile'})"
+                f"robot {robot}: subscribed to {name} ({'transient-local' if durable else 'volatile'}, "
+                f"{'reliable' if reliable else 'best-effort'})"
             )
 
     # ---- input ----
@@ -201,7 +229,7 @@ class MapMerge(Node):
     # ---- estimation and output, off the executor's thread ----
 
     def _work(self) -> None:
-        next_estimate = 0.0
+        next_estimate = next_merge = 0.0
         drawn = -1
         period = 1.0 / max(self.p["merging_rate"], 1e-3)
         while not self._stop.wait(min(period, 0.1)):
@@ -218,7 +246,8 @@ class MapMerge(Node):
                         elif e.kind in ("placed", "not_placed"):
                             log.info(e.text)
                     self._status()
-                if self.live.version != drawn:
+                if now >= next_merge and self.live.version != drawn:
+                    next_merge = now + period
                     drawn = self.live.version
                     self._publish()
             except Exception as e:  # one bad estimation must not end the node
@@ -227,14 +256,14 @@ class MapMerge(Node):
                 self.get_logger().error(f"estimation failed: {type(e).__name__}: {e}")
 
     def _publish(self) -> None:
-        merged = self.live.merged()
+        try:
+            merged = self.live.merged(self.p["max_cells"])
+        except ValueError as e:
+            self._once("merged-size", f"{e}; not published")
+            return
         if merged is None:
             return
         cells, res, origin = merged
-        if cells.size > self.p["max_cells"]:
-            self._once("merged-size", f"the merged map would be {cells.shape[1]} x {cells.shape[0]} cells, "
-                                      f"over max_cells; not published")
-            return
         msg = OccupancyGrid()
         msg.header.frame_id = self.p["world_frame"]
         msg.header.stamp = self.get_clock().now().to_msg()
@@ -249,7 +278,7 @@ class MapMerge(Node):
         self.merged_pub.publish(msg)
         for robot, pose in self.live.poses().items():
             if robot not in self.pose_pubs:
-                self.pose_pubs[robot] = self.create_publisher(PoseStamped, f"{robot}/map_merge/pose", latched())
+                continue
             ps = PoseStamped()
             ps.header = msg.header
             ps.pose.position.x, ps.pose.position.y = pose[0], pose[1]
