@@ -238,3 +238,35 @@ def test_maps_with_nothing_in_common_are_declined(example, tmp_path, capsys):
     assert captured.out.count("not placed") == 2, captured.out
     assert captured.err.startswith("merge_rosbag: declined:") and captured.err.count("\n") == 1
     assert not out.exists()
+
+
+def test_replay_places_the_robots_as_the_many_map_merge_does(example, mcap_bag, tmp_path, capsys):
+    """``python -m ogm_corners.ros.replay``: the bag's maps in time order through the node's logic (the
+    decoys first, then the real maps), the final poses as merge_many places the latest maps."""
+    from ogm_corners.ros import replay
+
+    out, poses_file = tmp_path / "merged.yaml", tmp_path / "poses.json"
+    assert replay.main([str(mcap_bag), "-o", str(out), "--poses", str(poses_file), "--period", "0"]) == 0
+    printed = capsys.readouterr().out
+    assert "placed at" in printed and (tmp_path / "merged.pgm").is_file(), printed
+    doc = __import__("json").loads(poses_file.read_text())
+    robots = [t.rsplit("/", 1)[0] for t in ROBOT_TOPICS]
+    assert all(doc["robots"][r] is not None for r in robots), doc
+    grids = example.latest_grids(mcap_bag, "/robot*/map")
+    many = oc.merge_many([oc.Map.from_occupancy_grid(m) for m in grids.values()], names=list(grids))
+    w = {t.rsplit("/", 1)[0]: p.world.matrix for t, p in zip(grids, many.poses)}
+    from ogm_corners.ros.live import matrix_pose, pose_distance, pose_matrix
+
+    def pose(r):
+        p = doc["robots"][r]
+        return pose_matrix((p["x"], p["y"], p["yaw"]))
+
+    for r in robots[1:]:
+        got = matrix_pose(np.linalg.inv(pose(robots[0])) @ pose(r))
+        want = matrix_pose(np.linalg.inv(w[robots[0]]) @ w[r])
+        d, deg = pose_distance(got, want, 0.0)
+        assert d < 0.2 and deg < 0.5, (r, got, want)
+    assert oc.load_map(out).width > max(m.info.width for m in grids.values())
+    # Bad input: one line, exit 2.
+    assert replay.main([str(tmp_path / "nothing.bag")]) == 2
+    assert "no such bag" in capsys.readouterr().err

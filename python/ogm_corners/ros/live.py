@@ -32,6 +32,11 @@ def matrix_pose(m: np.ndarray) -> Pose2:
     return (float(m[0, 2]), float(m[1, 2]), math.atan2(m[1, 0], m[0, 0]))
 
 
+def yaw_of(q) -> float:
+    """The yaw of a quaternion (x, y, z, w attributes), normalised or not; NaN when it is not finite."""
+    return math.atan2(2.0 * (q.w * q.z + q.x * q.y), q.w * q.w + q.x * q.x - q.y * q.y - q.z * q.z)
+
+
 def pose_distance(a: Pose2, b: Pose2, reach: float) -> Tuple[float, float]:
     """How far two placements of one map are apart: (metres, degrees), the metres the largest displacement
     of a point within ``reach`` metres of the map frame's origin (a turn moves far cells most)."""

@@ -16,7 +16,7 @@ from typing import Any, Dict, Optional, Set
 
 import numpy as np
 
-from .live import Grid, LiveMerge, Options, Pose2, cells_of, check_grid
+from .live import Grid, LiveMerge, Options, Pose2, cells_of, check_grid, yaw_of
 
 import rclpy
 from geometry_msgs.msg import PoseStamped
@@ -57,11 +57,6 @@ def latched(depth: int = 1) -> QoSProfile:
         reliability=ReliabilityPolicy.RELIABLE,
         durability=DurabilityPolicy.TRANSIENT_LOCAL,
     )
-
-
-def yaw_of(q: Any) -> float:
-    """The yaw of a quaternion, normalised or not (NaN when it is not finite: the message is refused)."""
-    return math.atan2(2.0 * (q.w * q.z + q.x * q.y), q.w * q.w + q.x * q.x - q.y * q.y - q.z * q.z)
 
 
 class MapMerge(Node):
