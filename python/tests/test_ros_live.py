@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from ogm_corners import synthetic
-from ogm_corners.ros.live import Grid, LiveMerge, Options, check_grid, pose_distance
+from ogm_corners.ros.live import Grid, LiveMerge, Options, check_grid, pose_distance, pose_matrix
 
 
 def frame_of_pixels(height: int, res: float) -> np.ndarray:
@@ -201,9 +201,3 @@ def test_real_buildings_grow_live_and_no_robot_is_ever_placed_wrongly(merge_pair
     assert len([n for n in placed if n.startswith("F5")]) >= 4, (placed, live.reasons())
     assert not [n for n in placed if n.startswith("HIH")]
     assert all("not with the anchor" in live.reasons()[n] for n in names if n.startswith("HIH")), live.reasons()
-
-
-def pose_matrix(p):
-    from ogm_corners.ros.live import pose_matrix as pm
-
-    return pm(p)

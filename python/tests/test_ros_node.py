@@ -14,7 +14,7 @@ import time
 import numpy as np
 import pytest
 
-from test_ros_live import revealed, robots, truth_pose  # noqa: F401 (robots: a fixture)
+from test_ros_live import crop_known, revealed, robots, truth_pose  # noqa: F401 (robots: a fixture)
 
 try:
     import rclpy
@@ -26,6 +26,7 @@ except ImportError as e:  # pragma: no cover - the environment decides
         raise RuntimeError(f"CI=true and ROS 2 (rclpy) is not importable: {e}") from e
     pytest.skip(f"ROS 2 (rclpy) is not importable here: {e}", allow_module_level=True)
 
+from ogm_corners._map import OccupancyGrid as Cells
 from ogm_corners.ros.live import pose_distance
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
@@ -37,19 +38,43 @@ def latched():
 
 def grid_msg(cells: np.ndarray, res: float) -> OccupancyGrid:
     """The known part of a map, cropped as a growing SLAM map is: its origin moves as it grows."""
-    import array
-
-    rows, cols = np.nonzero(cells >= 0)
-    r0, r1, c0, c1 = rows.min(), rows.max() + 1, cols.min(), cols.max() + 1
-    crop = np.ascontiguousarray(cells[r0:r1, c0:c1])
-    m = OccupancyGrid()
+    crop, origin = crop_known(cells, res)
+    m = Cells(crop.reshape(-1), crop.shape[1], crop.shape[0], res, origin).fill(OccupancyGrid())
     m.header.frame_id = "map"
-    m.info.resolution = res
-    m.info.width, m.info.height = crop.shape[1], crop.shape[0]
-    m.info.origin.position.x, m.info.origin.position.y = float(c0 * res), float(r0 * res)
-    m.info.origin.orientation.w = 1.0
-    m.data = array.array("b", crop.tobytes())
     return m
+
+
+def start_node(env, tmp_path, *ros_args):
+    """The node in its own process, its output in tmp_path/node.log."""
+    log = open(tmp_path / "node.log", "w+")
+    return subprocess.Popen([sys.executable, "-m", "ogm_corners.ros", "--ros-args", *ros_args],
+                            env=env, stdout=log, stderr=subprocess.STDOUT)
+
+
+def stop_node(proc):
+    """SIGINT, then its exit status (or why there is none)."""
+    if proc.poll() is None:
+        proc.send_signal(signal.SIGINT)
+    try:
+        return proc.wait(timeout=30)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        return "did not stop in 30 s"
+
+
+def robot_publishers(node, n):
+    return {f"/robot{i + 1}": node.create_publisher(OccupancyGrid, f"/robot{i + 1}/map", latched())
+            for i in range(n)}
+
+
+def pose_subscriptions(node, robots, on_pose):
+    """``on_pose(robot, (x, y, yaw))`` for each pose the node publishes for ``robots``."""
+    def decoded(robot, msg):
+        q = msg.pose.orientation
+        on_pose(robot, (msg.pose.position.x, msg.pose.position.y, 2 * math.atan2(q.z, q.w)))
+
+    return [node.create_subscription(PoseStamped, f"{r}/map_merge/pose", lambda m, r=r: decoded(r, m), latched())
+            for r in robots]
 
 
 @pytest.fixture
@@ -64,33 +89,24 @@ def env():
 
 
 def test_live_robots_are_merged_right_latched_and_the_node_stops_cleanly(robots, env, tmp_path):
-    log = open(tmp_path / "node.log", "w+")
-    node_proc = subprocess.Popen(
-        [sys.executable, "-m", "ogm_corners.ros", "--ros-args",
-         "-p", "known_init_poses:=false", "-p", "discovery_rate:=2.0", "-p", "estimation_rate:=2.0",
-         "-p", "merging_rate:=4.0"],
-        env=env, stdout=log, stderr=subprocess.STDOUT,
-    )
+    node_proc = start_node(env, tmp_path, "-p", "known_init_poses:=false", "-p", "discovery_rate:=2.0",
+                           "-p", "estimation_rate:=2.0", "-p", "merging_rate:=4.0")
     rclpy.init()
     node = rclpy.create_node("fake_robots")
     try:
-        pubs = {f"/robot{i + 1}": node.create_publisher(OccupancyGrid, f"/robot{i + 1}/map", latched())
-                for i in range(len(robots))}
+        pubs = robot_publishers(node, len(robots))
         bad = node.create_publisher(OccupancyGrid, "/robot9/map", latched())
         poses, merged = {}, []
         wrong = []
 
-        def on_pose(name, msg):
-            q = msg.pose.orientation
-            pose = (msg.pose.position.x, msg.pose.position.y, 2 * math.atan2(q.z, q.w))
+        def on_pose(name, pose):
             i = int(name[6:]) - 1
             d, deg = pose_distance(pose, truth_pose(robots[i][2]), 50.0)
             if d > 1.0 or deg > 2.0:
                 wrong.append((name, pose, d, deg))
             poses[name] = (pose, d, deg)
 
-        subs = [node.create_subscription(PoseStamped, f"{r}/map_merge/pose", lambda m, r=r: on_pose(r, m), latched())
-                for r in pubs]
+        subs = pose_subscriptions(node, pubs, on_pose)
         subs.append(node.create_subscription(OccupancyGrid, "/map", lambda m: merged.append(m), latched()))
         stages = [0.55, 0.8, 1.0]
         deadline = time.monotonic() + 120
@@ -139,13 +155,7 @@ def test_live_robots_are_merged_right_latched_and_the_node_stops_cleanly(robots,
     finally:
         node.destroy_node()
         rclpy.try_shutdown()
-        if node_proc.poll() is None:
-            node_proc.send_signal(signal.SIGINT)
-        try:
-            code = node_proc.wait(timeout=30)
-        except subprocess.TimeoutExpired:
-            node_proc.kill()
-            code = "did not stop in 30 s"
+        code = stop_node(node_proc)
     text = open(tmp_path / "node.log").read()
     assert code == 0, (code, text[-3000:])
     assert "robot /robot9: map ignored: 7 cells for a 10 x 10 grid" in text, text[-3000:]
@@ -166,22 +176,13 @@ def test_a_multirobot_map_merge_params_file_loads_unchanged(robots, env, tmp_pat
                   f"    {r}/map_merge/init_pose_z: 0.0", f"    {r}/map_merge/init_pose_yaw: {yaw}"]
     params = tmp_path / "params.yaml"
     params.write_text("\n".join(lines) + "\n")
-    log = open(tmp_path / "node.log", "w+")
-    proc = subprocess.Popen([sys.executable, "-m", "ogm_corners.ros", "--ros-args", "--params-file", str(params)],
-                            env=env, stdout=log, stderr=subprocess.STDOUT)
+    proc = start_node(env, tmp_path, "--params-file", str(params))
     rclpy.init()
     node = rclpy.create_node("fake_robots_known")
     try:
-        pubs = {f"/robot{i + 1}": node.create_publisher(OccupancyGrid, f"/robot{i + 1}/map", latched())
-                for i in range(3)}
+        pubs = robot_publishers(node, 3)
         poses = {}
-
-        def on_pose(name, msg):
-            q = msg.pose.orientation
-            poses[name] = (msg.pose.position.x, msg.pose.position.y, 2 * math.atan2(q.z, q.w))
-
-        subs = [node.create_subscription(PoseStamped, f"{r}/map_merge/pose", lambda m, r=r: on_pose(r, m), latched())
-                for r in pubs]
+        subs = pose_subscriptions(node, pubs, poses.__setitem__)
         for i, pub in enumerate(pubs.values()):
             pub.publish(grid_msg(robots[i][0], robots[i][1]))
         deadline = time.monotonic() + 60
@@ -192,12 +193,7 @@ def test_a_multirobot_map_merge_params_file_loads_unchanged(robots, env, tmp_pat
     finally:
         node.destroy_node()
         rclpy.try_shutdown()
-        proc.send_signal(signal.SIGINT)
-        try:
-            code = proc.wait(timeout=30)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            code = "did not stop in 30 s"
+        code = stop_node(proc)
     text = open(tmp_path / "node.log").read()
     assert code == 0, (code, text[-3000:])
     assert "/robot3: the maps contradict its given pose" in text, text[-3000:]

@@ -91,6 +91,17 @@ def check_grid(
     return None
 
 
+def grid_of(msg, max_cells: int, stamp: float) -> Tuple[Optional[Grid], Optional[str]]:
+    """A ``nav_msgs/OccupancyGrid`` message (rclpy's or rosbags') as a ``Grid``, or why it cannot be used
+    (``check_grid``). ``stamp``: when it came, seconds."""
+    info, o = msg.info, msg.info.origin
+    origin = (o.position.x, o.position.y, yaw_of(o.orientation))
+    why = check_grid(msg.data, info.width, info.height, info.resolution, origin, max_cells)
+    if why is not None:
+        return None, why
+    return Grid(cells_of(msg.data, info.width, info.height), float(info.resolution), origin, stamp), None
+
+
 def cells_of(data: Sequence[int] | np.ndarray | bytes, width: int, height: int) -> np.ndarray:
     """The cells as an (height, width) int8 array: ``array('b')`` and bytes read without a copy."""
     if isinstance(data, np.ndarray):
@@ -196,7 +207,7 @@ class LiveMerge:
         init = self.options.init_poses
         with self._lock:
             if init is not None:
-                events += self._check_given(names, estimates, snapshot)
+                events += self._check_given(names, estimates)
             for r in names:
                 if init is not None:
                     if r not in init:
@@ -218,7 +229,7 @@ class LiveMerge:
             self._version += 1
         return events
 
-    def _check_given(self, names: List[str], est: Dict[str, Pose2], grids: Dict[str, Grid]) -> List[Event]:
+    def _check_given(self, names: List[str], est: Dict[str, Pose2]) -> List[Event]:
         """Given poses against the maps, pair by pair: where two robots' given poses put them relative to
         each other, against where their maps do. A robot that disagrees with more than half of the others
         is named; with two robots only the pair can be named. Said once per finding."""

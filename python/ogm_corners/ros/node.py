@@ -16,7 +16,8 @@ from typing import Any, Dict, Optional, Set
 
 import numpy as np
 
-from .live import Grid, LiveMerge, Options, Pose2, cells_of, check_grid, yaw_of
+from .._map import OccupancyGrid as Cells
+from .live import LiveMerge, Options, Pose2, grid_of
 
 import rclpy
 from geometry_msgs.msg import PoseStamped
@@ -207,19 +208,15 @@ class MapMerge(Node):
     # ---- input ----
 
     def on_map(self, robot: str, msg: OccupancyGrid) -> None:
-        info = msg.info
-        o = info.origin
-        origin = (o.position.x, o.position.y, yaw_of(o.orientation))
-        why = check_grid(msg.data, info.width, info.height, info.resolution, origin, self.p["max_cells"])
-        if why is not None:
+        stamp = msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
+        grid, why = grid_of(msg, self.p["max_cells"], stamp)
+        if grid is None:
             if self.bad.get(robot) != why:
                 self.get_logger().warning(f"robot {robot}: map ignored: {why}")
                 self.bad[robot] = why
             return
         self.bad.pop(robot, None)
-        cells = cells_of(msg.data, info.width, info.height)
-        stamp = msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
-        self.live.update(robot, Grid(cells, float(info.resolution), origin, stamp))
+        self.live.update(robot, grid)
 
     # ---- estimation and output, off the executor's thread ----
 
@@ -259,17 +256,10 @@ class MapMerge(Node):
         if merged is None:
             return
         cells, res, origin = merged
-        msg = OccupancyGrid()
+        msg = Cells(cells.reshape(-1), cells.shape[1], cells.shape[0], float(res), origin).fill(OccupancyGrid())
         msg.header.frame_id = self.p["world_frame"]
         msg.header.stamp = self.get_clock().now().to_msg()
-        msg.info.resolution = float(res)
-        msg.info.width, msg.info.height = cells.shape[1], cells.shape[0]
-        msg.info.origin.position.x, msg.info.origin.position.y = origin[0], origin[1]
-        msg.info.origin.orientation.w = 1.0
         msg.info.map_load_time = msg.header.stamp
-        import array
-
-        msg.data = array.array("b", cells.tobytes())
         self.merged_pub.publish(msg)
         for robot, pose in self.live.poses().items():
             if robot not in self.pose_pubs:

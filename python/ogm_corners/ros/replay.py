@@ -28,7 +28,7 @@ from pathlib import Path
 from typing import List, Optional, Sequence
 
 from .._map import Map
-from .live import Grid, LiveMerge, Options, cells_of, check_grid, yaw_of
+from .live import LiveMerge, Options, grid_of
 
 GRID_TYPES = {"nav_msgs/msg/OccupancyGrid", "nav_msgs/OccupancyGrid"}
 
@@ -81,17 +81,14 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                 t = stamp * 1e-9
                 start = t if start is None else start
                 msg = reader.deserialize(raw, conn.msgtype)
-                info, o = msg.info, msg.info.origin
-                origin = (o.position.x, o.position.y, yaw_of(o.orientation))
                 robot = conn.topic.rsplit("/", 1)[0] or "/"
-                why = check_grid(msg.data, info.width, info.height, info.resolution, origin, a.max_cells)
-                if why is not None:
+                grid, why = grid_of(msg, a.max_cells, t)
+                if grid is None:
                     if bad.get(robot) != why:
                         say(f"{t - start:8.2f} s  {robot}: map ignored: {why}")
                         bad[robot] = why
                     continue
-                live.update(robot, Grid(cells_of(msg.data, info.width, info.height).copy(),
-                                        float(info.resolution), origin, t))
+                live.update(robot, grid)
                 if t >= next_estimate and live.needs_estimation():
                     next_estimate = t + a.period
                     for e in live.estimate():
