@@ -406,20 +406,36 @@ def fig_streamed(r):
     return "\n".join(lines)
 
 
-def fig_python(r):
+def python_package(r):
+    """The package with a release build of its extension, in the work folder, and the Python to run it
+    (the test environment's: numpy, and the ROS 2 wheels): (its folder, the interpreter)."""
     ext = os.path.join(r.work, "python")
-    shutil.copytree(os.path.join(ROOT, "python", "ogm_corners"), os.path.join(ext, "ogm_corners"))
-    r.run(["cargo", "build", "--release", "--locked", "-p", "ogm-corners-python", "--lib"],
-          env={"PYO3_BUILD_EXTENSION_MODULE": "1"})
-    r.log.pop()  # the build is not a measurement
-    shutil.copy(os.path.join(ROOT, "target", "release", "lib_core.so"),
-                os.path.join(ext, "ogm_corners", "_core.abi3.so"))
+    if not os.path.exists(ext):
+        shutil.copytree(os.path.join(ROOT, "python", "ogm_corners"), os.path.join(ext, "ogm_corners"))
+        r.run(["cargo", "build", "--release", "--locked", "-p", "ogm-corners-python", "--lib"],
+              env={"PYO3_BUILD_EXTENSION_MODULE": "1"})
+        r.log.pop()  # the build is not a measurement
+        shutil.copy(os.path.join(ROOT, "target", "release", "lib_core.so"),
+                    os.path.join(ext, "ogm_corners", "_core.abi3.so"))
     py = os.environ.get("OGM_PYTHON", os.path.join(ROOT, "target", "python-venv", "bin", "python"))
     if not os.path.exists(py):
         fail(f"python: no Python with numpy at {py} (set OGM_PYTHON)")
+    return ext, py
+
+
+def fig_python(r):
+    ext, py = python_package(r)
     out = r.run([py, "python/benches/overhead.py", "--cli", r.bin], env={"PYTHONPATH": ext},
                 shown_argv=["python", "python/benches/overhead.py", "--cli", "target/release/ogm-corners"])
     return out.strip()
+
+
+def fig_ros_bench(r):
+    ext, py = python_package(r)
+    out = r.run([py, "scripts/ros_bench.py"], env={"PYTHONPATH": ext},
+                shown_argv=["python", "scripts/ros_bench.py"])
+    lines = out.strip().split("\n")
+    return lines[0] + ".\n\n" + "\n".join(l for l in lines if l.startswith("|"))
 
 
 # ---- The README and the guide ----
@@ -489,6 +505,8 @@ FIGURES = {
              "what `demo` prints"),
     "html-cost": ("docs/guide.md", fig_html_cost,
                   "what an HTML report costs on the real pairs (merge-eval --html)"),
+    "ros-bench": ("docs/ros.md", fig_ros_bench,
+                  "the map_merge node on growing maps of the real buildings (scripts/ros_bench.py)"),
     "python": ("docs/performance.md", fig_python,
                "what the Python package adds (python/benches/overhead.py)"),
 }

@@ -453,3 +453,62 @@ fn the_real_buildings_are_placed_whole_and_never_into_each_other() {
         assert!(t.accurate(&est), "{} -> {}", t.src, t.dst);
     }
 }
+
+/// A live merge places the same maps again and again while a few change: the cache hands back each
+/// unchanged map's preparation and each unchanged pair's alignment, and the placement is the one a fresh
+/// run gives, to the bit. A changed map (one wall pixel) is prepared again with its pairs, and a map
+/// given twice is still aligned once.
+#[test]
+fn a_cached_run_redoes_only_the_changed_maps_and_pairs_and_equals_a_fresh_run() {
+    use ogm_corners::merge::global::{run, run_cached, Cache, CacheUse};
+    let (_, mut maps, _) = synthetic_maps(5, 4).unwrap();
+    let options = GlobalOptions::default();
+    let same = |a: &ogm_corners::merge::global::Run, b: &ogm_corners::merge::global::Run| {
+        assert_eq!(
+            serde_json::to_string(&a.pairwise).unwrap(),
+            serde_json::to_string(&b.pairwise).unwrap()
+        );
+        assert_eq!(a.placement, b.placement);
+    };
+    let mut cache = Cache::new();
+    let first = run_cached(&maps, &options, &mut CpuBackend, &|_, _| {}, &mut cache).unwrap();
+    same(
+        &first,
+        &run(&maps, &options, &mut CpuBackend, &|_, _| {}).unwrap(),
+    );
+    let use_of = |r, p, rr, a| CacheUse {
+        maps_reused: r,
+        maps_prepared: p,
+        pairs_reused: rr,
+        pairs_aligned: a,
+    };
+    assert_eq!(cache.last_use(), use_of(0, 5, 0, 10));
+    let again = run_cached(&maps, &options, &mut CpuBackend, &|_, _| {}, &mut cache).unwrap();
+    same(&again, &first);
+    assert_eq!(cache.last_use(), use_of(5, 0, 10, 0));
+    // Map 2 changes by one pixel: it and its four pairs are redone, nothing else.
+    let px = maps[2].image.pixels_mut();
+    let i = px.iter().position(|&v| v > 250).unwrap();
+    px[i] = 0;
+    let changed = run_cached(&maps, &options, &mut CpuBackend, &|_, _| {}, &mut cache).unwrap();
+    assert_eq!(cache.last_use(), use_of(4, 1, 6, 4));
+    same(
+        &changed,
+        &run(&maps, &options, &mut CpuBackend, &|_, _| {}).unwrap(),
+    );
+    // A sixth map that copies the first: no new preparation, no new pair; placed with its first copy.
+    maps.push(maps[0].clone());
+    let copied = run_cached(&maps, &options, &mut CpuBackend, &|_, _| {}, &mut cache).unwrap();
+    assert_eq!(cache.last_use(), use_of(5, 0, 10, 0));
+    same(
+        &copied,
+        &run(&maps, &options, &mut CpuBackend, &|_, _| {}).unwrap(),
+    );
+    // Other options: nothing is reused.
+    let other = GlobalOptions {
+        loop_px: options.loop_px + 1.0,
+        ..options
+    };
+    run_cached(&maps, &other, &mut CpuBackend, &|_, _| {}, &mut cache).unwrap();
+    assert_eq!(cache.last_use(), use_of(0, 5, 0, 10));
+}

@@ -20,6 +20,7 @@ from ._map import Map, OccupancyGrid, State, load_map
 from ._merge import (
     Alignment,
     ManyMerge,
+    MergeCache,
     Pose,
     WorldTransform,
     compose,
@@ -51,6 +52,7 @@ __all__ = [
     "detect",
     "load_map",
     "merge",
+    "MergeCache",
     "merge_many",
     "overlay",
     "rigid_matrix",

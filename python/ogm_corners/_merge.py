@@ -232,14 +232,44 @@ class ManyMerge:
         return f"ManyMerge({placed} of {len(self.poses)} maps placed in {self.groups} group(s))"
 
 
+class MergeCache:
+    """What one ``merge_many`` keeps for the next: each map's preparation and each pair's alignment,
+    recognised by the maps' pixels. Placing the same robots again after one map changed prepares only
+    that map and aligns only its pairs; the result is the one a call without the cache gives. It keeps
+    only what the last call used, so its memory is about one call's. Safe to share between threads
+    (calls that share it take turns)."""
+
+    def __init__(self) -> None:
+        self._core = _core.MergeCache()
+
+    @property
+    def last_use(self) -> Dict[str, int]:
+        """How much of the last call came from the cache: maps reused and prepared, pairs reused and
+        aligned."""
+        m_reused, m_prepared, p_reused, p_aligned = self._core._last_use()
+        return {"maps_reused": m_reused, "maps_prepared": m_prepared,
+                "pairs_reused": p_reused, "pairs_aligned": p_aligned}
+
+    def __repr__(self) -> str:
+        return f"MergeCache(last use: {self.last_use})"
+
+
 def merge_many(
-    maps: Sequence[Any], *, names: Optional[Sequence[str]] = None, backend: str = "cpu"
+    maps: Sequence[Any],
+    *,
+    names: Optional[Sequence[str]] = None,
+    backend: str = "cpu",
+    cache: Optional[MergeCache] = None,
 ) -> ManyMerge:
     """Places every map at once (``Map`` objects or paths): groups of maps of one place, each map's pose
     in its group's merged map, merges no single pair would trust confirmed around cycles and accepted
     ones that cycles contradict dropped. ``names`` label the maps in the report (default: their source
-    files, else ``map0``, ``map1``, ...)."""
+    files, else ``map0``, ``map1``, ...). A ``cache`` (``MergeCache``) given to successive calls redoes
+    only what changed between them."""
+    if cache is not None and not isinstance(cache, MergeCache):
+        raise TypeError(f"cache must be a MergeCache, got {type(cache).__name__}")
     ms = [_as_map(m) for m in maps]
     if names is None:
         names = [m.source or f"map{i}" for i, m in enumerate(ms)]
-    return ManyMerge(_core.merge_many([m._m for m in ms], list(names), backend))
+    core_cache = cache._core if cache is not None else None
+    return ManyMerge(_core.merge_many([m._m for m in ms], list(names), backend, core_cache))

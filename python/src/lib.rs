@@ -15,6 +15,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<map::Map>()?;
     m.add_class::<detect::Detector>()?;
     m.add_class::<merge::ManyMerge>()?;
+    m.add_class::<merge::MergeCache>()?;
     m.add_function(wrap_pyfunction!(map::load_map, m)?)?;
     m.add_function(wrap_pyfunction!(map::synthetic_office, m)?)?;
     m.add_function(wrap_pyfunction!(map::synthetic_robot_maps, m)?)?;

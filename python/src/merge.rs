@@ -137,14 +137,49 @@ impl ManyMerge {
     }
 }
 
+/// Preparations and pair alignments kept from one `merge_many` to the next; see the package's
+/// `ogm_corners.MergeCache`.
+#[pyclass(frozen, module = "ogm_corners._core", name = "MergeCache")]
+#[derive(Default)]
+pub struct MergeCache {
+    inner: std::sync::Mutex<global::Cache>,
+}
+
+#[pymethods]
+impl MergeCache {
+    #[new]
+    fn new() -> MergeCache {
+        MergeCache::default()
+    }
+
+    /// (maps reused, maps prepared, pairs reused, pairs aligned) in the last run.
+    fn _last_use(&self) -> (usize, usize, usize, usize) {
+        let u = self.lock().last_use();
+        (
+            u.maps_reused,
+            u.maps_prepared,
+            u.pairs_reused,
+            u.pairs_aligned,
+        )
+    }
+}
+
+impl MergeCache {
+    fn lock(&self) -> std::sync::MutexGuard<'_, global::Cache> {
+        // A run that panicked leaves a cache whose entries are each whole: still usable.
+        self.inner.lock().unwrap_or_else(|e| e.into_inner())
+    }
+}
+
 /// Places every map at once (groups of maps of one place), each map's pose in its group's merged map.
 #[pyfunction]
-#[pyo3(signature = (maps, names, backend="cpu"))]
+#[pyo3(signature = (maps, names, backend="cpu", cache=None))]
 pub fn merge_many(
     py: Python<'_>,
     maps: Vec<PyRef<'_, Map>>,
     names: Vec<String>,
     backend: &str,
+    cache: Option<PyRef<'_, MergeCache>>,
 ) -> PyResult<ManyMerge> {
     if maps.len() < 2 {
         return Err(to_py(Error::invalid(format!(
@@ -160,20 +195,26 @@ pub fn merge_many(
         ))));
     }
     // Every map at the first georeferenced map's cells and its preparation, held at once.
+    // A cache holds the last run's preparations while this run's are made: counted as a second run.
+    let run_bytes = footprint::many_bytes(maps.iter().map(|m| &m.inner)).map_err(to_py)?;
     within_budget(
         format_args!("{} maps and their preparation", maps.len()),
-        footprint::many_bytes(maps.iter().map(|m| &m.inner)).map_err(to_py)?,
+        run_bytes.saturating_mul(if cache.is_some() { 2 } else { 1 }),
     )?;
     let mut on = self::backend(py, backend)?;
     // Clones share the pixels (Map::wrap), so this copies no image.
     let owned: Vec<ogm_corners::OccupancyMap> = maps.iter().map(|m| m.inner.clone()).collect();
+    let cache = cache.as_deref();
     let inner = interruptible(py, || {
-        global::merge_maps(
+        let mut fresh = global::Cache::new();
+        let mut held = cache.map(MergeCache::lock);
+        global::merge_maps_cached(
             owned,
             &names,
             &GlobalOptions::default(),
             on.as_mut(),
             &|_, _| {},
+            held.as_deref_mut().unwrap_or(&mut fresh),
         )
     })?;
     Ok(ManyMerge { inner })

@@ -85,6 +85,27 @@ def test_many_maps_are_placed_consistently(robots):
         result.merged_map(1)
 
 
+def test_a_cache_redoes_only_the_changed_map_and_gives_the_same_report(robots):
+    maps = [m for m, _ in robots]
+    names = ["r0", "r1", "r2"]
+    cache = oc.MergeCache()
+    first = oc.merge_many(maps, names=names, cache=cache)
+    assert cache.last_use == {"maps_reused": 0, "maps_prepared": 3, "pairs_reused": 0, "pairs_aligned": 3}
+    again = oc.merge_many(maps, names=names, cache=cache)
+    assert cache.last_use == {"maps_reused": 3, "maps_prepared": 0, "pairs_reused": 3, "pairs_aligned": 0}
+    assert again.report["maps"] == first.report["maps"]
+    # One pixel of r1 turned to wall: r1 prepared again and its two pairs aligned again.
+    px = maps[1].pixels.copy()
+    y, x = np.argwhere(px > 250)[0]
+    px[y, x] = 0
+    maps[1] = oc.Map(px)
+    changed = oc.merge_many(maps, names=names, cache=cache)
+    assert cache.last_use == {"maps_reused": 2, "maps_prepared": 1, "pairs_reused": 1, "pairs_aligned": 2}
+    assert changed.report["maps"] == oc.merge_many(maps, names=names).report["maps"]
+    with pytest.raises(TypeError, match="MergeCache"):
+        oc.merge_many(maps, cache={})
+
+
 def test_merge_many_needs_two_maps(robots):
     with pytest.raises(ValueError, match="at least two maps"):
         oc.merge_many([robots[0][0]])

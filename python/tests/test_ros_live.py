@@ -7,12 +7,8 @@ import numpy as np
 import pytest
 
 from ogm_corners import synthetic
-from ogm_corners.ros.live import Grid, LiveMerge, Options, check_grid, pose_distance, pose_matrix
-
-
-def frame_of_pixels(height: int, res: float) -> np.ndarray:
-    """Pixel (column, row; row 0 at the top) to the map frame (metres, y up) of a map with origin 0."""
-    return np.array([[res, 0, 0.5 * res], [0, -res, (height - 0.5) * res], [0, 0, 1.0]])
+from ogm_corners.ros.live import Candidate, Grid, LiveMerge, Options, check_grid, pose_distance
+from ogm_corners.ros.scenario import crop_known, explored, frame_of_pixels, geodesic, pair_errors
 
 
 def pixel_pose(theta_deg: float, tx: float, ty: float) -> np.ndarray:
@@ -88,7 +84,7 @@ def test_growing_maps_are_placed_right_and_never_jump(robots):
 
 def test_a_pose_moves_only_when_a_change_is_seen_twice_and_never_flips():
     live = LiveMerge(Options(pose_tolerance_m=0.5, pose_tolerance_deg=3.0, confirm=2))
-    reach = 10.0
+    reach = ((0.0, 0.0), 10.0)  # cells spread 10 m about the frame's origin
     a, b = (1.0, 2.0, 0.1), (4.0, 2.0, 0.1)
     assert [e.kind for e in live._fold("r", a, reach)] == ["placed"]
     assert live._fold("r", (1.1, 2.0, 0.1), reach) == []  # a refinement, smoothed
@@ -135,16 +131,10 @@ def test_bad_messages_are_named():
     assert "empty" in check_grid(b"", **{**ok, "width": 0})
 
 
-def crop_known(cells: np.ndarray, res: float):
-    """A growing SLAM map's grid: its known cells' box, the origin moved to the box's corner."""
-    rows, cols = np.nonzero(cells >= 0)
-    r0, c0 = rows.min(), cols.min()
-    return np.ascontiguousarray(cells[r0 : rows.max() + 1, c0 : cols.max() + 1]), (c0 * res, r0 * res, 0.0)
-
-
 def test_real_buildings_grow_live_and_no_robot_is_ever_placed_wrongly(merge_pairs):
     """Five robots on the F5 floor (bent maps, symmetric corridors) and the four of the HIH apartment given to
-    one live merge, their maps growing from a disc about their middle: at every estimation every pair of
+    one live merge, their maps growing as an exploration along the free space from their middle
+(``ogm_corners.ros.scenario``): at every estimation every pair of
     placed robots passes the pair success test of pairs.json (rotation within 5 degrees, RMS over the annotated
     points within the limit), the apartment is never placed with the floor, and the floor's robots are placed
     once their maps suffice."""
@@ -160,28 +150,22 @@ def test_real_buildings_grow_live_and_no_robot_is_ever_placed_wrongly(merge_pair
     for n in names:
         m = oc.load_map(merge_pairs / "maps" / f"{n}.png").with_georef(res)
         g = m.to_occupancy_grid()
-        grids[n] = (g.data.reshape(g.height, g.width), g.height)
+        cells = g.data.reshape(g.height, g.width)
+        grids[n] = (cells, g.height, geodesic(cells))
     live = LiveMerge(Options())
     wrong, near, checked = [], [], 0
-    for stage, share in enumerate([0.5, 0.75, 1.0]):
+    for stage, share in enumerate([0.4, 0.6, 0.8, 1.0]):
         for n in names:
-            cells, _ = grids[n]
-            crop, origin = crop_known(revealed(cells, share), res)
+            cells, _, distance = grids[n]
+            crop, origin = crop_known(explored(cells, distance, share), res)
             live.update(n, Grid(crop, res, origin, float(stage)))
         live.estimate()
         poses = live.poses()
         for (src, dst), p in pairs.items():
             if src not in poses or dst not in poses:
                 continue
-            # The estimate as a pixel transform src -> dst (x right, y down, pixel centres at integers).
-            h_src, h_dst = grids[src][1], grids[dst][1]
-            t = (np.linalg.inv(frame_of_pixels(h_dst, res)) @ np.linalg.inv(pose_matrix(poses[dst]))
-                 @ pose_matrix(poses[src]) @ frame_of_pixels(h_src, res))
-            rot = math.degrees(math.atan2(t[1, 0], t[0, 0]))
-            s = np.c_[np.array(p["src_points"]), np.ones(len(p["src_points"]))]
-            rms = float(np.sqrt(np.mean(np.sum(((s @ t.T)[:, :2] - np.array(p["dst_points"])) ** 2, axis=1))))
+            off, rms = pair_errors(poses[src], poses[dst], p, (grids[src][1], grids[dst][1]), res)
             checked += 1
-            off = abs(math.remainder(rot - p["theta_deg"], 360.0))
             if off > p["rot_limit_deg"] or rms > 1.25 * p["rms_limit_px"]:
                 wrong.append((stage, src, dst, round(off, 2), round(rms, 1), p["rms_limit_px"]))
             elif rms > p["rms_limit_px"]:
@@ -201,3 +185,64 @@ def test_real_buildings_grow_live_and_no_robot_is_ever_placed_wrongly(merge_pair
     assert len([n for n in placed if n.startswith("F5")]) >= 4, (placed, live.reasons())
     assert not [n for n in placed if n.startswith("HIH")]
     assert all("not with the anchor" in live.reasons()[n] for n in names if n.startswith("HIH")), live.reasons()
+
+
+def test_map_updates_patch_a_copy_and_bad_windows_are_named():
+    live = LiveMerge(Options())
+    cells = np.full((4, 5), -1, np.int8)
+    assert live.patch("r", 0, 0, 1, 1, b"\0", 0.0) == "an update before any full map"
+    live.update("r", Grid(cells, 0.05, (0.0, 0.0, 0.0), 0.0))
+    assert live.patch("r", 1, 2, 3, 2, bytes([0, 100, 0, 100, 0, 100]), 1.0) is None
+    g = live._grids["r"]
+    assert g.cells[2:4, 1:4].tolist() == [[0, 100, 0], [100, 0, 100]] and g.stamp == 1.0 and g.known == 6
+    assert (cells == -1).all()  # the first map, which an estimation may be reading, is unchanged
+    assert "outside the 5 x 4 map" in live.patch("r", 3, 0, 3, 1, b"\0\0\0", 2.0)
+    assert "outside" in live.patch("r", -1, 0, 1, 1, b"\0", 2.0)
+    assert "5 cells for a 3 x 2 update" in live.patch("r", 0, 0, 3, 2, b"\0" * 5, 2.0)
+
+
+def test_a_robot_placed_on_part_of_its_map_waits_for_a_second_estimation_to_agree(robots):
+    """The first estimate is not published; the next one on grown maps that agrees is; one that does not
+    agree replaces it and waits again. With no growth, the same answer settle_s later is taken."""
+    live = LiveMerge(Options(settle_s=3600.0))
+    cells, res, _ = robots[0]
+    live.update("a", Grid(revealed(cells, 0.5), res, (0.0, 0.0, 0.0), 0.0))
+    live.update("b", Grid(revealed(robots[1][0], 0.5), res, (0.0, 0.0, 0.0), 0.0))
+    assert live.estimate() == [] and live.poses() == {}
+    assert "waiting for a second estimation" in live.reasons()["b"]
+    assert not live.needs_estimation()  # nothing grew, and the settling time is far
+    # The merged map meanwhile: one robot's map as the world, as before any placement.
+    assert live.merged() is not None
+    live.update("b", Grid(robots[1][0], res, (0.0, 0.0, 0.0), 1.0))
+    placed = live.estimate()
+    assert sorted(e.robot for e in placed) == ["a", "b"] and "found again on grown maps" in placed[0].text
+    # An estimate that disagrees with a candidate replaces it.
+    fresh = LiveMerge(Options(settle_s=0.0))
+    fresh._candidates["x"] = Candidate((5.0, 0.0, 0.0), 0, 0.0)
+    assert fresh._confirm("x", (0.0, 0.0, 0.0), ((0.0, 0.0), 10.0)) == [] and fresh._candidates["x"].pose == (0.0, 0.0, 0.0)
+    # Settled: the same answer with no growth, settle_s later, is taken.
+    assert [e.kind for e in fresh._confirm("x", (0.0, 0.0, 0.0), ((0.0, 0.0), 10.0))] == ["placed"]
+
+
+def test_the_merged_map_redraws_only_the_robot_that_changed(robots):
+    live = LiveMerge(Options(settle_s=0.0))
+    for i, (cells, res, _) in enumerate(robots):
+        live.update(f"r{i}", Grid(cells, res, (0.0, 0.0, 0.0), 0.0))
+    live.estimate()
+    live.estimate()  # the second look confirms
+    assert len(live.poses()) == 3, live.reasons()
+    first = live.merged()
+    kept = {r: v[3] for r, v in live._layers.items()}
+    cells, res, _ = robots[1]
+    grown = cells.copy()
+    grown[np.nonzero(grown < 0)[0][0], np.nonzero(grown < 0)[1][0]] = 100
+    live.update("r1", Grid(grown, res, (0.0, 0.0, 0.0), 1.0))
+    second = live.merged()
+    assert live._layers["r0"][3] is kept["r0"] and live._layers["r2"][3] is kept["r2"]
+    assert live._layers["r1"][3] is not kept["r1"]
+    # The same as drawing everything afresh.
+    again = LiveMerge(Options())
+    again._grids, again._placements = dict(live._grids), dict(live._placements)
+    redrawn = again.merged()
+    assert np.array_equal(second[0], redrawn[0]) and second[1:] == redrawn[1:]
+    assert np.count_nonzero(second[0] == 100) >= np.count_nonzero(first[0] == 100)

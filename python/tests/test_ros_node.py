@@ -4,6 +4,7 @@ every robot right, never move one wrongly, latch the merged map for a late subsc
 message with a log line, and stop cleanly on SIGINT. Without rclpy the test says SKIPPED (a failure under
 CI=true)."""
 
+import json
 import math
 import os
 import signal
@@ -198,3 +199,87 @@ def test_a_multirobot_map_merge_params_file_loads_unchanged(robots, env, tmp_pat
     assert code == 0, (code, text[-3000:])
     assert "/robot3: the maps contradict its given pose" in text, text[-3000:]
     assert "/robot1: the maps contradict" not in text and "/robot2: the maps contradict" not in text, text[-3000:]
+
+
+FAKE_TF2 = '''"""A stand-in for tf2_ros (not in the wheel set): the node's transforms go to /tf_test one by one."""
+from geometry_msgs.msg import TransformStamped
+
+
+class TransformBroadcaster:
+    def __init__(self, node, qos=10):
+        self.pub = node.create_publisher(TransformStamped, "/tf_test", 100)
+
+    def sendTransform(self, transform):
+        for t in transform if isinstance(transform, list) else [transform]:
+            assert isinstance(t, TransformStamped)
+            self.pub.publish(t)
+'''
+
+
+def rss_mb(pid: int) -> float:
+    for line in open(f"/proc/{pid}/status"):
+        if line.startswith("VmRSS:"):
+            return int(line.split()[1]) / 1024
+    return math.nan
+
+
+def test_a_robot_publishing_at_100_hz_is_read_at_the_merging_rate_and_transforms_reach_tf(robots, env, tmp_path):
+    """robot2 publishes its map at 100 Hz for three seconds: the node says so once, reads only the latest
+    map (the merged map is drawn from the very last one), stays within memory and keeps publishing; with
+    tf2_ros importable (a stand-in here) each placed robot's world_frame -> <robot>/map goes to it."""
+    (tmp_path / "tf2_ros").mkdir()
+    (tmp_path / "tf2_ros" / "__init__.py").write_text(FAKE_TF2)
+    env = {**env, "PYTHONPATH": str(tmp_path) + os.pathsep + env["PYTHONPATH"]}
+    proc = start_node(env, tmp_path, "-p", "known_init_poses:=false", "-p", "discovery_rate:=2.0",
+                      "-p", "estimation_rate:=2.0", "-p", "settle_s:=2.0")
+    rclpy.init()
+    node = rclpy.create_node("fast_robot")
+    from std_msgs.msg import String
+    from geometry_msgs.msg import TransformStamped
+
+    try:
+        pubs = robot_publishers(node, 3)
+        statuses, tfs, poses = [], {}, {}
+        node.create_subscription(String, "/map_merge/status", lambda m: statuses.append(json.loads(m.data)), latched())
+        node.create_subscription(TransformStamped, "/tf_test", lambda t: tfs.__setitem__(t.child_frame_id, t), 100)
+        pose_subscriptions(node, pubs, poses.__setitem__)
+        msgs = [grid_msg(robots[i][0], robots[i][1]) for i in range(3)]
+        for pub, m in zip(pubs.values(), msgs):
+            pub.publish(m)
+
+        def spin_until(cond, seconds):
+            end = time.monotonic() + seconds
+            while not cond() and time.monotonic() < end:
+                rclpy.spin_once(node, timeout_sec=0.05)
+
+        spin_until(lambda: len(poses) == 3 and len(tfs) == 3, 60)
+        assert len(poses) == 3, open(tmp_path / "node.log").read()[-2000:]
+        before = rss_mb(proc.pid)
+        fast, last = msgs[1], None
+        start = time.monotonic()
+        while time.monotonic() - start < 3.0:
+            now = node.get_clock().now()
+            fast.header.stamp = now.to_msg()
+            pubs["/robot2"].publish(fast)
+            last = now.nanoseconds * 1e-9
+            rclpy.spin_once(node, timeout_sec=0.0)
+            time.sleep(0.01)
+        drawn = lambda: [s for s in statuses if "merged" in s]  # noqa: E731
+        spin_until(lambda: drawn() and drawn()[-1]["merged"]["maps"].get("/robot2", 0) >= last - 1e-6, 15)
+        after = rss_mb(proc.pid)
+        assert drawn()[-1]["merged"]["maps"]["/robot2"] == pytest.approx(last, abs=1e-6)
+        assert proc.poll() is None
+        assert after - before < 150, (before, after)
+        for r in ("robot1", "robot2", "robot3"):
+            t = tfs[f"{r}/map"]
+            x, y, _ = poses[f"/{r}"]
+            assert t.header.frame_id == "world"
+            assert (t.transform.translation.x, t.transform.translation.y) == pytest.approx((x, y), abs=1e-9)
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+        code = stop_node(proc)
+    text = open(tmp_path / "node.log").read()
+    assert code == 0, (code, text[-3000:])
+    assert text.count("publishes its map") == 1 and "times a second: only its latest map is read" in text, text[-3000:]
+    assert "tf2_ros is not importable" not in text and "Traceback" not in text, text[-3000:]

@@ -9,15 +9,17 @@ map that grows and moves its origin (slam_toolbox, gmapping) keeps its placement
 
 from __future__ import annotations
 
+import functools
 import math
 import threading
+import time
 from dataclasses import dataclass, field
 from typing import Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 
 from .._map import Map
-from .._merge import merge_many
+from .._merge import MergeCache, merge_many
 
 #: (x, y, yaw): a map frame's pose in the world frame, metres and radians.
 Pose2 = Tuple[float, float, float]
@@ -45,6 +47,21 @@ def pose_distance(a: Pose2, b: Pose2, reach: float) -> Tuple[float, float]:
     return shift, abs(math.degrees(turn))
 
 
+#: Where a map's known cells are, in its map frame: (their centroid, the RMS of their distances to it), metres.
+Spread = Tuple[Tuple[float, float], float]
+
+
+def cells_moved(a: Pose2, b: Pose2, spread: Spread) -> Tuple[float, float]:
+    """How far a map's known cells move between two placements of its frame: (the RMS of their moves,
+    metres; the turn, degrees). The RMS is the success test's measure of merged maps (an RMS over points
+    spread over the map), here over every known cell: the centroid's move and the turn times the cells'
+    spread about it (exact: for a turn d, |R(d) q - q| = 2 sin(d/2) |q|)."""
+    (cx, cy), radius = spread
+    moved = (pose_matrix(a) - pose_matrix(b)) @ (cx, cy, 1.0)
+    turn = math.remainder(a[2] - b[2], math.tau)
+    return math.hypot(moved[0], moved[1], 2.0 * math.sin(turn / 2.0) * radius), abs(math.degrees(turn))
+
+
 @dataclass
 class Grid:
     """One robot's latest map as it arrived: int8 cells, row 0 at the bottom (ROS)."""
@@ -57,6 +74,17 @@ class Grid:
 
     def __post_init__(self) -> None:
         self.known = int(np.count_nonzero(self.cells >= 0))
+
+    @functools.cached_property
+    def spread(self) -> Spread:
+        """Its known cells' centroid and RMS distance to it, in the map frame (``Spread``)."""
+        rows, cols = np.nonzero(self.cells >= 0)
+        h, w = self.cells.shape
+        if rows.size == 0:
+            rows, cols = np.array([h / 2.0]), np.array([w / 2.0])
+        r = self.resolution
+        centre = pose_matrix(self.origin) @ ((cols.mean() + 0.5) * r, (rows.mean() + 0.5) * r, 1.0)
+        return (float(centre[0]), float(centre[1])), float(r * math.sqrt(cols.var() + rows.var()))
 
     @property
     def reach(self) -> float:
@@ -124,15 +152,29 @@ class Placement:
 
 
 @dataclass
+class Candidate:
+    """A robot's first placement, not yet published: it waits for a second estimation to agree."""
+
+    pose: Pose2
+    generation: int  # of the maps it was found on
+    since: float  # time.monotonic() when found
+
+
+@dataclass
 class Options:
     """What the node's parameters set (the names are the node's)."""
 
     #: Re-estimate once a map's known cells have grown by this share since its last estimation.
     growth: float = 0.1
     #: A new estimate within this of the accepted pose refines it (smoothed); beyond, it must be seen
-    #: ``confirm`` estimations in a row, agreeing with itself, before the pose moves.
-    pose_tolerance_m: float = 0.5
+    #: ``confirm`` estimations in a row, agreeing with itself, before the pose moves. The metres are the
+    #: largest move of any cell of the map (a turn moves far cells most); 1 m is the success limit of
+    #: merged real maps (20 cells at 0.05 m).
+    pose_tolerance_m: float = 1.0
     pose_tolerance_deg: float = 3.0
+    #: A robot's first placement is published once a second estimation agrees with it: one on grown
+    #: maps, or, when no map grows by ``growth``, one this many seconds later (its map has settled).
+    settle_s: float = 10.0
     confirm: int = 2
     #: A known initial pose further than this from where the maps place the robot is reported.
     contradiction_m: float = 1.0
@@ -161,8 +203,16 @@ class LiveMerge:
         self.options = options if options is not None else Options()
         self._lock = threading.Lock()
         self._grids: Dict[str, Grid] = {}
-        self._estimated_known: Dict[str, int] = {}
+        # The version of each map the estimation uses: replaced by the latest when its known area has
+        # changed by ``growth`` (so between, its preparation and its pairs come from the cache).
+        self._used: Dict[str, Tuple[Grid, Map]] = {}
+        self._cache = MergeCache()
+        self._last: Dict[str, float] = {}
+        # Each placed robot's drawing in world cells, kept while its map and pose stay the same.
+        self._layers: Dict[str, tuple] = {}
         self._placements: Dict[str, Placement] = {}
+        self._candidates: Dict[str, Candidate] = {}
+        self._generation = 0  # bumped when the estimation's maps change
         self._anchor: Optional[str] = None
         self._reasons: Dict[str, str] = {}
         self._warnings: Dict[str, str] = {}  # about placed robots: a given pose the maps contradict
@@ -177,18 +227,57 @@ class LiveMerge:
             self._grids[robot] = grid
             self._version += 1
 
+    def patch(self, robot: str, x: int, y: int, width: int, height: int,
+              data: Sequence[int] | np.ndarray | bytes, stamp: float) -> Optional[str]:
+        """A ``map_msgs/OccupancyGridUpdate`` (the cells of a ``width`` x ``height`` window at column ``x``,
+        row ``y``) applied to the robot's latest full map, as multirobot_map_merge applies them; or why it
+        cannot be (one line). The map is copied, not changed in place: an estimation may be reading it."""
+        with self._lock:
+            g = self._grids.get(robot)
+        if g is None:
+            return "an update before any full map"
+        h, w = g.cells.shape
+        if min(x, y) < 0 or width <= 0 or height <= 0 or x + width > w or y + height > h:
+            return f"an update window {width} x {height} at ({x}, {y}) outside the {w} x {h} map"
+        if len(data) != width * height:
+            return f"{len(data)} cells for a {width} x {height} update"
+        cells = g.cells.copy()
+        cells[y : y + height, x : x + width] = cells_of(data, width, height)
+        self.update(robot, Grid(cells, g.resolution, g.origin, stamp))
+        return None
+
     def robots(self) -> List[str]:
         with self._lock:
             return sorted(self._grids)
 
     def needs_estimation(self) -> bool:
-        """A robot's map is new, or has grown by ``growth`` of its known cells since it was last used."""
+        """A robot's map is new, or its known cells have changed by ``growth`` since the version the
+        estimation uses."""
         with self._lock:
-            for r, g in self._grids.items():
-                before = self._estimated_known.get(r)
-                if before is None or g.known >= before * (1.0 + self.options.growth) + 1:
-                    return True
-            return False
+            settled = time.monotonic() - self.options.settle_s
+            return any(self._stale(r) for r in self._grids) or any(
+                c.since <= settled for c in self._candidates.values()
+            )
+
+    def _stale(self, r: str) -> bool:
+        used = self._used.get(r)
+        if used is None:
+            return True
+        g, before = self._grids[r], used[0]
+        # Grown by the share, or shrunk by it (a SLAM reset), or at another resolution.
+        return abs(g.known - before.known) >= before.known * self.options.growth + 1 or (
+            g.resolution != before.resolution
+        )
+
+    def stamps(self) -> Dict[str, float]:
+        """Each robot's latest map's stamp (seconds)."""
+        with self._lock:
+            return {r: g.stamp for r, g in self._grids.items()}
+
+    def last_estimation(self) -> Dict[str, float]:
+        """The last estimation: its seconds and how much came from the cache (``MergeCache.last_use``)."""
+        with self._lock:
+            return dict(self._last)
 
     # ---- estimation ----
 
@@ -196,13 +285,23 @@ class LiveMerge:
         """Places the current maps (the library's many-map placement, or the known poses) and folds the
         result into the accepted poses. Runs the heavy work without the lock."""
         with self._lock:
-            snapshot = dict(self._grids)
-            for r, g in snapshot.items():
-                self._estimated_known[r] = g.known
-        if not snapshot:
+            stale = {r: self._grids[r] for r in self._grids if self._stale(r)}
+            kept = {r: self._used[r] for r in self._grids if r not in stale}
+        if not stale and not kept:
             return []
+        # Outside the lock: a Map of each new version (the estimation's input from now on).
+        for r, g in stale.items():
+            kept[r] = (g, Map.from_occupancy_grid(g.cells.reshape(-1), g.cells.shape[1], g.cells.shape[0],
+                                                  g.resolution, g.origin))
+        with self._lock:
+            self._used.update((r, kept[r]) for r in stale)
+            self._generation += bool(stale)
+        snapshot = {r: used[0] for r, used in kept.items()}
         names = sorted(snapshot)
-        estimates, reasons = self._place(names, snapshot)
+        started = time.monotonic()
+        estimates, reasons = self._place(names, {r: used[1] for r, used in kept.items()})
+        last = {"seconds": round(time.monotonic() - started, 4), "robots": len(names),
+                **(self._cache.last_use if len(names) > 1 else {})}
         events: List[Event] = []
         init = self.options.init_poses
         with self._lock:
@@ -220,13 +319,18 @@ class LiveMerge:
                 est = estimates.get(r)
                 if est is None:
                     why = reasons.get(r) or "not placed"
+                    self._candidates.pop(r, None)  # a placement the estimation no longer finds
                     if r not in self._placements and self._reasons.get(r) != why:
                         events.append(Event(r, "not_placed", f"{r}: not placed: {why}"))
                     self._reasons[r] = why
                     continue
                 self._reasons.pop(r, None)
-                events += self._fold(r, est, snapshot[r].reach)
+                if r in self._placements:
+                    events += self._fold(r, est, snapshot[r].spread)
+                else:
+                    events += self._confirm(r, est, snapshot[r].spread)
             self._version += 1
+            self._last = last
         return events
 
     def _check_given(self, names: List[str], est: Dict[str, Pose2]) -> List[Event]:
@@ -264,15 +368,13 @@ class LiveMerge:
             self._warnings[r] = text
         return events
 
-    def _place(self, names: List[str], grids: Dict[str, Grid]) -> Tuple[Dict[str, Pose2], Dict[str, str]]:
-        """Each robot's map frame in the anchor's map frame, from one many-map placement."""
+    def _place(self, names: List[str], maps: Dict[str, Map]) -> Tuple[Dict[str, Pose2], Dict[str, str]]:
+        """Each robot's map frame in the anchor's map frame, from one many-map placement (what did not
+        change since the last one comes from the cache)."""
         if len(names) < 2:
             return {}, {n: "waiting for another robot's map" for n in names}
-        maps = [
-            Map.from_occupancy_grid(g.cells.reshape(-1), g.cells.shape[1], g.cells.shape[0], g.resolution, g.origin)
-            for g in (grids[n] for n in names)
-        ]
-        many = merge_many(maps, names=names, backend=self.options.backend)
+        many = merge_many([maps[n] for n in names], names=names, backend=self.options.backend,
+                          cache=self._cache)
         frames: Dict[str, np.ndarray] = {}
         group: Dict[str, int] = {}
         reasons: Dict[str, str] = {}
@@ -313,19 +415,41 @@ class LiveMerge:
             out[n] = matrix_pose(base @ f)
         return out, reasons
 
-    def _fold(self, r: str, est: Pose2, reach: float) -> List[Event]:
+    def _confirm(self, r: str, est: Pose2, spread: Spread) -> List[Event]:
+        """A first placement is published when a second estimation agrees with it: one on changed maps
+        (new evidence), or one ``settle_s`` after it (no map grew meanwhile: the same maps, the same
+        answer). A placement on a part of a map that the next part contradicts is never shown."""
+        o, now = self.options, time.monotonic()
+        c = self._candidates.get(r)
+        if c is not None:
+            d, deg = cells_moved(est, c.pose, spread)
+            if d <= o.pose_tolerance_m and deg <= o.pose_tolerance_deg:
+                grown = self._generation > c.generation
+                if grown or now - c.since >= o.settle_s:
+                    del self._candidates[r]
+                    self._reasons.pop(r, None)
+                    self._placements[r] = Placement(est)
+                    how = "on grown maps" if grown else f"{now - c.since:.0f} s later"
+                    return [Event(r, "placed", f"{r}: placed at {fmt(est)} (found again {how})")]
+                self._reasons[r] = f"placed at {fmt(est)}, waiting for a second estimation to agree"
+                return []
+        self._candidates[r] = Candidate(est, self._generation, now)
+        self._reasons[r] = f"placed at {fmt(est)}, waiting for a second estimation to agree"
+        return []
+
+    def _fold(self, r: str, est: Pose2, spread: Spread) -> List[Event]:
         o = self.options
         p = self._placements.get(r)
         if p is None:
             self._placements[r] = Placement(est)
             return [Event(r, "placed", f"{r}: placed at {fmt(est)}")]
-        d, deg = pose_distance(est, p.pose, reach)
+        d, deg = cells_moved(est, p.pose, spread)
         if d <= o.pose_tolerance_m and deg <= o.pose_tolerance_deg:
             p.pose = blend(p.pose, est, o.smoothing)
             p.pending, p.seen = None, 0
             return []
         if p.pending is not None:
-            dp, degp = pose_distance(est, p.pending, reach)
+            dp, degp = cells_moved(est, p.pending, spread)
             if dp <= o.pose_tolerance_m and degp <= o.pose_tolerance_deg:
                 p.seen += 1
             else:
@@ -364,55 +488,83 @@ class LiveMerge:
     ) -> Optional[Tuple[np.ndarray, float, Pose2]]:
         """The placed maps drawn into one world-aligned grid: (cells int8 row 0 at the bottom, resolution,
         origin (x, y, 0)); occupied wins over free, free over unknown. None until a robot is placed.
-        Raises ValueError, before allocating anything, when the grid would be over ``max_cells``."""
+        Raises ValueError, before allocating anything, when the grid would be over ``max_cells``.
+
+        Each robot's map is drawn into world cells once per (map version, pose) and kept: a merged map
+        after one robot's update redraws that robot only, and stacks the others' kept layers."""
         with self._lock:
-            placed = [(self._grids[r], p.pose) for r, p in self._placements.items() if r in self._grids]
-            if not placed and self.options.init_poses is None and len(self._grids) == 1:
-                # One robot: its own map is the world until another is placed.
-                only = min(self._grids, key=lambda n: self._arrival.get(n, 0))
-                placed = [(self._grids[only], (0.0, 0.0, 0.0))]
+            placed = [(r, self._grids[r], p.pose) for r, p in self._placements.items() if r in self._grids]
+            if not placed and self.options.init_poses is None and self._grids:
+                # Until a robot is placed with another, one map is the world: the anchor's once chosen,
+                # else the first to arrive (as multirobot_map_merge shows one robot's map).
+                only = self._anchor if self._anchor in self._grids else min(
+                    self._grids, key=lambda n: self._arrival.get(n, 0))
+                placed = [(only, self._grids[only], (0.0, 0.0, 0.0))]
         if not placed:
             return None
-        res = resolution or min(g.resolution for g, _ in placed)
-        # The world box of every placed grid, snapped to the resolution so cells stay put between updates.
-        corners = []
-        for g, pose in placed:
-            h, w = g.cells.shape
-            m = pose_matrix(pose) @ pose_matrix(g.origin)
-            for x, y in ((0, 0), (w, 0), (0, h), (w, h)):
-                corners.append((m @ (x * g.resolution, y * g.resolution, 1.0))[:2])
-        c = np.array(corners)
-        x0, y0 = math.floor(c[:, 0].min() / res) * res, math.floor(c[:, 1].min() / res) * res
-        width = int(math.ceil((c[:, 0].max() - x0) / res))
-        height = int(math.ceil((c[:, 1].max() - y0) / res))
+        res = resolution or min(g.resolution for _, g, _ in placed)
+        # World cells are [i res, (i + 1) res): snapped to the resolution, cells stay put between updates.
+        boxes = [world_box(g, pose, res) for _, g, pose in placed]
+        x0, y0 = min(b[0] for b in boxes), min(b[1] for b in boxes)
+        width, height = max(b[2] for b in boxes) - x0, max(b[3] for b in boxes) - y0
         if width * height > max_cells:
             raise ValueError(
                 f"the merged map would be {width} x {height} cells, over max_cells ({max_cells}): are the "
                 "robots' origins or given poses far apart?"
             )
+        layers = []
+        for (r, g, pose), box in zip(placed, boxes):
+            key = (id(g), pose, res)
+            kept = self._layers.get(r)
+            if kept is None or kept[0] != key:
+                kept = (key, g, box, draw_layer(g, pose, res, box))
+                self._layers[r] = kept  # ``g`` is held with it: its id cannot be reused meanwhile
+            layers.append(kept[2:])
+        for r in set(self._layers) - {r for r, _, _ in placed}:
+            del self._layers[r]
         cells = np.full((height, width), -1, np.int8)
-        inverse = [(np.linalg.inv(pose_matrix(pose) @ pose_matrix(g.origin)), g) for g, pose in placed]
-        wx = x0 + (np.arange(width) + 0.5) * res
-        band = max(1, (1 << 20) // max(width, 1))  # about a million cells at a time: memory stays small
-        for top in range(0, height, band):
-            rows = min(band, height - top)
-            wy = (y0 + (np.arange(top, top + rows) + 0.5) * res)[:, None]
-            occupied = np.zeros((rows, width), bool)
-            free = np.zeros((rows, width), bool)
-            for m, g in inverse:
-                # World cell centres into the robot's grid (nearest cell).
-                gx = np.floor((m[0, 0] * wx + m[0, 1] * wy + m[0, 2]) / g.resolution).astype(np.int64)
-                gy = np.floor((m[1, 0] * wx + m[1, 1] * wy + m[1, 2]) / g.resolution).astype(np.int64)
-                h, w = g.cells.shape
-                inside = (gx >= 0) & (gx < w) & (gy >= 0) & (gy < h)
-                v = np.full(gx.shape, -1, np.int16)
-                v[inside] = g.cells[gy[inside], gx[inside]]
-                occupied |= v >= 65
-                free |= (v >= 0) & (v <= 25)
-            part = cells[top : top + rows]
-            part[free] = 0
-            part[occupied] = 100
-        return cells, res, (x0, y0, 0.0)
+        for (bx0, by0, bx1, by1), (occupied, free) in layers:
+            cells[by0 - y0 : by1 - y0, bx0 - x0 : bx1 - x0][free] = 0
+        for (bx0, by0, bx1, by1), (occupied, free) in layers:
+            cells[by0 - y0 : by1 - y0, bx0 - x0 : bx1 - x0][occupied] = 100
+        return cells, res, (x0 * res, y0 * res, 0.0)
+
+
+def world_box(g: Grid, pose: Pose2, res: float) -> Tuple[int, int, int, int]:
+    """The world cells (first column, first row, past the last column, past the last row) that grid ``g``
+    placed by ``pose`` covers."""
+    h, w = g.cells.shape
+    m = pose_matrix(pose) @ pose_matrix(g.origin)
+    c = np.array([(m @ (x * g.resolution, y * g.resolution, 1.0))[:2] for x, y in ((0, 0), (w, 0), (0, h), (w, h))])
+    return (math.floor(c[:, 0].min() / res), math.floor(c[:, 1].min() / res),
+            math.ceil(c[:, 0].max() / res), math.ceil(c[:, 1].max() / res))
+
+
+def draw_layer(g: Grid, pose: Pose2, res: float, box: Tuple[int, int, int, int]) -> Tuple[np.ndarray, np.ndarray]:
+    """Grid ``g`` placed by ``pose`` sampled at the centres of the world cells of ``box`` (nearest cell):
+    (occupied, free) masks of the box's shape."""
+    bx0, by0, bx1, by1 = box
+    width, height = bx1 - bx0, by1 - by0
+    m = np.linalg.inv(pose_matrix(pose) @ pose_matrix(g.origin)) / g.resolution
+    occupied = np.zeros((height, width), bool)
+    free = np.zeros((height, width), bool)
+    h, w = g.cells.shape
+    # float32 and about a million cells at a time: fast, and memory stays small. Coordinates are taken
+    # from the box's corner (its offset added in float64) so that far origins keep their precision.
+    m[:, 2] = m @ (bx0 * res, by0 * res, 1.0)
+    f = m.astype(np.float32)
+    wx = ((np.arange(width) + 0.5) * res).astype(np.float32)
+    band = max(1, (1 << 20) // max(width, 1))
+    for top in range(0, height, band):
+        rows = min(band, height - top)
+        wy = ((np.arange(top, top + rows) + 0.5) * res).astype(np.float32)[:, None]
+        gx = np.floor(f[0, 0] * wx + (f[0, 1] * wy + f[0, 2])).astype(np.int32)
+        gy = np.floor(f[1, 0] * wx + (f[1, 1] * wy + f[1, 2])).astype(np.int32)
+        inside = (gx >= 0) & (gx < w) & (gy >= 0) & (gy < h)
+        v = g.cells[np.where(inside, gy, 0), np.where(inside, gx, 0)]
+        occupied[top : top + rows] = inside & (v >= 65)
+        free[top : top + rows] = inside & (v >= 0) & (v <= 25)
+    return occupied, free
 
 
 def blend(a: Pose2, b: Pose2, share: float) -> Pose2:

@@ -20,13 +20,20 @@ from .._map import OccupancyGrid as Cells
 from .live import LiveMerge, Options, Pose2, grid_of
 
 import rclpy
-from geometry_msgs.msg import PoseStamped
+from geometry_msgs.msg import PoseStamped, TransformStamped
 from nav_msgs.msg import OccupancyGrid
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import String
 
+try:  # in a ROS 2 install; not in the ros-jazzy-* wheel set
+    from map_msgs.msg import OccupancyGridUpdate as GridUpdate
+except ImportError:
+    GridUpdate = None
+
 GRID_TYPE = "nav_msgs/msg/OccupancyGrid"
+#: A robot publishing its map more often than this a second is told (once) that only its latest is read.
+FAST_HZ = 10
 
 #: multirobot_map_merge's parameters and defaults (its ROS 2 port's code).
 THEIRS: Dict[str, Any] = {
@@ -45,9 +52,11 @@ THEIRS: Dict[str, Any] = {
 OURS: Dict[str, Any] = {
     "backend": "cpu",
     "growth": 0.1,
-    "pose_tolerance_m": 0.5,
+    "pose_tolerance_m": 1.0,
     "pose_tolerance_deg": 3.0,
+    "settle_s": 10.0,
     "max_cells": 1 << 27,
+    "robot_map_frame": "map",
 }
 
 
@@ -76,6 +85,7 @@ class MapMerge(Node):
                 growth=p["growth"],
                 pose_tolerance_m=p["pose_tolerance_m"],
                 pose_tolerance_deg=p["pose_tolerance_deg"],
+                settle_s=p["settle_s"],
                 backend=p["backend"],
                 init_poses={} if p["known_init_poses"] else None,
             )
@@ -92,20 +102,37 @@ class MapMerge(Node):
         self.said: Set[str] = set()
         self.bad: Dict[str, str] = {}
         self._merged_topic = self.resolve_topic_name(p["merged_map_topic"])
+        if GridUpdate is None:
+            self.get_logger().info(
+                "map_msgs is not importable: robots' map_updates are not read, only their full maps (with "
+                "a ROS 2 install, each OccupancyGridUpdate is applied to its robot's map)"
+            )
+        self.tf: Any = None
         try:
-            import tf2_ros  # noqa: F401
+            import tf2_ros
 
-            self.get_logger().info("tf2_ros found, but this node publishes poses, not transforms (yet)")
+            self.tf = tf2_ros.TransformBroadcaster(self)
         except ImportError:
             self.get_logger().info(
                 "tf2_ros is not importable: no world_frame -> <robot>/map transforms are published; each "
                 "robot's map pose is on <robot>/map_merge/pose"
             )
-        self.create_timer(1.0 / max(p["discovery_rate"], 1e-3), self.discover)
+        # The graph is looked at each second at least: a look costs well under a millisecond here (no
+        # ROS 1 master to call), and at multirobot_map_merge's 0.05 Hz a robot missed by the first look
+        # (DDS discovery takes a moment) would wait 20 s. A faster discovery_rate is honoured.
+        self.create_timer(1.0 / max(p["discovery_rate"], 1.0), self.discover)
         self._first = self.create_timer(0.5, self._discover_once)
+        self._input = threading.RLock()
+        self._pending: Dict[str, Any] = {}
+        self._rate: Dict[str, Any] = {}
         self._stop = threading.Event()
-        self._worker = threading.Thread(target=self._work, name="map_merge-estimation", daemon=True)
-        self._worker.start()
+        self._status_lock = threading.Lock()
+        self._workers = [
+            threading.Thread(target=self._estimate_loop, name="map_merge-estimation", daemon=True),
+            threading.Thread(target=self._merge_loop, name="map_merge-merging", daemon=True),
+        ]
+        for w in self._workers:
+            w.start()
 
     # ---- parameters ----
 
@@ -199,6 +226,12 @@ class MapMerge(Node):
             self.subs[robot] = self.create_subscription(
                 OccupancyGrid, name, lambda msg, r=robot: self.on_map(r, msg), qos
             )
+            if GridUpdate is not None:
+                updates = f"{robot}/{self.p['robot_map_updates_topic']}"
+                # Volatile: an update is only meaningful after the full map it patches (which is latched).
+                self.subs[updates] = self.create_subscription(
+                    GridUpdate, updates, lambda msg, r=robot: self.on_update(r, msg), 10
+                )
             self.pose_pubs[robot] = self.create_publisher(PoseStamped, f"{robot}/map_merge/pose", latched())
             self.get_logger().info(
                 f"robot {robot}: subscribed to {name} ({'transient-local' if durable else 'volatile'}, "
@@ -208,46 +241,96 @@ class MapMerge(Node):
     # ---- input ----
 
     def on_map(self, robot: str, msg: OccupancyGrid) -> None:
+        """Keeps the message: it is read when the merged map is next drawn, so a robot publishing at
+        100 Hz costs one map's conversion per merged map, and its latest map is the one used."""
+        now = time.monotonic()
+        with self._input:
+            self._pending[robot] = msg
+            start, count = self._rate.get(robot, (now, 0))
+            if now - start >= 1.0:
+                if count > FAST_HZ:
+                    self._once(f"fast:{robot}", f"robot {robot} publishes its map {count / (now - start):.0f} times "
+                                                "a second: only its latest map is read, at most merging_rate "
+                                                "times a second")
+                start, count = now, 0
+            self._rate[robot] = (start, count + 1)
+
+    def _read_pending(self, only: Optional[str] = None) -> None:
+        """The maps kept by ``on_map`` (of robot ``only``, or all) into the merge."""
+        with self._input:
+            robots = [only] if only is not None else list(self._pending)
+            for robot in robots:
+                msg = self._pending.pop(robot, None)
+                if msg is None:
+                    continue
+                stamp = msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
+                grid, why = grid_of(msg, self.p["max_cells"], stamp)
+                if grid is None:
+                    if self.bad.get(robot) != why:
+                        self.get_logger().warning(f"robot {robot}: map ignored: {why}")
+                        self.bad[robot] = why
+                    continue
+                self.bad.pop(robot, None)
+                self.live.update(robot, grid)
+
+    def on_update(self, robot: str, msg: Any) -> None:
+        self._read_pending(robot)  # the full map it patches first
         stamp = msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
-        grid, why = grid_of(msg, self.p["max_cells"], stamp)
-        if grid is None:
-            if self.bad.get(robot) != why:
-                self.get_logger().warning(f"robot {robot}: map ignored: {why}")
-                self.bad[robot] = why
-            return
-        self.bad.pop(robot, None)
-        self.live.update(robot, grid)
+        why = self.live.patch(robot, msg.x, msg.y, msg.width, msg.height, msg.data, stamp)
+        if why is not None and self.bad.get(robot) != why:
+            self.get_logger().warning(f"robot {robot}: map update ignored: {why}")
+            self.bad[robot] = why
 
     # ---- estimation and output, off the executor's thread ----
 
-    def _work(self) -> None:
-        next_estimate = next_merge = 0.0
-        drawn = -1
-        period = 1.0 / max(self.p["merging_rate"], 1e-3)
-        while not self._stop.wait(min(period, 0.1)):
+    def _estimate_loop(self) -> None:
+        """Estimation at most at ``estimation_rate``, when a map is new or has changed by ``growth``. A
+        thread of its own: a long estimation never holds back the merged map."""
+        period = 1.0 / max(self.p["estimation_rate"], 1e-3)
+        next_estimate = 0.0
+        while not self._stop.wait(0.05):
             if not self.context.ok():  # SIGINT: rclpy has shut the context; nothing can be published
                 return
-            now = time.monotonic()
+            if time.monotonic() < next_estimate or not self.live.needs_estimation():
+                continue
+            next_estimate = time.monotonic() + period
             try:
-                if now >= next_estimate and self.live.needs_estimation():
-                    next_estimate = now + 1.0 / max(self.p["estimation_rate"], 1e-3)
-                    for e in self.live.estimate():
-                        log = self.get_logger()
-                        if e.kind in ("contradicts", "moved"):
-                            log.warning(e.text)
-                        elif e.kind in ("placed", "not_placed"):
-                            log.info(e.text)
-                    self._status()
-                if now >= next_merge and self.live.version != drawn:
-                    next_merge = now + period
-                    drawn = self.live.version
-                    self._publish()
+                for e in self.live.estimate():
+                    log = self.get_logger()
+                    if e.kind in ("contradicts", "moved"):
+                        log.warning(e.text)
+                    elif e.kind in ("placed", "not_placed"):
+                        log.info(e.text)
+                self._status()
             except Exception as e:  # one bad estimation must not end the node
                 if not self.context.ok():
                     return
                 self.get_logger().error(f"estimation failed: {type(e).__name__}: {e}")
 
+    def _merge_loop(self) -> None:
+        """The merged map, poses and transforms at ``merging_rate`` when a map or a pose has changed."""
+        period = 1.0 / max(self.p["merging_rate"], 1e-3)
+        drawn = -1
+        while not self._stop.wait(0.005):
+            if not self.context.ok():
+                return
+            self._read_pending()
+            version = self.live.version
+            if version == drawn:
+                continue
+            started = time.monotonic()
+            drawn = version
+            try:
+                self._publish()
+            except Exception as e:
+                if not self.context.ok():
+                    return
+                self.get_logger().error(f"merging failed: {type(e).__name__}: {e}")
+            # At most merging_rate: the next one no sooner than a period after this one began.
+            self._stop.wait(max(0.0, period - (time.monotonic() - started)))
+
     def _publish(self) -> None:
+        stamps = self.live.stamps()
         try:
             merged = self.live.merged(self.p["max_cells"])
         except ValueError as e:
@@ -261,7 +344,9 @@ class MapMerge(Node):
         msg.header.stamp = self.get_clock().now().to_msg()
         msg.info.map_load_time = msg.header.stamp
         self.merged_pub.publish(msg)
-        for robot, pose in self.live.poses().items():
+        poses = self.live.poses()
+        transforms = []
+        for robot, pose in poses.items():
             if robot not in self.pose_pubs:
                 continue
             ps = PoseStamped()
@@ -269,16 +354,39 @@ class MapMerge(Node):
             ps.pose.position.x, ps.pose.position.y = pose[0], pose[1]
             ps.pose.orientation.z, ps.pose.orientation.w = math.sin(pose[2] / 2), math.cos(pose[2] / 2)
             self.pose_pubs[robot].publish(ps)
+            if self.tf is not None:
+                transforms.append(self._transform(msg.header, robot, pose))
+        if transforms:
+            self.tf.sendTransform(transforms)
+        # What this merged map was drawn from: each robot's map by its header stamp (latency is measured
+        # against it), on the status topic right after the map.
+        self._status(merged={"stamp": msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec,
+                             "maps": {r: stamps[r] for r in poses if r in stamps}})
 
-    def _status(self) -> None:
+    def _transform(self, header: Any, robot: str, pose: Pose2) -> Any:
+        """``world_frame -> <robot>/map`` (the robot's map frame, as multirobot_map_merge's TF PR names it)."""
+        t = TransformStamped()
+        t.header = header
+        t.child_frame_id = f"{robot.strip('/')}/{self.p['robot_map_frame']}"
+        t.transform.translation.x, t.transform.translation.y = pose[0], pose[1]
+        t.transform.rotation.z, t.transform.rotation.w = math.sin(pose[2] / 2), math.cos(pose[2] / 2)
+        return t
+
+    def _status(self, merged: Optional[Dict[str, Any]] = None) -> None:
+        """The status document: each robot placed or why not; after a merged map, what it was drawn from;
+        the last estimation's use of the cache."""
         poses, reasons = self.live.poses(), self.live.reasons()
-        doc = {
+        doc: Dict[str, Any] = {
             "robots": {
                 r: {"placed": r in poses, "pose": list(poses[r]) if r in poses else None, "reason": reasons.get(r)}
                 for r in self.live.robots()
-            }
+            },
+            "estimation": self.live.last_estimation(),
         }
-        self.status_pub.publish(String(data=json.dumps(doc)))
+        if merged is not None:
+            doc["merged"] = merged
+        with self._status_lock:  # two threads publish it
+            self.status_pub.publish(String(data=json.dumps(doc)))
 
     def _once(self, key: str, text: str) -> None:
         if key not in self.said:
@@ -287,7 +395,8 @@ class MapMerge(Node):
 
     def close(self) -> None:
         self._stop.set()
-        self._worker.join(timeout=10)
+        for w in self._workers:
+            w.join(timeout=10)
 
 
 def main(args: Optional[list] = None) -> int:

@@ -6,7 +6,7 @@ use std::borrow::Cow;
 use std::time::Instant;
 
 use super::report::{self, Poses};
-use super::{GlobalOptions, Run};
+use super::{Cache, GlobalOptions, Run};
 use crate::backend::Backend;
 use crate::error::Result;
 use crate::map::OccupancyMap;
@@ -31,11 +31,24 @@ pub struct ManyMerge {
 /// Places `maps` (named `names` in the report): each brought to the first georeferenced map's resolution,
 /// then [`super::run`] (`backend` scores the dense checks, `progress` hears pairs done and in all).
 pub fn merge_maps(
+    maps: Vec<OccupancyMap>,
+    names: &[String],
+    options: &GlobalOptions,
+    backend: &mut dyn Backend,
+    progress: &(dyn Fn(usize, usize) + Sync),
+) -> Result<ManyMerge> {
+    merge_maps_cached(maps, names, options, backend, progress, &mut Cache::new())
+}
+
+/// [`merge_maps`] keeping each map's preparation and each pair's alignment in `cache` for the next call
+/// ([`super::run_cached`]): a live merge where few maps change between calls redoes only their part.
+pub fn merge_maps_cached(
     mut maps: Vec<OccupancyMap>,
     names: &[String],
     options: &GlobalOptions,
     backend: &mut dyn Backend,
     progress: &(dyn Fn(usize, usize) + Sync),
+    cache: &mut Cache,
 ) -> Result<ManyMerge> {
     let start = Instant::now();
     let mut scales = vec![None; maps.len()];
@@ -48,7 +61,7 @@ pub fn merge_maps(
             }
         }
     }
-    let run = super::run(&maps, options, backend, progress)?;
+    let run = super::run_cached(&maps, options, backend, progress, cache)?;
     let frames = (0..run.placement.groups.len())
         .map(|g| {
             let (ms, ps) = group_of(&maps, &run, g);

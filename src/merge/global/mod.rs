@@ -20,6 +20,7 @@
 //!    comes close, and no overlapping pair of maps it puts together contradicts itself densely.
 //! 4. A weighted pose-graph least squares over the edges consistent with the placement ([`posegraph`]).
 
+mod cache;
 pub mod calibrate;
 pub mod eval;
 pub mod graph;
@@ -35,7 +36,8 @@ use super::align::{
 };
 use super::transform::Rigid;
 use crate::error::Result;
-pub use merged::{merge_maps, ManyMerge};
+pub use cache::{Cache, CacheUse};
+pub use merged::{merge_maps, merge_maps_cached, ManyMerge};
 
 /// How to place many maps.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -152,32 +154,46 @@ pub fn align_all(
     options: &GlobalOptions,
     progress: &(dyn Fn(usize, usize) + Sync),
 ) -> Result<Pairwise> {
+    align_known(maps, options, progress, &|_, _| None).map(|(pairwise, _)| pairwise)
+}
+
+/// [`align_all`] taking each pair's alignment from `known` where it has it (only the others are aligned,
+/// and `progress` counts only those); also returns every pair's alignment, `a` then `b` ascending.
+pub(crate) fn align_known(
+    maps: &[Prepared],
+    options: &GlobalOptions,
+    progress: &(dyn Fn(usize, usize) + Sync),
+    known: &(dyn Fn(usize, usize) -> Option<super::Alignment> + Sync),
+) -> Result<(Pairwise, Vec<super::Alignment>)> {
     use rayon::prelude::*;
     let n = maps.len();
-    let pairs: Vec<(usize, usize)> = (0..n)
-        .flat_map(|a| (a + 1..n).map(move |b| (a, b)))
+    let pairs: Vec<(usize, usize, Option<super::Alignment>)> = (0..n)
+        .flat_map(|a| (a + 1..n).map(move |b| (a, b, known(a, b))))
         .collect();
     let done = std::sync::atomic::AtomicUsize::new(0);
-    let total = pairs.len();
+    let total = pairs.iter().filter(|p| p.2.is_none()).count();
     // A raised stop ends each pair at its next check and skips the pairs not started.
     let stop = crate::stop::current();
     let results: Vec<Result<super::Alignment>> = pairs
-        .par_iter()
-        .map(|&(a, b)| {
-            crate::stop::with(stop.clone(), || {
+        .into_par_iter()
+        .map(|(a, b, kept)| match kept {
+            Some(al) => Ok(al),
+            None => crate::stop::with(stop.clone(), || {
                 crate::stop::check()?;
                 let al = align_prepared(&maps[a], &maps[b], &options.pair);
                 let k = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
                 progress(k, total);
                 al
-            })
+            }),
         })
         .collect();
     let mut out = Pairwise {
         n,
         ..Pairwise::default()
     };
-    for (&(a, b), al) in pairs.iter().zip(results) {
+    let mut all = Vec::with_capacity(results.len());
+    let order = (0..n).flat_map(|a| (a + 1..n).map(move |b| (a, b)));
+    for ((a, b), al) in order.zip(results) {
         let al = al?;
         out.pairs.push(PairVerdict {
             a,
@@ -194,8 +210,9 @@ pub fn align_all(
             al.accepted,
             options,
         ));
+        all.push(al);
     }
-    Ok(out)
+    Ok((out, all))
 }
 
 /// A pair's usable candidates as edges: the accepted choice, and every candidate from the weak rule
@@ -342,6 +359,18 @@ pub fn run(
     backend: &mut dyn crate::backend::Backend,
     progress: &(dyn Fn(usize, usize) + Sync),
 ) -> Result<Run> {
+    run_cached(maps, options, backend, progress, &mut Cache::new())
+}
+
+/// [`run`] with the preparations and pair alignments of the last run kept in `cache`: only the maps not
+/// seen there are prepared and only the pairs not seen there aligned; the result is [`run`]'s.
+pub fn run_cached(
+    maps: &[crate::map::OccupancyMap],
+    options: &GlobalOptions,
+    backend: &mut dyn crate::backend::Backend,
+    progress: &(dyn Fn(usize, usize) + Sync),
+    cache: &mut Cache,
+) -> Result<Run> {
     use rayon::prelude::*;
     use std::time::Instant;
     let duplicate_of: Vec<Option<usize>> = (0..maps.len())
@@ -355,15 +384,36 @@ pub fn run(
         .filter(|&i| duplicate_of[i].is_none())
         .collect();
     let t = Instant::now();
-    let stop = crate::stop::current();
-    let prepared: Vec<Prepared> = unique
+    cache.start(options);
+    let keys: Vec<cache::Key> = unique
         .par_iter()
-        .map(|&i| crate::stop::with(stop.clone(), || Prepared::new(&maps[i])))
+        .map(|&i| cache::Key::of(&maps[i]))
+        .collect();
+    let kept: Vec<Option<Prepared>> = keys.iter().map(|k| cache.take_map(k)).collect();
+    let mut used = CacheUse {
+        maps_reused: kept.iter().filter(|p| p.is_some()).count(),
+        maps_prepared: kept.iter().filter(|p| p.is_none()).count(),
+        ..CacheUse::default()
+    };
+    let stop = crate::stop::current();
+    let prepared: Vec<Prepared> = kept
+        .into_par_iter()
+        .zip(unique.par_iter())
+        .map(|(kept, &i)| {
+            kept.unwrap_or_else(|| crate::stop::with(stop.clone(), || Prepared::new(&maps[i])))
+        })
         .collect();
     let prepare = t.elapsed().as_secs_f64();
     crate::stop::check()?;
     let t = Instant::now();
-    let mut pairwise = align_all(&prepared, options, progress)?;
+    let known = |a: usize, b: usize| cache.pair(&keys[a], &keys[b]);
+    let (mut pairwise, alignments) = align_known(&prepared, options, progress, &known)?;
+    let m = unique.len();
+    used.pairs_reused = (0..m)
+        .flat_map(|a| (a + 1..m).map(move |b| (a, b)))
+        .filter(|&(a, b)| known(a, b).is_some())
+        .count();
+    used.pairs_aligned = alignments.len() - used.pairs_reused;
     let align = t.elapsed().as_secs_f64();
     crate::stop::check()?;
     let t = Instant::now();
@@ -372,6 +422,13 @@ pub fn run(
     // The placement's last round may have ended at a stop: no placement is returned then.
     crate::stop::check()?;
     let place = t.elapsed().as_secs_f64();
+    let order = (0..m).flat_map(|a| (a + 1..m).map(move |b| (a, b)));
+    let pairs = order
+        .zip(alignments)
+        .map(|((a, b), al)| (a, b, al))
+        .collect();
+    let alignable: Vec<bool> = prepared.iter().map(Prepared::alignable).collect();
+    cache.keep(keys.into_iter().zip(prepared).collect(), pairs, used);
     // Back to the maps' own indices.
     pairwise.n = maps.len();
     for e in &mut pairwise.edges {
@@ -410,7 +467,7 @@ pub fn run(
     // Copies of a map that joined nothing still lie together: a group of their own, in place. A map
     // with nothing to align (no walls) is no group, however many copies.
     for (k, all) in with_copies.into_iter().enumerate() {
-        if all.len() > 1 && placement.maps[all[0]].group.is_none() && prepared[k].alignable() {
+        if all.len() > 1 && placement.maps[all[0]].group.is_none() && alignable[k] {
             placement.groups.push(all);
         }
     }
