@@ -63,6 +63,20 @@ def stop_node(proc):
         return "did not stop in 30 s"
 
 
+def shut(node, proc):
+    """The test's node and rclpy closed, then the map_merge process stopped: its exit status."""
+    node.destroy_node()
+    rclpy.try_shutdown()
+    return stop_node(proc)
+
+
+def clean_exit(tmp_path, code) -> str:
+    """The node's log, once its exit status is 0."""
+    text = open(tmp_path / "node.log").read()
+    assert code == 0, (code, text[-3000:])
+    return text
+
+
 def robot_publishers(node, n):
     return {f"/robot{i + 1}": node.create_publisher(OccupancyGrid, f"/robot{i + 1}/map", latched())
             for i in range(n)}
@@ -154,11 +168,8 @@ def test_live_robots_are_merged_right_latched_and_the_node_stops_cleanly(robots,
         late.destroy_node()
         assert got, "a late subscriber got no merged map"
     finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
-        code = stop_node(node_proc)
-    text = open(tmp_path / "node.log").read()
-    assert code == 0, (code, text[-3000:])
+        code = shut(node, node_proc)
+    text = clean_exit(tmp_path, code)
     assert "robot /robot9: map ignored: 7 cells for a 10 x 10 grid" in text, text[-3000:]
     assert "Traceback" not in text and "[ERROR]" not in text, text[-3000:]
     assert "/robot2: placed at" in text and "/robot3: placed at" in text, text[-3000:]
@@ -192,11 +203,8 @@ def test_a_multirobot_map_merge_params_file_loads_unchanged(robots, env, tmp_pat
         for r, p in given.items():
             assert poses.get(r) == pytest.approx(p, abs=1e-6), (r, poses, open(tmp_path / "node.log").read()[-2000:])
     finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
-        code = stop_node(proc)
-    text = open(tmp_path / "node.log").read()
-    assert code == 0, (code, text[-3000:])
+        code = shut(node, proc)
+    text = clean_exit(tmp_path, code)
     assert "/robot3: the maps contradict its given pose" in text, text[-3000:]
     assert "/robot1: the maps contradict" not in text and "/robot2: the maps contradict" not in text, text[-3000:]
 
@@ -276,10 +284,7 @@ def test_a_robot_publishing_at_100_hz_is_read_at_the_merging_rate_and_transforms
             assert t.header.frame_id == "world"
             assert (t.transform.translation.x, t.transform.translation.y) == pytest.approx((x, y), abs=1e-9)
     finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
-        code = stop_node(proc)
-    text = open(tmp_path / "node.log").read()
-    assert code == 0, (code, text[-3000:])
+        code = shut(node, proc)
+    text = clean_exit(tmp_path, code)
     assert text.count("publishes its map") == 1 and "times a second: only its latest map is read" in text, text[-3000:]
     assert "tf2_ros is not importable" not in text and "Traceback" not in text, text[-3000:]

@@ -14,7 +14,7 @@ import math
 import threading
 import time
 from dataclasses import dataclass, field
-from typing import Dict, List, Optional, Sequence, Tuple
+from typing import Callable, Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 
@@ -199,8 +199,10 @@ class LiveMerge:
     """Robots' maps in, world poses and the merged grid out. Thread-safe: ``update`` from message
     callbacks, ``estimate`` from a worker, ``merged``/``poses`` from a timer."""
 
-    def __init__(self, options: Optional[Options] = None) -> None:
+    def __init__(self, options: Optional[Options] = None, clock: Callable[[], float] = time.monotonic) -> None:
+        """``clock``: seconds, for ``settle_s`` (a replay gives the bag's time)."""
         self.options = options if options is not None else Options()
+        self._clock = clock
         self._lock = threading.Lock()
         self._grids: Dict[str, Grid] = {}
         # The version of each map the estimation uses: replaced by the latest when its known area has
@@ -254,7 +256,7 @@ class LiveMerge:
         """A robot's map is new, or its known cells have changed by ``growth`` since the version the
         estimation uses."""
         with self._lock:
-            settled = time.monotonic() - self.options.settle_s
+            settled = self._clock() - self.options.settle_s
             return any(self._stale(r) for r in self._grids) or any(
                 c.since <= settled for c in self._candidates.values()
             )
@@ -419,7 +421,7 @@ class LiveMerge:
         """A first placement is published when a second estimation agrees with it: one on changed maps
         (new evidence), or one ``settle_s`` after it (no map grew meanwhile: the same maps, the same
         answer). A placement on a part of a map that the next part contradicts is never shown."""
-        o, now = self.options, time.monotonic()
+        o, now = self.options, self._clock()
         c = self._candidates.get(r)
         if c is not None:
             d, deg = cells_moved(est, c.pose, spread)

@@ -68,7 +68,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         return fail(f"rosbags is not importable ({e}): pip install rosbags")
     if not Path(a.bag).exists():
         return fail(f"no such bag: {a.bag}")
-    live = LiveMerge(Options(growth=a.growth))
+    clock = [0.0]  # the bag's time: a first placement settles after settle_s of it
+    live = LiveMerge(Options(growth=a.growth), clock=lambda: clock[0])
     bad: dict = {}
     try:
         with AnyReader([Path(a.bag)], default_typestore=get_typestore(Stores.LATEST)) as reader:
@@ -78,7 +79,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                 return fail(f"fewer than two map topics match {a.topics!r} in {a.bag}")
             start, next_estimate = None, 0.0
             for conn, stamp, raw in reader.messages(connections=conns):
-                t = stamp * 1e-9
+                t = clock[0] = stamp * 1e-9
                 start = t if start is None else start
                 msg = reader.deserialize(raw, conn.msgtype)
                 robot = conn.topic.rsplit("/", 1)[0] or "/"
@@ -97,9 +98,13 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         if type(e).__module__.startswith("rosbags"):
             return fail(f"cannot read {a.bag}: {e}")
         raise
-    if live.needs_estimation():
-        for e in live.estimate():
-            say(f"     end  {e.text}")
+    # The bag has ended: its maps are final, so a placement waiting to be seen again settles (a map that
+    # changed at the end is estimated first, then its placement seen again settle_s of bag time later).
+    for _ in range(2):
+        if live.needs_estimation():
+            for e in live.estimate():
+                say(f"     end  {e.text}")
+        clock[0] += live.options.settle_s
     poses, reasons = live.poses(), live.reasons()
     for r in live.robots():
         if r in poses:
