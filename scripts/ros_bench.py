@@ -37,7 +37,7 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
-SHARED = ROOT.parent / "shared" / "merge-pairs"
+SHARED = Path(os.environ.get("OGM_MERGE_PAIRS_DIR") or ROOT.parent / "shared" / "merge-pairs")
 RES = 0.05
 TOL_M, TOL_DEG = 1.0, 3.0  # the node's default pose tolerance
 
@@ -243,6 +243,9 @@ def scenario(building: str, n: int, args, domain: int) -> dict:
         "cpu_share": (cpu1 - cpu0) / (wall1 - wall0),
         "jumps": jumps, "wrong_pairs": [{"pair": list(k), **v} for k, v in sorted(wrong.items())],
         "estimations": len(est), "estimation_s_median": float(np.median([e["seconds"] for e in est])) if est else None,
+        # The last merged map was drawn from every robot's last map.
+        "last_maps_drawn": bool(merged) and all(
+            merged[-1][1]["merged"]["maps"].get(f"/{n}", -1) >= sent[n][-1] - 1e-6 for n in names),
         "offline_s": offline, "node_exit": node_rc, "period_s": args.period, "stages": args.stages,
     }
 

@@ -153,8 +153,9 @@ impl MergeCache {
     }
 
     /// (maps reused, maps prepared, pairs reused, pairs aligned) in the last run.
-    fn _last_use(&self) -> (usize, usize, usize, usize) {
-        let u = self.lock().last_use();
+    fn _last_use(&self, py: Python<'_>) -> (usize, usize, usize, usize) {
+        // Without the interpreter's lock: a run holding the cache must not stop every Python thread.
+        let u = py.detach(|| self.lock().last_use());
         (
             u.maps_reused,
             u.maps_prepared,

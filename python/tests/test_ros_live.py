@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from ogm_corners import synthetic
-from ogm_corners.ros.live import Candidate, Grid, LiveMerge, Options, check_grid, pose_distance
+from ogm_corners.ros.live import Candidate, Grid, LiveMerge, Options, check_grid, pose_distance, pose_matrix
 from ogm_corners.ros.scenario import crop_known, explored, frame_of_pixels, geodesic, pair_errors
 
 
@@ -218,10 +218,10 @@ def test_a_robot_placed_on_part_of_its_map_waits_for_a_second_estimation_to_agre
     assert sorted(e.robot for e in placed) == ["a", "b"] and "found again on grown maps" in placed[0].text
     # An estimate that disagrees with a candidate replaces it.
     fresh = LiveMerge(Options(settle_s=0.0))
-    fresh._candidates["x"] = Candidate((5.0, 0.0, 0.0), 0, 0.0)
-    assert fresh._confirm("x", (0.0, 0.0, 0.0), ((0.0, 0.0), 10.0)) == [] and fresh._candidates["x"].pose == (0.0, 0.0, 0.0)
+    fresh._candidates["x"] = Candidate((5.0, 0.0, 0.0), {}, 0.0)
+    assert fresh._confirm("x", (0.0, 0.0, 0.0), ((0.0, 0.0), 10.0), {}) == [] and fresh._candidates["x"].pose == (0.0, 0.0, 0.0)
     # Settled: the same answer with no growth, settle_s later, is taken.
-    assert [e.kind for e in fresh._confirm("x", (0.0, 0.0, 0.0), ((0.0, 0.0), 10.0))] == ["placed"]
+    assert [e.kind for e in fresh._confirm("x", (0.0, 0.0, 0.0), ((0.0, 0.0), 10.0), {})] == ["placed"]
 
 
 def test_the_merged_map_redraws_only_the_robot_that_changed(robots):
@@ -240,9 +240,45 @@ def test_the_merged_map_redraws_only_the_robot_that_changed(robots):
     second = live.merged()
     assert live._layers["r0"][3] is kept["r0"] and live._layers["r2"][3] is kept["r2"]
     assert live._layers["r1"][3] is not kept["r1"]
-    # The same as drawing everything afresh.
+    # The same as drawing everything afresh, and as a plain float64 drawing of every world cell's centre
+    # (nearest map cell; occupied over free over unknown) but for a few cells on exact cell boundaries.
     again = LiveMerge(Options())
     again._grids, again._placements = dict(live._grids), dict(live._placements)
     redrawn = again.merged()
     assert np.array_equal(second[0], redrawn[0]) and second[1:] == redrawn[1:]
     assert np.count_nonzero(second[0] == 100) >= np.count_nonzero(first[0] == 100)
+    cells, res, (x0, y0, _) = second
+    h, w = cells.shape
+    wx, wy = np.meshgrid(x0 + (np.arange(w) + 0.5) * res, y0 + (np.arange(h) + 0.5) * res)
+    occupied, free = np.zeros((h, w), bool), np.zeros((h, w), bool)
+    for r, p in live._placements.items():
+        g = live._grids[r]
+        m = np.linalg.inv(pose_matrix(p.pose) @ pose_matrix(g.origin))
+        gx = np.floor((m[0, 0] * wx + m[0, 1] * wy + m[0, 2]) / g.resolution).astype(np.int64)
+        gy = np.floor((m[1, 0] * wx + m[1, 1] * wy + m[1, 2]) / g.resolution).astype(np.int64)
+        inside = (gx >= 0) & (gx < g.cells.shape[1]) & (gy >= 0) & (gy < g.cells.shape[0])
+        v = np.where(inside, g.cells[np.where(inside, gy, 0), np.where(inside, gx, 0)], -1)
+        occupied |= v >= 65
+        free |= (v >= 0) & (v <= 25)
+    reference = np.where(occupied, 100, np.where(free, 0, -1))
+    assert np.count_nonzero(reference != cells) <= 1e-4 * cells.size, np.count_nonzero(reference != cells)
+    assert live.last_drawn["r1"] == (1.0, live._placements["r1"].pose)
+
+
+def test_the_world_is_fixed_only_by_a_published_placement(robots):
+    """Robots grouped on a first look but never published do not fix the world: when one of them turns
+    out unplaceable (its map replaced by another place's), the others are placed without it."""
+    live = LiveMerge(Options(settle_s=0.0))
+    res = robots[0][1]
+    # "z" arrives first with r0's map (so it is grouped with the others, and their first anchor).
+    live.update("z", Grid(robots[0][0].copy(), res, (0.0, 0.0, 0.0), 0.0))
+    for i, (cells, _, _) in enumerate(robots):
+        live.update(f"r{i}", Grid(cells, res, (0.0, 0.0, 0.0), 0.0))
+    live.estimate()  # candidates only
+    assert live.poses() == {} and live._anchor is None and "z" in live._candidates
+    other = synthetic.office(400, 300, seed=11).to_occupancy_grid()
+    live.update("z", Grid(other.data.reshape(other.height, other.width), res, (0.0, 0.0, 0.0), 1.0))
+    live.estimate()
+    placed = live.poses()
+    assert sorted(placed) == ["r0", "r1", "r2"], (placed, live.reasons())
+    assert live._anchor == "r0" and placed["r0"] == (0.0, 0.0, 0.0)

@@ -234,7 +234,8 @@ def rss_mb(pid: int) -> float:
 def test_a_robot_publishing_at_100_hz_is_read_at_the_merging_rate_and_transforms_reach_tf(robots, env, tmp_path):
     """robot2 publishes its map at 100 Hz for three seconds: the node says so once, reads only the latest
     map (the merged map is drawn from the very last one), stays within memory and keeps publishing; with
-    tf2_ros importable (a stand-in here) each placed robot's world_frame -> <robot>/map goes to it."""
+    tf2_ros importable (a stand-in here) each placed robot's world_frame -> <robot>/map goes to it. Then
+    robot3 goes away (its last map stays) and comes back (its new map is drawn)."""
     (tmp_path / "tf2_ros").mkdir()
     (tmp_path / "tf2_ros" / "__init__.py").write_text(FAKE_TF2)
     env = {**env, "PYTHONPATH": str(tmp_path) + os.pathsep + env["PYTHONPATH"]}
@@ -283,6 +284,19 @@ def test_a_robot_publishing_at_100_hz_is_read_at_the_merging_rate_and_transforms
             x, y, _ = poses[f"/{r}"]
             assert t.header.frame_id == "world"
             assert (t.transform.translation.x, t.transform.translation.y) == pytest.approx((x, y), abs=1e-9)
+        # robot3 goes away: its last map stays in the merged map. It comes back: its new map is drawn.
+        gone = drawn()[-1]["merged"]["maps"]["/robot3"]
+        node.destroy_publisher(pubs["/robot3"])
+        pubs["/robot1"].publish(msgs[0])  # something else changes meanwhile
+        count = len(drawn())
+        spin_until(lambda: len(drawn()) > count, 10)
+        assert drawn()[-1]["merged"]["maps"]["/robot3"] == gone and "/robot3" in poses
+        back = node.create_publisher(OccupancyGrid, "/robot3/map", latched())
+        msgs[2].header.stamp = node.get_clock().now().to_msg()
+        back.publish(msgs[2])
+        stamp = msgs[2].header.stamp.sec + 1e-9 * msgs[2].header.stamp.nanosec
+        spin_until(lambda: drawn()[-1]["merged"]["maps"]["/robot3"] >= stamp - 1e-6, 15)
+        assert drawn()[-1]["merged"]["maps"]["/robot3"] == pytest.approx(stamp, abs=1e-6)
     finally:
         code = shut(node, proc)
     text = clean_exit(tmp_path, code)

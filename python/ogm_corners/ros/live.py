@@ -156,8 +156,8 @@ class Candidate:
     """A robot's first placement, not yet published: it waits for a second estimation to agree."""
 
     pose: Pose2
-    generation: int  # of the maps it was found on
-    since: float  # time.monotonic() when found
+    evidence: Dict[str, int]  # the version of each map of its group it was found on
+    since: float  # the clock when found
 
 
 @dataclass
@@ -168,8 +168,8 @@ class Options:
     growth: float = 0.1
     #: A new estimate within this of the accepted pose refines it (smoothed); beyond, it must be seen
     #: ``confirm`` estimations in a row, agreeing with itself, before the pose moves. The metres are the
-    #: largest move of any cell of the map (a turn moves far cells most); 1 m is the success limit of
-    #: merged real maps (20 cells at 0.05 m).
+    #: RMS move of the map's known cells (``cells_moved``, the success test's measure); 1 m is the success
+    #: limit of merged real maps (20 cells at 0.05 m).
     pose_tolerance_m: float = 1.0
     pose_tolerance_deg: float = 3.0
     #: A robot's first placement is published once a second estimation agrees with it: one on grown
@@ -210,11 +210,14 @@ class LiveMerge:
         self._used: Dict[str, Tuple[Grid, Map]] = {}
         self._cache = MergeCache()
         self._last: Dict[str, float] = {}
+        self._draw_lock = threading.Lock()
+        #: What the last merged map was drawn from: robot -> (its map's stamp, its pose or None).
+        self.last_drawn: Dict[str, Tuple[float, Optional[Pose2]]] = {}
         # Each placed robot's drawing in world cells, kept while its map and pose stay the same.
         self._layers: Dict[str, tuple] = {}
         self._placements: Dict[str, Placement] = {}
         self._candidates: Dict[str, Candidate] = {}
-        self._generation = 0  # bumped when the estimation's maps change
+        self._versions: Dict[str, int] = {}  # of each robot's map in ``_used``
         self._anchor: Optional[str] = None
         self._reasons: Dict[str, str] = {}
         self._warnings: Dict[str, str] = {}  # about placed robots: a given pose the maps contradict
@@ -271,11 +274,6 @@ class LiveMerge:
             g.resolution != before.resolution
         )
 
-    def stamps(self) -> Dict[str, float]:
-        """Each robot's latest map's stamp (seconds)."""
-        with self._lock:
-            return {r: g.stamp for r, g in self._grids.items()}
-
     def last_estimation(self) -> Dict[str, float]:
         """The last estimation: its seconds and how much came from the cache (``MergeCache.last_use``)."""
         with self._lock:
@@ -295,13 +293,15 @@ class LiveMerge:
         for r, g in stale.items():
             kept[r] = (g, Map.from_occupancy_grid(g.cells.reshape(-1), g.cells.shape[1], g.cells.shape[0],
                                                   g.resolution, g.origin))
-        with self._lock:
-            self._used.update((r, kept[r]) for r in stale)
-            self._generation += bool(stale)
         snapshot = {r: used[0] for r, used in kept.items()}
         names = sorted(snapshot)
         started = time.monotonic()
-        estimates, reasons = self._place(names, {r: used[1] for r, used in kept.items()})
+        estimates, reasons, anchor = self._place(names, {r: used[1] for r, used in kept.items()})
+        with self._lock:
+            # Taken as used only once placed: a placement that failed (memory, Ctrl-C) is tried again.
+            self._used.update((r, kept[r]) for r in stale)
+            for r in stale:
+                self._versions[r] = self._versions.get(r, 0) + 1
         last = {"seconds": round(time.monotonic() - started, 4), "robots": len(names),
                 **(self._cache.last_use if len(names) > 1 else {})}
         events: List[Event] = []
@@ -330,7 +330,10 @@ class LiveMerge:
                 if r in self._placements:
                     events += self._fold(r, est, snapshot[r].spread)
                 else:
-                    events += self._confirm(r, est, snapshot[r].spread)
+                    events += self._confirm(r, est, snapshot[r].spread, {o: self._versions[o] for o in estimates})
+            if init is None and self._anchor is None and self._placements:
+                # The first placements published: this estimation's anchor is the world from now on.
+                self._anchor = anchor
             self._version += 1
             self._last = last
         return events
@@ -370,11 +373,13 @@ class LiveMerge:
             self._warnings[r] = text
         return events
 
-    def _place(self, names: List[str], maps: Dict[str, Map]) -> Tuple[Dict[str, Pose2], Dict[str, str]]:
+    def _place(self, names: List[str], maps: Dict[str, Map]
+               ) -> Tuple[Dict[str, Pose2], Dict[str, str], Optional[str]]:
         """Each robot's map frame in the anchor's map frame, from one many-map placement (what did not
-        change since the last one comes from the cache)."""
+        change since the last one comes from the cache), why the others are not placed, and the anchor.
+        The anchor is the world's once a robot is published; before, it is chosen afresh each time."""
         if len(names) < 2:
-            return {}, {n: "waiting for another robot's map" for n in names}
+            return {}, {n: "waiting for another robot's map" for n in names}, None
         many = merge_many([maps[n] for n in names], names=names, backend=self.options.backend,
                           cache=self._cache)
         frames: Dict[str, np.ndarray] = {}
@@ -393,7 +398,7 @@ class LiveMerge:
                 placed = [n for n in names if n in frames and n in self._placements]
                 if anchor is not None and anchor not in frames:
                     reasons_anchor = f"the world's anchor {anchor} is not placed in this estimation"
-                    return {}, {n: reasons.get(n, reasons_anchor) for n in names}
+                    return {}, {n: reasons.get(n, reasons_anchor) for n in names}, None
                 first = sorted(frames, key=lambda n: self._arrival.get(n, 1 << 30))
                 if placed:
                     anchor = placed[0]
@@ -406,8 +411,7 @@ class LiveMerge:
                     best = max(sizes.values())
                     anchor = next(n for n in first if sizes[group[n]] == best)
                 else:
-                    return {}, reasons
-                self._anchor = anchor
+                    return {}, reasons, None
         base = np.linalg.inv(frames[anchor])
         out: Dict[str, Pose2] = {}
         for n, f in frames.items():
@@ -415,18 +419,19 @@ class LiveMerge:
                 reasons[n] = f"placed with other maps, not with the anchor {anchor}'s"
                 continue
             out[n] = matrix_pose(base @ f)
-        return out, reasons
+        return out, reasons, anchor
 
-    def _confirm(self, r: str, est: Pose2, spread: Spread) -> List[Event]:
-        """A first placement is published when a second estimation agrees with it: one on changed maps
-        (new evidence), or one ``settle_s`` after it (no map grew meanwhile: the same maps, the same
-        answer). A placement on a part of a map that the next part contradicts is never shown."""
+    def _confirm(self, r: str, est: Pose2, spread: Spread, evidence: Dict[str, int]) -> List[Event]:
+        """A first placement is published when a second estimation agrees with it: one in which a map of
+        its group has changed (new evidence: ``evidence`` gives the versions of the group's maps), or one
+        ``settle_s`` after it (none of them grew meanwhile: the same maps, the same answer). A placement on
+        a part of a map that the next part contradicts is never shown."""
         o, now = self.options, self._clock()
         c = self._candidates.get(r)
         if c is not None:
             d, deg = cells_moved(est, c.pose, spread)
             if d <= o.pose_tolerance_m and deg <= o.pose_tolerance_deg:
-                grown = self._generation > c.generation
+                grown = any(evidence.get(o) != v for o, v in c.evidence.items())
                 if grown or now - c.since >= o.settle_s:
                     del self._candidates[r]
                     self._reasons.pop(r, None)
@@ -435,7 +440,7 @@ class LiveMerge:
                     return [Event(r, "placed", f"{r}: placed at {fmt(est)} (found again {how})")]
                 self._reasons[r] = f"placed at {fmt(est)}, waiting for a second estimation to agree"
                 return []
-        self._candidates[r] = Candidate(est, self._generation, now)
+        self._candidates[r] = Candidate(est, evidence, now)
         self._reasons[r] = f"placed at {fmt(est)}, waiting for a second estimation to agree"
         return []
 
@@ -493,17 +498,28 @@ class LiveMerge:
         Raises ValueError, before allocating anything, when the grid would be over ``max_cells``.
 
         Each robot's map is drawn into world cells once per (map version, pose) and kept: a merged map
-        after one robot's update redraws that robot only, and stacks the others' kept layers."""
+        after one robot's update redraws that robot only, and stacks the others' kept layers.
+        ``last_drawn`` then says what was drawn: each robot's map stamp and pose (None for the one map
+        shown as the world before any placement)."""
         with self._lock:
             placed = [(r, self._grids[r], p.pose) for r, p in self._placements.items() if r in self._grids]
+            shown_alone = False
             if not placed and self.options.init_poses is None and self._grids:
                 # Until a robot is placed with another, one map is the world: the anchor's once chosen,
                 # else the first to arrive (as multirobot_map_merge shows one robot's map).
                 only = self._anchor if self._anchor in self._grids else min(
                     self._grids, key=lambda n: self._arrival.get(n, 0))
                 placed = [(only, self._grids[only], (0.0, 0.0, 0.0))]
+                shown_alone = True
         if not placed:
             return None
+        with self._draw_lock:  # the kept layers are one drawer's at a time
+            drawn = self._draw(placed, max_cells, resolution)
+            self.last_drawn = {r: (g.stamp, None if shown_alone else pose) for r, g, pose in placed}
+            return drawn
+
+    def _draw(self, placed: List[Tuple[str, Grid, Pose2]], max_cells: int,
+              resolution: Optional[float]) -> Tuple[np.ndarray, float, Pose2]:
         res = resolution or min(g.resolution for _, g, _ in placed)
         # World cells are [i res, (i + 1) res): snapped to the resolution, cells stay put between updates.
         boxes = [world_box(g, pose, res) for _, g, pose in placed]
@@ -523,7 +539,7 @@ class LiveMerge:
                 self._layers[r] = kept  # ``g`` is held with it: its id cannot be reused meanwhile
             layers.append(kept[2:])
         for r in set(self._layers) - {r for r, _, _ in placed}:
-            del self._layers[r]
+            self._layers.pop(r, None)
         cells = np.full((height, width), -1, np.int8)
         for (bx0, by0, bx1, by1), (occupied, free) in layers:
             cells[by0 - y0 : by1 - y0, bx0 - x0 : bx1 - x0][free] = 0

@@ -330,7 +330,6 @@ class MapMerge(Node):
             self._stop.wait(max(0.0, period - (time.monotonic() - started)))
 
     def _publish(self) -> None:
-        stamps = self.live.stamps()
         try:
             merged = self.live.merged(self.p["max_cells"])
         except ValueError as e:
@@ -344,7 +343,9 @@ class MapMerge(Node):
         msg.header.stamp = self.get_clock().now().to_msg()
         msg.info.map_load_time = msg.header.stamp
         self.merged_pub.publish(msg)
-        poses = self.live.poses()
+        # The stamps and poses this map was drawn from (a map or a pose may have changed since).
+        drawn = self.live.last_drawn
+        poses = {r: pose for r, (_, pose) in drawn.items() if pose is not None}
         transforms = []
         for robot, pose in poses.items():
             if robot not in self.pose_pubs:
@@ -361,7 +362,7 @@ class MapMerge(Node):
         # What this merged map was drawn from: each robot's map by its header stamp (latency is measured
         # against it), on the status topic right after the map.
         self._status(merged={"stamp": msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec,
-                             "maps": {r: stamps[r] for r in poses if r in stamps}})
+                             "maps": {r: stamp for r, (stamp, pose) in drawn.items() if pose is not None}})
 
     def _transform(self, header: Any, robot: str, pose: Pose2) -> Any:
         """``world_frame -> <robot>/map`` (the robot's map frame, as multirobot_map_merge's TF PR names it)."""
