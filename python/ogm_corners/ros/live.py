@@ -86,14 +86,6 @@ class Grid:
         centre = pose_matrix(self.origin) @ ((cols.mean() + 0.5) * r, (rows.mean() + 0.5) * r, 1.0)
         return (float(centre[0]), float(centre[1])), float(r * math.sqrt(cols.var() + rows.var()))
 
-    @property
-    def reach(self) -> float:
-        """Metres from the map frame's origin to the grid's farthest corner."""
-        h, w = self.cells.shape
-        corners = [(0, 0), (w, 0), (0, h), (w, h)]
-        m = pose_matrix(self.origin)
-        return max(math.hypot(*(m @ (x * self.resolution, y * self.resolution, 1.0))[:2]) for x, y in corners)
-
 
 def check_grid(
     data: Sequence[int] | np.ndarray | bytes,
@@ -304,6 +296,8 @@ class LiveMerge:
                 self._versions[r] = self._versions.get(r, 0) + 1
         last = {"seconds": round(time.monotonic() - started, 4), "robots": len(names),
                 **(self._cache.last_use if len(names) > 1 else {})}
+        # Outside the lock (a pass over each placed map's cells): how far its cells spread.
+        spreads = {r: snapshot[r].spread for r in estimates}
         events: List[Event] = []
         init = self.options.init_poses
         with self._lock:
@@ -328,9 +322,9 @@ class LiveMerge:
                     continue
                 self._reasons.pop(r, None)
                 if r in self._placements:
-                    events += self._fold(r, est, snapshot[r].spread)
+                    events += self._fold(r, est, spreads[r])
                 else:
-                    events += self._confirm(r, est, snapshot[r].spread, {o: self._versions[o] for o in estimates})
+                    events += self._confirm(r, est, spreads[r], {o: self._versions[o] for o in estimates})
             if init is None and self._anchor is None and self._placements:
                 # The first placements published: this estimation's anchor is the world from now on.
                 self._anchor = anchor

@@ -154,21 +154,29 @@ pub fn align_all(
     options: &GlobalOptions,
     progress: &(dyn Fn(usize, usize) + Sync),
 ) -> Result<Pairwise> {
-    align_known(maps, options, progress, &|_, _| None).map(|(pairwise, _)| pairwise)
+    let none = pair_order(maps.len()).map(|_| None).collect();
+    align_known(maps, options, progress, none).map(|(pairwise, _)| pairwise)
 }
 
-/// [`align_all`] taking each pair's alignment from `known` where it has it (only the others are aligned,
-/// and `progress` counts only those); also returns every pair's alignment, `a` then `b` ascending.
+/// Every pair of `n` maps, `a` then `b` ascending (`a < b`): the order of [`Pairwise::pairs`].
+fn pair_order(n: usize) -> impl Iterator<Item = (usize, usize)> {
+    (0..n).flat_map(move |a| (a + 1..n).map(move |b| (a, b)))
+}
+
+/// [`align_all`] taking each pair's alignment from `known` (one entry per pair, in [`pair_order`])
+/// where it has one (only the others are aligned, and `progress` counts only those); also returns every
+/// pair's alignment, in the same order.
 pub(crate) fn align_known(
     maps: &[Prepared],
     options: &GlobalOptions,
     progress: &(dyn Fn(usize, usize) + Sync),
-    known: &(dyn Fn(usize, usize) -> Option<super::Alignment> + Sync),
+    known: Vec<Option<super::Alignment>>,
 ) -> Result<(Pairwise, Vec<super::Alignment>)> {
     use rayon::prelude::*;
     let n = maps.len();
-    let pairs: Vec<(usize, usize, Option<super::Alignment>)> = (0..n)
-        .flat_map(|a| (a + 1..n).map(move |b| (a, b, known(a, b))))
+    let pairs: Vec<(usize, usize, Option<super::Alignment>)> = pair_order(n)
+        .zip(known)
+        .map(|((a, b), kept)| (a, b, kept))
         .collect();
     let done = std::sync::atomic::AtomicUsize::new(0);
     let total = pairs.iter().filter(|p| p.2.is_none()).count();
@@ -192,8 +200,7 @@ pub(crate) fn align_known(
         ..Pairwise::default()
     };
     let mut all = Vec::with_capacity(results.len());
-    let order = (0..n).flat_map(|a| (a + 1..n).map(move |b| (a, b)));
-    for ((a, b), al) in order.zip(results) {
+    for ((a, b), al) in pair_order(n).zip(results) {
         let al = al?;
         out.pairs.push(PairVerdict {
             a,
@@ -406,14 +413,13 @@ pub fn run_cached(
     let prepare = t.elapsed().as_secs_f64();
     crate::stop::check()?;
     let t = Instant::now();
-    let known = |a: usize, b: usize| cache.pair(&keys[a], &keys[b]);
-    let (mut pairwise, alignments) = align_known(&prepared, options, progress, &known)?;
     let m = unique.len();
-    used.pairs_reused = (0..m)
-        .flat_map(|a| (a + 1..m).map(move |b| (a, b)))
-        .filter(|&(a, b)| known(a, b).is_some())
-        .count();
-    used.pairs_aligned = alignments.len() - used.pairs_reused;
+    let known: Vec<Option<super::Alignment>> = pair_order(m)
+        .map(|(a, b)| cache.pair(&keys[a], &keys[b]))
+        .collect();
+    used.pairs_reused = known.iter().filter(|al| al.is_some()).count();
+    used.pairs_aligned = known.len() - used.pairs_reused;
+    let (mut pairwise, alignments) = align_known(&prepared, options, progress, known)?;
     let align = t.elapsed().as_secs_f64();
     crate::stop::check()?;
     let t = Instant::now();
@@ -422,8 +428,7 @@ pub fn run_cached(
     // The placement's last round may have ended at a stop: no placement is returned then.
     crate::stop::check()?;
     let place = t.elapsed().as_secs_f64();
-    let order = (0..m).flat_map(|a| (a + 1..m).map(move |b| (a, b)));
-    let pairs = order
+    let pairs = pair_order(m)
         .zip(alignments)
         .map(|((a, b), al)| (a, b, al))
         .collect();
