@@ -5,8 +5,14 @@
 //! Every backend samples through the same integer arithmetic, so the CPU and the GPU agree bit for bit:
 //! cosine and sine are fixed-point integers with [`FRAC_BITS`] fraction bits, and sample (p, q) reads map
 //! pixel `((ox + p cos - q sin + h) >> F, (oy + p sin + q cos + h) >> F)` with `h = 2^(F-1)` (rounding
-//! to the nearest pixel centre). Every intermediate fits an `i32` (WGSL has no 64-bit integers by default)
-//! for maps up to [`MAX_SIDE`] pixels a side.
+//! to the nearest pixel centre; a sample exactly half-way between two pixels reads the one nearer the
+//! map's centre, so that a turned or mirrored map is sampled as the turned or mirrored grid). Every
+//! intermediate fits an `i32` (WGSL has no 64-bit integers by default) for maps up to [`MAX_SIDE`] pixels
+//! a side.
+//!
+//! The grid is anchored at the map's centre, so a quarter turn or a mirror of the map turns or mirrors
+//! its samples exactly (the sample lattice maps onto itself); at angle 0 it is anchored half a pixel off
+//! the centre of an even side instead, so that every sample is a pixel and none is a tie.
 
 use crate::error::{Error, Result};
 
@@ -20,6 +26,25 @@ pub const MAX_SIDE: u32 = 1 << 18;
 const ONE: i32 = 1 << FRAC_BITS;
 const HALF: i32 = 1 << (FRAC_BITS - 1);
 
+/// The integer nearest `v`; exactly half-way, the one nearer `centre` (rounding half away from zero
+/// or always up would not follow a mirror of the map about its centre).
+fn round_towards(v: f64, centre: f64) -> f64 {
+    let k = v.round();
+    if (v - v.trunc()).abs() == 0.5 && (v > centre) == (k > v) {
+        k - (k - v).signum()
+    } else {
+        k
+    }
+}
+
+/// The pixel nearest fixed-point coordinate `v`; exactly half-way, the one nearer `centre` (the same
+/// in a turned or mirrored map, unlike always rounding up).
+#[inline(always)]
+pub fn nearest(v: i32, centre: i32) -> i32 {
+    let up = (v + HALF) >> FRAC_BITS;
+    up - i32::from(v & (ONE - 1) == HALF && v > centre)
+}
+
 /// A grid of samples turned by an angle against the map, covering the whole map.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct RotatedGrid {
@@ -31,6 +56,13 @@ pub struct RotatedGrid {
     pub ox: i32,
     /// Map y of sample (0, 0), fixed point.
     pub oy: i32,
+    /// Map x of the map's centre, fixed point: ties round towards it.
+    pub cx: i32,
+    /// Map y of the map's centre, fixed point.
+    pub cy: i32,
+    /// The map's centre in the grid's frame, in half samples: a position half-way between two samples
+    /// is rounded towards it ([`RotatedGrid::round_sample`]), so a turned map rounds as the turned grid.
+    pub centre2: (i64, i64),
     /// Samples per grid row.
     pub width: u32,
     /// Grid rows.
@@ -90,18 +122,73 @@ impl RotatedGrid {
         // Centre in fixed point is exact: (W - 1) / 2 * 2^F.
         let xcf = (i64::from(map_width) - 1) << (FRAC_BITS - 1);
         let ycf = (i64::from(map_height) - 1) << (FRAC_BITS - 1);
-        let ox = xcf + p0 * i64::from(cos) - q0 * i64::from(sin);
-        let oy = ycf + p0 * i64::from(sin) + q0 * i64::from(cos);
+        // At angle 0 the lattice sits on pixel centres (half a pixel off an even side's centre), so no
+        // sample is a tie; at any other angle it is anchored at the centre itself, which a quarter turn
+        // or a mirror maps onto itself.
+        let (ax, ay) = if sin == 0 && cos == ONE {
+            (xcf & !i64::from(ONE - 1), ycf & !i64::from(ONE - 1))
+        } else {
+            (xcf, ycf)
+        };
+        let ox = ax + p0 * i64::from(cos) - q0 * i64::from(sin);
+        let oy = ay + p0 * i64::from(sin) + q0 * i64::from(cos);
+        let fixed =
+            |v: i64| i32::try_from(v).map_err(|_| Error::Internal("grid origin overflows".into()));
+        // The centre is sample (-p0, -q0), or half a sample further where the lattice sits off it.
+        let off = |c: i64, a: i64| i64::from(c != a);
+        let centre2 = (-2 * p0 + off(xcf, ax), -2 * q0 + off(ycf, ay));
         Ok(RotatedGrid {
             cos,
             sin,
-            ox: i32::try_from(ox).map_err(|_| Error::Internal("grid origin overflows".into()))?,
-            oy: i32::try_from(oy).map_err(|_| Error::Internal("grid origin overflows".into()))?,
+            ox: fixed(ox)?,
+            oy: fixed(oy)?,
+            cx: fixed(xcf)?,
+            cy: fixed(ycf)?,
+            centre2,
             width,
             height,
             map_width,
             map_height,
         })
+    }
+
+    /// The sample nearest grid position `(p, q)`; exactly half-way, the one nearer the map's centre.
+    pub fn round_sample(&self, (p, q): (f64, f64)) -> (i32, i32) {
+        let c = |c2: i64| c2 as f64 / 2.0;
+        (
+            round_towards(p, c(self.centre2.0)) as i32,
+            round_towards(q, c(self.centre2.1)) as i32,
+        )
+    }
+
+    /// The sample nearest the middle of the box of `scale` samples starting at `p` (its middle sample
+    /// when `scale` is odd; of the two, the one nearer the map's centre when even), one axis: `x`
+    /// chooses the axis (0 for p, 1 for q).
+    pub fn box_middle(&self, p: i32, scale: u32, axis: usize) -> i32 {
+        let twice = 2 * i64::from(p) + i64::from(scale) - 1;
+        let c2 = if axis == 0 {
+            self.centre2.0
+        } else {
+            self.centre2.1
+        };
+        let half = if twice % 2 == 0 {
+            twice / 2
+        } else if twice > c2 {
+            (twice - 1) / 2
+        } else {
+            (twice + 1) / 2
+        };
+        half as i32
+    }
+
+    /// The map pixel nearest map position `(x, y)`, clamped to the map; exactly half-way, the one
+    /// nearer the map's centre.
+    pub fn round_pixel(&self, (x, y): (f64, f64)) -> (u32, u32) {
+        let r = |v: f64, n: u32| {
+            let k = round_towards(v, (f64::from(n) - 1.0) / 2.0);
+            k.clamp(0.0, f64::from(n - 1)) as u32
+        };
+        (r(x, self.map_width), r(y, self.map_height))
     }
 
     /// The grid's angle in degrees, as quantised.
@@ -119,7 +206,7 @@ impl RotatedGrid {
     pub fn source(&self, p: i32, q: i32) -> (i32, i32) {
         let x = self.ox.wrapping_add(p.wrapping_mul(self.cos)) - q.wrapping_mul(self.sin);
         let y = self.oy.wrapping_add(p.wrapping_mul(self.sin)) + q.wrapping_mul(self.cos);
-        ((x + HALF) >> FRAC_BITS, (y + HALF) >> FRAC_BITS)
+        (nearest(x, self.cx), nearest(y, self.cy))
     }
 
     /// The row-major index of the map pixel sample (p, q) reads, or `None` outside the map.
@@ -148,22 +235,22 @@ impl RotatedGrid {
     /// The map rows that samples of rows `q0..q1` and columns `p0..p1` read, clamped to the map:
     /// `None` when none of them falls on a map row. The source y is monotonic in p and in q, so the
     /// extremes are at the rectangle's corners.
-    pub fn source_rows(&self, p0: u32, p1: u32, q0: u32, q1: u32) -> Option<(u32, u32)> {
+    pub fn source_rows(&self, p0: i32, p1: i32, q0: i32, q1: i32) -> Option<(u32, u32)> {
         self.source_range(p0, p1, q0, q1, |x, y| (y, x), self.map_height)
     }
 
     /// The map columns samples of rows `q0..q1`, columns `p0..p1` read, clamped (see
     /// [`RotatedGrid::source_rows`]).
-    pub fn source_cols(&self, p0: u32, p1: u32, q0: u32, q1: u32) -> Option<(u32, u32)> {
+    pub fn source_cols(&self, p0: i32, p1: i32, q0: i32, q1: i32) -> Option<(u32, u32)> {
         self.source_range(p0, p1, q0, q1, |x, y| (x, y), self.map_width)
     }
 
     fn source_range(
         &self,
-        p0: u32,
-        p1: u32,
-        q0: u32,
-        q1: u32,
+        p0: i32,
+        p1: i32,
+        q0: i32,
+        q1: i32,
         pick: impl Fn(i32, i32) -> (i32, i32),
         limit: u32,
     ) -> Option<(u32, u32)> {
@@ -172,7 +259,7 @@ impl RotatedGrid {
         }
         let (mut lo, mut hi) = (i32::MAX, i32::MIN);
         for (p, q) in [(p0, q0), (p1 - 1, q0), (p0, q1 - 1), (p1 - 1, q1 - 1)] {
-            let (x, y) = self.source(p as i32, q as i32);
+            let (x, y) = self.source(p, q);
             let v = pick(x, y).0;
             lo = lo.min(v);
             hi = hi.max(v);

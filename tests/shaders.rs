@@ -57,8 +57,8 @@ fn the_selection_kernel_validates_and_its_parameters_match_the_host() {
 fn the_coarsening_kernel_validates_and_its_parameters_match_the_host() {
     let m = validate_kernel("coarsen", false);
     assert_eq!(entries(&m), ["coarsen"]);
-    // src/gpu/coarsen.rs CParams: 24 four-byte fields.
-    assert_eq!(struct_size(&m, "Params"), 96);
+    // src/gpu/coarsen.rs CParams: 28 four-byte fields.
+    assert_eq!(struct_size(&m, "Params"), 112);
 }
 
 #[test]

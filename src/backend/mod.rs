@@ -297,7 +297,9 @@ pub fn reference_working_bytes(options: &DetectOptions, width: u32, height: u32)
     };
     window.saturating_add(match options.detector {
         DetectorKind::Ogm => px,
-        DetectorKind::OgmRobust => robust_params::robust_working_bytes(width, height),
+        DetectorKind::OgmRobust => {
+            robust_params::robust_working_bytes(width, height, &options.robust)
+        }
         DetectorKind::Baseline(Baseline::Harris) => px.saturating_mul(25),
         DetectorKind::Baseline(Baseline::ShiTomasi) => px.saturating_mul(25).max(
             px.saturating_mul(8)

@@ -24,13 +24,16 @@ pub struct RobustParams {
 }
 
 impl Default for RobustParams {
-    /// The defaults the measurements in docs/detectors.md use: scales 2 to 10, 4-pixel suppression, convex corners on.
+    /// The defaults the measurements in docs/detectors.md use: scales 2 to 12, walls of 12 px or more,
+    /// 4-pixel suppression, convex corners on. The shortest wall and the largest scale were fitted
+    /// leave-one-building-out on the annotated maps, together with repeatability under rotation on other
+    /// maps (`scripts/figures.py robust-lobo`): every fold chose these.
     fn default() -> Self {
         RobustParams {
             min_scale: 2,
-            max_scale: 10,
+            max_scale: 12,
             nms_radius: 4,
-            min_strength: 8,
+            min_strength: 12,
             convex: true,
             angle: None,
         }
@@ -61,11 +64,17 @@ impl RobustParams {
     }
 }
 
-/// Bytes the robust detector holds beyond the map: the coarse maps (under half a byte a grid sample for
-/// scales from 2) and the grid's planes on the fast path (a quarter), for a grid of up to
-/// [`grid_samples`] samples.
-pub fn robust_working_bytes(width: u32, height: u32) -> u64 {
-    grid_samples(width, height)
+/// Bytes the robust detector holds beyond the map with `params`: a coarse map of every phase per scale
+/// (about a byte a grid sample each), the fast path's two summed-area tables (two bytes a sample), its
+/// planes, and the rules' hits (about a byte a sample), for a grid of up to [`grid_samples`] samples
+/// padded by the largest scale.
+pub fn robust_working_bytes(width: u32, height: u32, params: &RobustParams) -> u64 {
+    let pad = 3 * u64::from(params.max_scale.min(MAX_SCALE)) + 2;
+    let side = |n: u32| u64::from(n) + pad;
+    let samples = grid_samples(width, height) + (side(width) + side(height)) * pad * 2;
+    let scales =
+        u64::from(params.max_scale.saturating_sub(params.min_scale) + 1).min(u64::from(MAX_SCALE));
+    samples.saturating_mul(scales + 4)
 }
 
 /// An upper bound of a rotated grid's samples over any angle: a `w` x `h` map turned by t needs

@@ -185,7 +185,7 @@ pub(super) struct RobustArgs {
     /// Robust detector: smallest coarse scale, pixels a cell side.
     #[arg(long, default_value_t = RobustParams::default().min_scale)]
     min_scale: u32,
-    /// Robust detector: largest coarse scale (at most 16).
+    /// Robust detector: largest coarse scale (at most 15).
     #[arg(long, default_value_t = RobustParams::default().max_scale)]
     max_scale: u32,
     /// Robust detector: the map's wall direction in degrees, instead of estimating it.

@@ -109,7 +109,11 @@ impl Backend for FastCpuBackend {
         let per_band = match options.detector {
             DetectorKind::Ogm => 7 * 8 * w.div_ceil(64),
             DetectorKind::OgmRobust => {
-                return crate::backend::robust_params::robust_working_bytes(width, height)
+                return crate::backend::robust_params::robust_working_bytes(
+                    width,
+                    height,
+                    &options.robust,
+                )
             }
             DetectorKind::Baseline(kind) => {
                 let covered = options

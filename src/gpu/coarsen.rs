@@ -2,7 +2,7 @@
 //! with the rectangle of map pixels its samples reach uploaded beside it.
 
 use super::*;
-use crate::cpu::coarsen::{cell_thresholds, UNKNOWN};
+use crate::cpu::coarsen::{cell_thresholds, Mosaic, UNKNOWN};
 use crate::grid::{RotatedGrid, FRAC_BITS};
 
 /// Invocations per workgroup of the coarsening kernel.
@@ -33,11 +33,15 @@ struct CParams {
     free_min: u32,
     groups_x: u32,
     frac_bits: u32,
+    cx: i32,
+    cy: i32,
+    mosaic_w: u32,
+    mosaic_h: u32,
     _pad: [u32; 3],
 }
 
 const _: () = assert!(
-    std::mem::size_of::<CParams>() == 96,
+    std::mem::size_of::<CParams>() == 112,
     "matches shaders/coarsen.wgsl"
 );
 
@@ -51,7 +55,8 @@ struct CellTile {
 }
 
 impl GpuBackend {
-    /// The coarse maps of `image` on `grid`, one per scale, exactly as the CPU twin computes them.
+    /// The coarse maps of `image` on `grid` (every phase, [`Mosaic`]), one per scale, exactly as the CPU
+    /// twin computes them.
     pub(super) fn coarsen_maps(
         &mut self,
         image: &MapImage,
@@ -73,7 +78,8 @@ impl GpuBackend {
         let budget = self.max_binding.min(self.options.max_tile_bytes.max(1));
         let mut out = Vec::with_capacity(scales.len());
         for &scale in scales {
-            let (cw, ch) = grid.coarse_size(scale);
+            let mosaic = Mosaic::new(grid, scale);
+            let (cw, ch) = mosaic.size();
             let mut cells = vec![UNKNOWN; cw as usize * ch as usize];
             let mut todo = vec![CellTile {
                 u0: 0,
@@ -82,7 +88,8 @@ impl GpuBackend {
                 v1: ch,
             }];
             while let Some(t) = todo.pop() {
-                let (p0, p1, q0, q1) = (t.u0 * scale, t.u1 * scale, t.v0 * scale, t.v1 * scale);
+                let (p0, p1) = mosaic.sample_span(t.u0, t.u1, mosaic.tile_w);
+                let (q0, q1) = mosaic.sample_span(t.v0, t.v1, mosaic.tile_h);
                 let (Some(rows), Some(cols)) = (
                     grid.source_rows(p0, p1, q0, q1),
                     grid.source_cols(p0, p1, q0, q1),
@@ -141,6 +148,10 @@ impl GpuBackend {
                     free_min,
                     groups_x: gx,
                     frac_bits: FRAC_BITS,
+                    cx: grid.cx,
+                    cy: grid.cy,
+                    mosaic_w: mosaic.tile_w,
+                    mosaic_h: mosaic.tile_h,
                     _pad: [0; 3],
                 };
                 let words = self.coarsen_tile(image, &pipeline, &class_buf, &params, (gx, gy))?;

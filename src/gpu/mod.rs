@@ -445,7 +445,8 @@ pub fn gpu_working_bytes(
     let px = u64::from(width) * u64::from(height);
     match options.detector {
         DetectorKind::OgmRobust => {
-            crate::backend::robust_params::robust_working_bytes(width, height).saturating_add(ring)
+            crate::backend::robust_params::robust_working_bytes(width, height, &options.robust)
+                .saturating_add(ring)
         }
         DetectorKind::Baseline(Baseline::ShiTomasi) => {
             crate::backend::shi_tomasi_selection_bytes(options, width, height)

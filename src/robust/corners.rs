@@ -35,11 +35,13 @@ impl<'a> Cells<'a> {
         Cells { map }
     }
 
+    #[inline]
     fn at(&self, u: i32, v: i32) -> u8 {
-        if u < 0 || v < 0 || u as u32 >= self.map.width() || v as u32 >= self.map.height() {
+        let (w, h) = (self.map.width(), self.map.height());
+        if u < 0 || v < 0 || u as u32 >= w || v as u32 >= h {
             crate::cpu::coarsen::UNKNOWN
         } else {
-            self.map.get(u as u32, v as u32)
+            self.map.pixels()[v as usize * w as usize + u as usize]
         }
     }
 }
@@ -59,7 +61,9 @@ pub struct Arms {
 /// left) are walls; each wall's arm is how many cells it runs on with free cells along its inner side,
 /// going away from the corner. The two longest perpendicular walls make the corner.
 pub fn concave_arms(cells: &Cells, u: i32, v: i32) -> Option<Arms> {
-    let mut found: Vec<(i32, usize)> = Vec::with_capacity(4);
+    // At most four walls, kept on the stack: this runs for every rule hit.
+    let mut found = [(0i32, 0usize); 4];
+    let mut n = 0;
     for (i, &(dx, dy)) in DIRS.iter().enumerate() {
         let (wx, wy) = (u + dx, v + dy);
         if cells.at(wx, wy) != OCCUPIED {
@@ -79,10 +83,12 @@ pub fn concave_arms(cells: &Cells, u: i32, v: i32) -> Option<Arms> {
             })
             .max()
             .unwrap_or(0);
-        found.push((run, i));
+        found[n] = (run, i);
+        n += 1;
     }
+    let found = &mut found[..n];
     // Longest first; equal runs keep the direction order, so the choice is deterministic.
-    found.sort_by_key(|&(run, i)| (std::cmp::Reverse(run), i));
+    found.sort_unstable_by_key(|&(run, i)| (std::cmp::Reverse(run), i));
     for a in 0..found.len() {
         for b in a + 1..found.len() {
             let (da, db) = (DIRS[found[a].1], DIRS[found[b].1]);
@@ -210,7 +216,7 @@ impl Sampler<'_> {
         let back = 2 + CANONICAL_SCALE / 2;
         let arms = Arms { cells: 3, ..*arms };
         for _ in 0..2 {
-            let corner = (at.0.round() as i32, at.1.round() as i32);
+            let corner = self.grid.round_sample(at);
             let base = if convex {
                 corner
             } else {

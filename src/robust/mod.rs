@@ -24,7 +24,7 @@ pub use crate::backend::robust_params as params;
 pub use crate::backend::robust_params::{grid_samples, robust_working_bytes, RobustParams};
 
 use crate::backend::{Backend, Keypoint};
-use crate::cpu::coarsen::{FREE, OCCUPIED};
+use crate::cpu::coarsen::{Mosaic, FREE, OCCUPIED};
 use crate::error::Result;
 use crate::grid::RotatedGrid;
 use crate::map::MapImage;
@@ -82,21 +82,28 @@ pub fn detect(
     for (&scale, map) in scales.iter().zip(&coarse) {
         crate::stop::check()?;
         let cells = Cells::new(map);
+        let mosaic = Mosaic::new(&grid, scale);
+        let lattice = Lattice::new(&grid, &mosaic);
+        let mut masked = map.clone();
         for convex in [false, true] {
             if convex && !params.convex {
                 continue;
             }
-            let hits = backend.detect(map, &coarse_classes(convex), rules, false)?;
-            found.extend(
-                hits.iter()
-                    .filter_map(|&k| score(&cells, &grid, k, scale, convex, params.min_strength)),
-            );
+            lattice.mask(map, &mut masked, if convex { OCCUPIED } else { FREE });
+            let hits = backend.detect(&masked, &coarse_classes(convex), rules, false)?;
+            // Scored on every core; collected in the order found, so the result does not depend on it.
+            let scored: Vec<Candidate> = hits
+                .par_iter()
+                .filter_map(|&k| score(&cells, &grid, &mosaic, k, convex, params.min_strength))
+                .collect();
+            found.extend(scored);
         }
     }
     let candidates = found.len();
     // Suppression on the cell positions first, so only the survivors are placed on the map's pixels
     // (placing reads dozens of samples a corner); then again on the placed positions.
-    let survivors = suppress_candidates(found, params.nms_radius);
+    let centre2 = (i64::from(image.width()) - 1, i64::from(image.height()) - 1);
+    let survivors = suppress_candidates(found, params.nms_radius, centre2);
     crate::stop::check()?;
     let placed: Vec<Keypoint> = survivors
         .par_iter()
@@ -109,7 +116,7 @@ pub fn detect(
             None => c.keypoint,
         })
         .collect();
-    let mut kept = suppress(placed, params.nms_radius);
+    let mut kept = suppress(placed, params.nms_radius, centre2);
     kept.sort_unstable();
     Ok((
         kept,
@@ -131,18 +138,21 @@ struct Candidate {
     centre: (i32, i32),
 }
 
-/// The candidate of a rule that fired at coarse cell (`k.x`, `k.y`): its walls' strength; `None` below
-/// `min_strength`.
+/// The candidate of a rule that fired at coarse cell (`k.x`, `k.y`) of `mosaic`: its walls' strength;
+/// `None` below `min_strength`.
 fn score(
     cells: &Cells,
     grid: &RotatedGrid,
+    mosaic: &Mosaic,
     k: Keypoint,
-    scale: u32,
     convex: bool,
     min_strength: u32,
 ) -> Option<Candidate> {
+    let scale = mosaic.scale;
     let (u, v) = (k.x as i32, k.y as i32);
-    let c = centre(u, v, scale);
+    // A rule fires only on a free or occupied cell, never in a gutter.
+    let (p, q) = mosaic.origin(k.x, k.y)?;
+    let c = (grid.box_middle(p, scale, 0), grid.box_middle(q, scale, 1));
     let arms = if convex {
         convex_arms(cells, u, v)
     } else {
@@ -181,11 +191,71 @@ fn score(
     })
 }
 
+/// Samples between the boxes whose corners are scored, along each axis, at `scale`: a corner's rule fires
+/// at every phase whose box lies in the corner (about scale^2 boxes), and scoring every one would cost
+/// scale^2 times what one fixed block grid costs; a lattice of a third of the scale keeps at least 9 of
+/// them.
+pub fn lattice_step(scale: u32) -> u32 {
+    scale.div_ceil(3)
+}
+
+/// The boxes a coarse map's rules are evaluated at: those whose middles lie on a lattice of
+/// [`lattice_step`] about the map's centre, symmetric under quarter turns and mirrors (a distance of `d`
+/// half samples from the centre, along each axis, is on it when `d / 2` is a multiple of the step).
+struct Lattice {
+    columns: Vec<bool>,
+    rows: Vec<bool>,
+}
+
+impl Lattice {
+    fn new(grid: &RotatedGrid, mosaic: &Mosaic) -> Self {
+        let (k, s) = (
+            i64::from(lattice_step(mosaic.scale)),
+            i64::from(mosaic.scale),
+        );
+        let on = |p: Option<i32>, c2: i64| {
+            p.is_some_and(|p| ((2 * i64::from(p) + s - 1 - c2).abs() / 2) % k == 0)
+        };
+        let (w, h) = mosaic.size();
+        Lattice {
+            columns: (0..w)
+                .map(|x| on(mosaic.column_origin(x), grid.centre2.0))
+                .collect(),
+            rows: (0..h)
+                .map(|y| on(mosaic.row_origin(y), grid.centre2.1))
+                .collect(),
+        }
+    }
+
+    /// `map` into `out` with every cell of value `centre` off the lattice made unknown: the rules fire
+    /// only on cells of that value, and as a neighbour an unknown cell sets no bit of the code, exactly as
+    /// the free cell (concave corners) or the occupied one (convex, the roles swapped) it replaces, so the
+    /// rules fire on the lattice's cells exactly as on the unmasked map, and nowhere else.
+    fn mask(&self, map: &MapImage, out: &mut MapImage, centre: u8) {
+        use crate::cpu::coarsen::UNKNOWN;
+        let w = map.width() as usize;
+        // Per column, what a cell of value `centre` becomes in a row on the lattice (off it, every one
+        // becomes unknown): branch-free byte selects the compiler vectorises.
+        let off_column: Vec<u8> = self.columns.iter().map(|&on| u8::from(!on)).collect();
+        out.pixels_mut()
+            .par_chunks_mut(w)
+            .zip(map.pixels().par_chunks(w))
+            .zip(&self.rows)
+            .for_each(|((dst, src), &row_on)| {
+                let (dst, src, off) = (&mut dst[..w], &src[..w], &off_column[..w]);
+                for x in 0..w {
+                    let masked = (src[x] == centre) & (!row_on | (off[x] != 0));
+                    dst[x] = if masked { UNKNOWN } else { src[x] };
+                }
+            });
+    }
+}
+
 /// [`suppress`] over candidates, keeping their walls.
-fn suppress_candidates(found: Vec<Candidate>, radius: u32) -> Vec<Candidate> {
+fn suppress_candidates(found: Vec<Candidate>, radius: u32, centre2: (i64, i64)) -> Vec<Candidate> {
     let keys: Vec<Keypoint> = found.iter().map(|c| c.keypoint).collect();
     let mut slots: Vec<Option<Candidate>> = found.into_iter().map(Some).collect();
-    suppressed_order(&keys, radius)
+    suppressed_order(&keys, radius, centre2)
         .into_iter()
         .filter_map(|i| slots[i].take())
         .collect()
@@ -196,13 +266,8 @@ fn samples((p, q): (i32, i32)) -> (f64, f64) {
     (f64::from(p), f64::from(q))
 }
 
-/// The middle sample of coarse cell (u, v).
-fn centre(u: i32, v: i32, scale: u32) -> (i32, i32) {
-    let s = scale as i32;
-    (u * s + s / 2, v * s + s / 2)
-}
-
-/// A keypoint at grid position `(p, q)` (samples), rounded to the nearest map pixel inside the map.
+/// A keypoint at grid position `(p, q)` (samples), rounded to the nearest map pixel inside the map (ties
+/// towards the map's centre).
 fn candidate(
     grid: &RotatedGrid,
     (p, q): (f64, f64),
@@ -211,11 +276,10 @@ fn candidate(
     convex: bool,
     strength: u32,
 ) -> Keypoint {
-    let (x, y) = grid.to_map(p, q);
-    let clamp = |v: f64, n: u32| v.round().clamp(0.0, f64::from(n - 1)) as u32;
+    let (x, y) = grid.round_pixel(grid.to_map(p, q));
     Keypoint {
-        x: clamp(x, grid.map_width),
-        y: clamp(y, grid.map_height),
+        x,
+        y,
         rule: k.rule,
         code: k.code,
         score: i64::from(strength),
@@ -224,24 +288,33 @@ fn candidate(
     }
 }
 
-/// Greedy suppression: strongest first (ties: larger scale, then (y, x), then the rest of the keypoint,
-/// so the result does not depend on the order found), a keypoint is kept unless a kept one lies within
-/// `radius` pixels.
-pub fn suppress(found: Vec<Keypoint>, radius: u32) -> Vec<Keypoint> {
-    suppressed_order(&found, radius)
+/// Greedy suppression: strongest first, a keypoint is kept unless a kept one lies within `radius` pixels.
+/// Ties go to the larger scale, then to the keypoint nearer the map's centre (`centre2`, in half pixels:
+/// a quarter turn or a mirror of the map about its centre keeps the same order), then (y, x) and the
+/// rest of the keypoint, so the result does not depend on the order found.
+pub fn suppress(found: Vec<Keypoint>, radius: u32, centre2: (i64, i64)) -> Vec<Keypoint> {
+    suppressed_order(&found, radius, centre2)
         .into_iter()
         .map(|i| found[i])
         .collect()
 }
 
 /// [`suppress`] as indices into `found`, strongest first.
-fn suppressed_order(found: &[Keypoint], radius: u32) -> Vec<usize> {
+fn suppressed_order(found: &[Keypoint], radius: u32, centre2: (i64, i64)) -> Vec<usize> {
     let mut order: Vec<usize> = (0..found.len()).collect();
-    order.sort_unstable_by(|&i, &j| {
+    let dist = |k: &Keypoint| {
+        let (dx, dy) = (
+            2 * i64::from(k.x) - centre2.0,
+            2 * i64::from(k.y) - centre2.1,
+        );
+        dx * dx + dy * dy
+    };
+    order.par_sort_unstable_by(|&i, &j| {
         let (a, b) = (&found[i], &found[j]);
         b.score
             .cmp(&a.score)
             .then(b.scale.cmp(&a.scale))
+            .then(dist(a).cmp(&dist(b)))
             .then(a.cmp(b))
             .then(i.cmp(&j))
     });

@@ -12,96 +12,114 @@ use crate::fast::bitplanes::{plane_row, words, ValueSet};
 use crate::map::MapImage;
 use crate::states::{CellState, ClassTable};
 
-/// Boundary pixels used at most: a deterministic, evenly strided subset beyond this.
+/// Boundary pixels used at most: beyond this, a deterministic subset whose choice does not depend on the
+/// map's orientation (whole orbits of the map's quarter turns and mirrors are kept or dropped).
 pub const MAX_POINTS: usize = 16384;
+
+/// Fraction bits of the fixed-point cosine and sine of the projections.
+const TRIG_BITS: u32 = 20;
 
 /// The dominant wall direction in degrees, in [-45, 45): the angle to turn the map by so that its walls
 /// run along rows and columns. 0 when the map has no wall boundary.
+///
+/// Exactly equivariant: a map turned by a quarter turn gets the same angle, a mirrored map the opposite
+/// one (every step is integer arithmetic on coordinates about the map's centre, the bins are symmetric
+/// about it, and ties are broken symmetrically), so the robust detector samples a turned map on the
+/// turned grid.
 pub fn dominant_angle(image: &MapImage, classes: &ClassTable) -> f64 {
     let points = boundary_points(image, classes);
     if points.is_empty() {
         return 0.0;
     }
-    // 1-degree steps with 2-pixel bins find the basin; 0.1-degree steps with 1-pixel bins refine it.
-    // Every angle on every core; the scores come back in angle order, so the choice is the same.
-    let scores: Vec<(f64, f64)> = (-45..45)
+    // Angles in tenths of a degree. 1-degree steps with 2-pixel bins find the basin; 0.1-degree steps
+    // with 1-pixel bins refine it. Every angle on every core; the scores come back in angle order.
+    let coarse: Vec<(i32, u128)> = (-45..45)
         .into_par_iter()
         .map_init(Vec::new, |hist, d| {
-            let d = f64::from(d);
-            (d, profile(&points, d, 2.0, hist))
+            (d * 10, profile(&points, d * 10, 2, hist))
         })
         .collect();
-    let coarse = scores
-        .iter()
-        .fold((f64::NAN, -1.0), |best, &(d, s)| pick(best, d, s))
-        .0;
-    let fine: Vec<(f64, f64)> = (-10..=10)
+    let coarse = best(&coarse).0;
+    let fine: Vec<(i32, u128)> = (-10..=10)
         .into_par_iter()
         .map_init(Vec::new, |hist, k| {
-            let d = coarse + f64::from(k) / 10.0;
-            (d, profile(&points, d, 1.0, hist))
+            (coarse + k, profile(&points, coarse + k, 1, hist))
         })
         .collect();
     // A wall of n pixels scores the same over about 1/n radians: take the middle of the plateau of
     // near-best angles around the best one, not its first angle.
-    let best = fine
-        .iter()
-        .enumerate()
-        .fold(0, |b, (i, f)| if f.1 > fine[b].1 { i } else { b });
-    let near = |i: usize| fine[i].1 >= fine[best].1 * (1.0 - 1e-3);
-    let (mut lo, mut hi) = (best, best);
+    let b = fine.iter().position(|f| *f == best(&fine)).unwrap_or(0);
+    let near = |i: usize| fine[i].1 * 1000 >= fine[b].1 * 999;
+    let (mut lo, mut hi) = (b, b);
     while lo > 0 && near(lo - 1) {
         lo -= 1;
     }
     while hi + 1 < fine.len() && near(hi + 1) {
         hi += 1;
     }
-    let fine = (fine[lo].0 + fine[hi].0) / 2.0;
-    // Back into [-45, 45).
+    // Half-tenths, exact in f64; back into [-45, 45).
+    let fine = f64::from(fine[lo].0 + fine[hi].0) / 20.0;
     (fine + 45.0).rem_euclid(90.0) - 45.0
 }
 
-fn pick(best: (f64, f64), angle: f64, score: f64) -> (f64, f64) {
-    if score > best.1 {
-        (angle, score)
-    } else {
-        best
-    }
+/// The best-scoring angle; ties go to the smaller angle's magnitude, then the positive one (a mirror
+/// symmetric map has equal scores at +a and -a, and no choice can follow both).
+fn best(scores: &[(i32, u128)]) -> (i32, u128) {
+    let key = |&(a, s): &(i32, u128)| {
+        (
+            s,
+            std::cmp::Reverse(a.rem_euclid(900).min(900 - a.rem_euclid(900))),
+            a > 0,
+        )
+    };
+    scores.iter().copied().max_by_key(key).unwrap_or((0, 0))
 }
 
-/// Sum of squared bin counts of the points projected on both axes of the frame turned by `degrees`.
-fn profile(points: &[(f64, f64)], degrees: f64, bin: f64, hist: &mut Vec<u32>) -> f64 {
-    let (s, c) = degrees.to_radians().sin_cos();
-    let mut total = 0.0;
+/// Sum of squared bin counts of the points projected on both axes of the frame turned by `tenths` of a
+/// degree. Points are in half pixels about the map's centre; the bins are `bin` pixels wide and centred
+/// on multiples of it, a point exactly on a boundary going to the bin nearer the centre, so the histogram
+/// of a turned or mirrored map is this one turned or mirrored, in exact integers.
+fn profile(points: &[(i32, i32)], tenths: i32, bin: i64, hist: &mut Vec<u32>) -> u128 {
+    let t = (f64::from(tenths) / 10.0).to_radians();
+    let one = f64::from(1u32 << TRIG_BITS);
+    let (c, s) = (
+        (t.cos() * one).round() as i64,
+        (t.sin() * one).round() as i64,
+    );
+    let width = (bin * 2) << TRIG_BITS;
+    // The bin of a projection: the nearest multiple of the width, ties towards zero.
+    let index = |v: i64| v.signum() * ((v.abs() + width / 2 - 1) / width);
+    let mut total = 0u128;
     for axis in 0..2 {
-        let proj = |&(x, y): &(f64, f64)| {
+        let proj = |&(x, y): &(i32, i32)| {
+            let (x, y) = (i64::from(x), i64::from(y));
             if axis == 0 {
                 x * c + y * s
             } else {
                 -x * s + y * c
             }
         };
-        let (lo, hi) = points
+        let reach = points
             .iter()
-            .map(proj)
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
-                (lo.min(v), hi.max(v))
-            });
+            .map(|p| index(proj(p)).abs())
+            .max()
+            .unwrap_or(0);
         hist.clear();
-        hist.resize(((hi - lo) / bin) as usize + 2, 0);
+        hist.resize(2 * reach as usize + 1, 0);
         for pt in points {
-            hist[((proj(pt) - lo) / bin) as usize] += 1;
+            hist[(index(proj(pt)) + reach) as usize] += 1;
         }
         total += hist
             .iter()
-            .map(|&n| f64::from(n) * f64::from(n))
-            .sum::<f64>();
+            .map(|&n| u128::from(n) * u128::from(n))
+            .sum::<u128>();
     }
     total
 }
 
-/// The occupied pixels with a free 4-neighbour, at most [`MAX_POINTS`] of them, evenly strided.
-fn boundary_points(image: &MapImage, classes: &ClassTable) -> Vec<(f64, f64)> {
+/// The occupied pixels with a free 4-neighbour, in half pixels about the map's centre; at most about
+/// [`MAX_POINTS`] of them.
+fn boundary_points(image: &MapImage, classes: &ClassTable) -> Vec<(i32, i32)> {
     let (w, h) = (image.width() as usize, image.height() as usize);
     let occ = ValueSet::of(classes, &[CellState::Occupied]);
     let free = ValueSet::of(classes, &[CellState::Free]);
@@ -136,14 +154,17 @@ fn boundary_points(image: &MapImage, classes: &ClassTable) -> Vec<(f64, f64)> {
     };
     let mut count = 0usize;
     visit(&mut |_, _| count += 1);
-    let stride = count.div_ceil(MAX_POINTS).max(1);
-    let mut points = Vec::with_capacity(count.min(MAX_POINTS));
-    let mut i = 0usize;
+    let stride = count.div_ceil(MAX_POINTS).max(1) as u64;
+    let mut points = Vec::with_capacity(count.min(2 * MAX_POINTS));
+    let (cx, cy) = (w as i64 - 1, h as i64 - 1);
     visit(&mut |x, y| {
-        if i % stride == 0 {
-            points.push((x as f64, y as f64));
+        let (px, py) = (2 * x as i64 - cx, 2 * y as i64 - cy);
+        // The same hash for every point of an orbit of the quarter turns and mirrors.
+        let (a, b) = (px.unsigned_abs(), py.unsigned_abs());
+        let key = (a.max(b) << 32 | a.min(b)).wrapping_mul(0x9e37_79b9_7f4a_7c15) >> 32;
+        if stride == 1 || key % stride == 0 {
+            points.push((px as i32, py as i32));
         }
-        i += 1;
     });
     points
 }
