@@ -21,8 +21,11 @@ mkdir -p "$out"
 log() { echo "gpu-bench: $*" | tee -a "$out/summary.txt" >&2; }
 : >"$out/summary.txt"
 
-# The Vulkan loader: unpack carried packages (see the device notes) when the system has none.
-if ! ldconfig -p 2>/dev/null | grep 'libvulkan\.so\.1' >/dev/null; then
+# The Vulkan loader, and glvnd's dispatch library that NVIDIA's Vulkan driver (libGLX_nvidia) loads: unpack
+# carried packages (see the device notes) when the system lacks either. Without libGLdispatch the loader
+# finds the driver's manifest but no adapter.
+has_lib() { ldconfig -p 2>/dev/null | grep "$1" >/dev/null; }
+if ! has_lib 'libvulkan\.so\.1' || { [ -e /usr/local/nvidia ] && ! has_lib 'libGLdispatch\.so\.0'; }; then
     if compgen -G ".gl/*.deb" >/dev/null; then
         for f in .gl/*.deb; do dpkg -x "$f" /; done
         ldconfig

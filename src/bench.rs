@@ -514,7 +514,10 @@ impl Runner {
                 records.push(record("end_to_end", ms, None, kps.len()));
                 let e2e = records.len() - 1;
                 // The warm-up's kernel time is the first entry; the median uses the timed runs only.
-                if kernel.len() > 1 {
+                // The robust detector dispatches dozens of kernels between host stages, and the stats
+                // time only the last dispatch: no kernel_resident row, rather than a wrong one.
+                let kernel_row = kind != DetectorKind::OgmRobust;
+                if kernel_row && kernel.len() > 1 {
                     let mut r = record(
                         "kernel_resident",
                         median(kernel[1..].to_vec()),
@@ -526,7 +529,7 @@ impl Runner {
                         .zip(r.gb_per_s)
                         .map(|(peak, got)| 100.0 * got / peak);
                     records.push(r);
-                } else {
+                } else if kernel_row {
                     crate::say!(
                         "ogm-corners: {}: {} has no timestamp queries; no kernel_resident row",
                         self.cmd,
