@@ -151,6 +151,12 @@ pub fn detect(data: &[u8]) {
         min_strength: u32::from(p3 % 5),
         convex: flags & 4 != 0,
         angle: (flags & 8 != 0).then_some(f64::from(*p0) - 128.0),
+        // Shares of 0 to 104 percent and gaps of 0 to 69: the out-of-range ones must be refused.
+        cells: ogm_corners::cpu::coarsen::CellRule {
+            occupied_pct: u32::from(*p1 % 105),
+            free_pct: u32::from(*p2 % 105),
+        },
+        wall_gap: u32::from(*p3 % 70),
     };
     for detector in [
         DetectorKind::Ogm,

@@ -256,19 +256,18 @@ def building(map_name):
     return map_name.split("_")[0]
 
 
-def fig_robust_lobo(r):
-    """Fit (min strength, max scale) on two buildings, report the third, for each; pooled held-out last.
+def lobo_fit(r, settings, flags, default, describe):
+    """Fit a robust-detector setting on two buildings, report the third, for each; pooled held-out last.
 
+    `settings` are tuples, `flags(setting)` their command-line options, `describe(setting)` their name.
     The fit maximises the two target measures equally weighted: the share of the two buildings' marked
     corners with a keypoint within 10 px (strongest 3 per marked point), plus the mean repeatability under
     arbitrary rotation on the 26 shared maps (other maps than the buildings'), among the settings with at
-    most 3 keypoints per marked point on the two buildings."""
+    most 3 keypoints per marked point on the two buildings. Returns the table and the search's summary."""
     per_setting = {}
-    for ms in LOBO_MIN_STRENGTH:
-        for mx in LOBO_MAX_SCALE:
-            recs = r.json("eval", "--backend", "cpu", "--annotations", CORNERS, PAIR_MAPS,
-                          "--min-strength", str(ms), "--max-scale", str(mx))
-            per_setting[(ms, mx)] = [x for x in recs if x["detector"] == "ogm-robust" and x["map"] != "all"]
+    for st in settings:
+        recs = r.json("eval", "--backend", "cpu", "--annotations", CORNERS, PAIR_MAPS, *flags(st))
+        per_setting[st] = [x for x in recs if x["detector"] == "ogm-robust" and x["map"] != "all"]
     buildings = sorted({building(x["map"]) for x in next(iter(per_setting.values()))})
     maps = shared_map_files()
     rotation = {}
@@ -276,8 +275,7 @@ def fig_robust_lobo(r):
     def repeat(setting):
         # Computed only for settings within the keypoint budget somewhere (each run takes about 30 s).
         if setting not in rotation:
-            recs = r.json("eval", *maps, "--backend", "cpu", "--trials", "1", "--min-strength",
-                          str(setting[0]), "--max-scale", str(setting[1]))
+            recs = r.json("eval", *maps, "--backend", "cpu", "--trials", "1", *flags(setting))
             v = [x["repeatability"] for x in recs if x["detector"] == "ogm-robust"
                  and x["condition"] == "rotation" and x["repeatability"] is not None]
             rotation[setting] = statistics.fmean(v)
@@ -295,16 +293,14 @@ def fig_robust_lobo(r):
             return (False, 0.0)
         return (True, t["hits_10_budget_3x"] / t["marked"] + repeat(setting))
 
-    rows, held, default = [], {k: 0 for k in keys}, {k: 0 for k in keys}
-    fits = []
+    rows, held, dflt_all = [], {k: 0 for k in keys}, {k: 0 for k in keys}
     for b in buildings:
-        fit = max(per_setting, key=lambda st: (objective(st, lambda x: x != b), st == ROBUST_DEFAULT))
-        fits.append(fit)
-        out, dflt = pooled(fit, lambda x: x == b), pooled(ROBUST_DEFAULT, lambda x: x == b)
+        fit = max(per_setting, key=lambda st: (objective(st, lambda x: x != b), st == default))
+        out, dflt = pooled(fit, lambda x: x == b), pooled(default, lambda x: x == b)
         for k in keys:
             held[k] += out[k]
-            default[k] += dflt[k]
-        rows.append([b, f"min strength {fit[0]}, max scale {fit[1]}", out["marked"],
+            dflt_all[k] += dflt[k]
+        rows.append([b, describe(fit), out["marked"],
                      pct(out["hits_5_budget_3x"] / out["marked"]), pct(out["hits_10_budget_3x"] / out["marked"]),
                      f"{out['keypoints'] / out['marked']:.1f}", pct(repeat(fit)),
                      pct(dflt["hits_5_budget_3x"] / dflt["marked"]), pct(dflt["hits_10_budget_3x"] / dflt["marked"])])
@@ -312,17 +308,52 @@ def fig_robust_lobo(r):
                  f"**{pct(held['hits_5_budget_3x'] / held['marked'])}**",
                  f"**{pct(held['hits_10_budget_3x'] / held['marked'])}**",
                  f"{held['keypoints'] / held['marked']:.1f}", "-",
-                 pct(default["hits_5_budget_3x"] / default["marked"]),
-                 pct(default["hits_10_budget_3x"] / default["marked"])])
-    every = max(per_setting, key=lambda st: (objective(st, lambda x: True), st == ROBUST_DEFAULT))
+                 pct(dflt_all["hits_5_budget_3x"] / dflt_all["marked"]),
+                 pct(dflt_all["hits_10_budget_3x"] / dflt_all["marked"])])
+    every = max(per_setting, key=lambda st: (objective(st, lambda x: True), st == default))
+    pooled_all = {st: pooled(st, lambda x: True) for st in settings}
+    summary = (f"Fitted on all three buildings: {describe(every)} (the default is {describe(default)}). "
+               "Each setting searched, pooled over the three buildings (10 px, 3x; keypoints per marked "
+               "point) and its rotation repeatability (mean of 15-75 deg, 1 trial) where measured: "
+               + "; ".join(f"{describe(st)}: {pct(t['hits_10_budget_3x'] / t['marked'])}, "
+                           f"{t['keypoints'] / t['marked']:.1f}"
+                           + (f", {pct(rotation[st])}" if st in rotation else "")
+                           for st, t in pooled_all.items()) + ".")
     return (table(["held-out building", "fitted on the other two", "marked points", "5 px, 3x", "10 px, 3x",
                    "keypoints per marked point", "rotation repeatability of the fit (26 shared maps)",
-                   "default: 5 px, 3x", "default: 10 px, 3x"], rows)
-            + f"\n\nFitted on all three buildings: min strength {every[0]}, max scale {every[1]} "
-            f"(the default is min strength {ROBUST_DEFAULT[0]}, max scale {ROBUST_DEFAULT[1]}). Settings searched: min strength "
-            f"{', '.join(map(str, LOBO_MIN_STRENGTH))} px, max scale {', '.join(map(str, LOBO_MAX_SCALE))}; "
-            f"rotation repeatability (mean of 15-75 deg, 1 trial) of those within the keypoint budget: "
-            + ", ".join(f"{a}/{b}: {pct(v)}" for (a, b), v in sorted(rotation.items())) + ".")
+                   "default: 5 px, 3x", "default: 10 px, 3x"], rows), summary)
+
+
+def fig_robust_lobo(r):
+    """The shortest wall and the largest scale, fitted leave-one-building-out."""
+    settings = [(ms, mx) for ms in LOBO_MIN_STRENGTH for mx in LOBO_MAX_SCALE]
+    block, summary = lobo_fit(
+        r, settings, lambda st: ("--min-strength", str(st[0]), "--max-scale", str(st[1])), ROBUST_DEFAULT,
+        lambda st: f"min strength {st[0]}, max scale {st[1]}")
+    return block + "\n\n" + summary
+
+
+LOBO_CELL_OCCUPIED = (8, 10, 12, 15, 20)
+LOBO_WALL_GAP = (4, 8, 12)
+ROBUST_CELLS_DEFAULT = (15, 8)
+
+
+def fig_robust_lobo_cells(r):
+    """The coarse cells' occupied share and the wall gap, fitted leave-one-building-out (the shortest wall
+    and the largest scale at their defaults)."""
+    settings = [(o, g) for o in LOBO_CELL_OCCUPIED for g in LOBO_WALL_GAP]
+    block, summary = lobo_fit(
+        r, settings, lambda st: ("--cell-occupied", str(st[0]), "--wall-gap", str(st[1])),
+        ROBUST_CELLS_DEFAULT, lambda st: f"occupied {st[0]}%, wall gap {st[1]}")
+    # The free share, at the default otherwise: pooled recall only (it moves no marked point, see the text).
+    free = []
+    for f in (30, 40, 50):
+        recs = [x for x in r.json("eval", "--backend", "cpu", "--annotations", CORNERS, PAIR_MAPS,
+                                  "--cell-free", str(f)) if x["detector"] == "ogm-robust" and x["map"] != "all"]
+        marked = sum(x["marked"] for x in recs)
+        free.append(f"free {f}%: {pct(sum(x['hits_5_budget_3x'] for x in recs) / marked)} within 5 px, "
+                    f"{pct(sum(x['hits_10_budget_3x'] for x in recs) / marked)} within 10 px")
+    return block + "\n\n" + summary + "\n\nThe free share (pooled, at the defaults otherwise): " + "; ".join(free) + "."
 
 
 def fig_shared_maps(r):
@@ -538,6 +569,8 @@ FIGURES = {
                        "the robust detector against its targets"),
     "robust-lobo": ("docs/detectors.md", fig_robust_lobo,
                     "the robust detector's settings fitted leave-one-building-out, held-out recall"),
+    "robust-lobo-cells": ("docs/detectors.md", fig_robust_lobo_cells,
+                          "the coarse cells' share and the wall gap fitted leave-one-building-out"),
     "shared-maps": ("docs/detectors.md", fig_shared_maps,
                     "every detector on the 26 shared maps (compare --backend all)"),
     "repeatability": ("docs/detectors.md", fig_repeatability,

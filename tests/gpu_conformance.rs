@@ -608,15 +608,17 @@ fn coarsening_matches_the_reference_at_every_angle_and_scale() {
             } else {
                 vec![2, 3, 5, 8, 10]
             };
-            let got = gpu.coarsen(&img, &classes, &grid, &scales).unwrap();
+            // The default cell rule, or other shares (the kernel takes the thresholds as parameters).
+            let rule = common::some_cell_rule(seed, &mut rng);
+            let got = gpu.coarsen(&img, &classes, &grid, &scales, rule).unwrap();
             if max_tile_bytes == 700 && w * h > 4000 {
                 assert!(gpu.stats().tiles > scales.len(), "{w}x{h} was not split");
             }
             for (&s, g) in scales.iter().zip(&got) {
                 assert_eq!(
                     g,
-                    &coarsen(&img, &classes, &grid, s),
-                    "{w}x{h} at {deg} degrees, scale {s}, tile budget {max_tile_bytes}"
+                    &coarsen(&img, &classes, &grid, s, rule),
+                    "{w}x{h} at {deg} degrees, scale {s}, tile budget {max_tile_bytes}, {rule:?}"
                 );
             }
         }

@@ -3,7 +3,8 @@
 
 mod common;
 
-use ogm_corners::cpu::{coarsen, CpuBackend};
+use ogm_corners::cpu::coarsen::{self, CellRule};
+use ogm_corners::cpu::CpuBackend;
 use ogm_corners::fast::FastCpuBackend;
 use ogm_corners::grid::RotatedGrid;
 use ogm_corners::robust::{self, orientation, RobustParams};
@@ -83,12 +84,13 @@ fn the_fast_coarsening_equals_the_reference_on_random_maps_angles_and_scales() {
         };
         let grid = RotatedGrid::new(w, h, deg).unwrap();
         let scales: Vec<u32> = (1..=15).filter(|_| rng.chance(0.4)).collect();
+        let rule = common::some_cell_rule(seed, &mut rng);
         let got = FastCpuBackend
-            .coarsen(&img, &classes, &grid, &scales)
+            .coarsen(&img, &classes, &grid, &scales, rule)
             .unwrap();
         for (&s, g) in scales.iter().zip(&got) {
-            let want = coarsen::coarsen(&img, &classes, &grid, s);
-            assert_eq!(g, &want, "{w}x{h} at {deg} degrees, scale {s}");
+            let want = coarsen::coarsen(&img, &classes, &grid, s, rule);
+            assert_eq!(g, &want, "{w}x{h} at {deg} degrees, scale {s}, {rule:?}");
         }
     }
 }
@@ -111,6 +113,11 @@ fn the_fast_path_and_the_reference_find_the_same_robust_keypoints() {
                 min_strength: 0,
                 convex: true,
                 angle: Some(12.5),
+                cells: CellRule {
+                    occupied_pct: 7,
+                    free_pct: 55,
+                },
+                wall_gap: 3,
             },
         ] {
             let want = robust::detect(&mut CpuBackend, img, &classes, &rules, &params).unwrap();
@@ -177,6 +184,24 @@ fn bad_robust_options_are_refused_with_input_errors() {
             nms_radius: 5000,
             ..RobustParams::default()
         },
+        RobustParams {
+            cells: CellRule {
+                occupied_pct: 0,
+                free_pct: 40,
+            },
+            ..RobustParams::default()
+        },
+        RobustParams {
+            cells: CellRule {
+                occupied_pct: 15,
+                free_pct: 101,
+            },
+            ..RobustParams::default()
+        },
+        RobustParams {
+            wall_gap: 65,
+            ..RobustParams::default()
+        },
     ] {
         let err = Detector::new(DetectOptions {
             robust: params,
@@ -215,7 +240,7 @@ fn every_phase_tile_is_the_block_coarse_map_of_the_shifted_grid() {
         let deg = [0.0, 21.7, -45.0, 8.3][seed as usize % 4];
         let grid = RotatedGrid::new(w, h, deg).unwrap();
         for s in [1, 2, 3, 6, 15] {
-            let map = coarsen::coarsen(&img, &classes, &grid, s);
+            let map = coarsen::coarsen(&img, &classes, &grid, s, CellRule::default());
             let m = coarsen::Mosaic::new(&grid, s);
             assert_eq!((map.width(), map.height()), m.size());
             for b in 0..s {
@@ -228,7 +253,8 @@ fn every_phase_tile_is_the_block_coarse_map_of_the_shifted_grid() {
                         height: m.tile_h * s,
                         ..grid
                     };
-                    let want = coarsen::coarsen_blocks(&img, &classes, &moved, s);
+                    let want =
+                        coarsen::coarsen_blocks(&img, &classes, &moved, s, CellRule::default());
                     let (x0, y0) = (a as u32 * (m.tile_w + 1), b as u32 * (m.tile_h + 1));
                     for v in 0..m.tile_h {
                         for u in 0..m.tile_w {

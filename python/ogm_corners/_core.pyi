@@ -78,6 +78,9 @@ class Detector:
         nms_radius: Optional[int] = None,
         min_strength: Optional[int] = None,
         convex: bool = True,
+        cell_occupied: Optional[int] = None,
+        cell_free: Optional[int] = None,
+        wall_gap: Optional[int] = None,
     ) -> None: ...
     @property
     def backend(self) -> str: ...

@@ -22,7 +22,7 @@ BACKENDS = ("auto", "cpu", "reference", "gpu")
 # (the extension's conversion would raise an OverflowError that names nothing).
 _UNSIGNED = {
     "t1": 32, "t2": 32, "min_scale": 32, "max_scale": 32, "nms_radius": 32, "min_strength": 32,
-    "max_corners": 63,
+    "cell_occupied": 32, "cell_free": 32, "wall_gap": 32, "max_corners": 63,
 }
 
 
@@ -46,7 +46,7 @@ class Detector:
     ``max_corners`` (strongest first; the paper's detector refuses a cap it would exceed); Harris and
     Shi-Tomasi ``sigma``, ``harris_k``, ``quality``, ``min_distance``; Trajkovic ``t1``, ``t2``; the robust
     detector's ``min_scale``, ``max_scale``, ``angle`` (degrees), ``nms_radius``, ``min_strength``,
-    ``convex``.
+    ``convex``, ``cell_occupied`` and ``cell_free`` (percent of a coarse cell's samples), ``wall_gap``.
     """
 
     __slots__ = ("_d",)

@@ -7,6 +7,7 @@ use bytemuck::{Pod, Zeroable};
 use numpy::{IntoPyArray, PyArray1, PyReadonlyArray2};
 use pyo3::prelude::*;
 
+use ogm_corners::cpu::coarsen::CellRule;
 use ogm_corners::map::GridThresholds;
 use ogm_corners::robust::RobustParams;
 use ogm_corners::{
@@ -93,7 +94,8 @@ impl Detector {
     #[pyo3(signature = (
         detector="ogm", backend="auto", *, rules="paper", unknown_as_occupied=false, max_corners=None,
         sigma=1.0, harris_k=0.04, quality=0.01, min_distance=3.0, t1=10_000, t2=20_000,
-        min_scale=None, max_scale=None, angle=None, nms_radius=None, min_strength=None, convex=true
+        min_scale=None, max_scale=None, angle=None, nms_radius=None, min_strength=None, convex=true,
+        cell_occupied=None, cell_free=None, wall_gap=None
     ))]
     #[allow(clippy::too_many_arguments)]
     fn new(
@@ -115,6 +117,9 @@ impl Detector {
         nms_radius: Option<u32>,
         min_strength: Option<u32>,
         convex: bool,
+        cell_occupied: Option<u32>,
+        cell_free: Option<u32>,
+        wall_gap: Option<u32>,
     ) -> PyResult<Self> {
         let rules = match rules {
             "paper" => RuleSet::Paper,
@@ -146,6 +151,11 @@ impl Detector {
                 min_strength: min_strength.unwrap_or(r.min_strength),
                 convex,
                 angle,
+                cells: CellRule {
+                    occupied_pct: cell_occupied.unwrap_or(r.cells.occupied_pct),
+                    free_pct: cell_free.unwrap_or(r.cells.free_pct),
+                },
+                wall_gap: wall_gap.unwrap_or(r.wall_gap),
             },
             max_corners,
         };

@@ -209,10 +209,11 @@ pub trait Backend: Send {
         classes: &ClassTable,
         grid: &RotatedGrid,
         scales: &[u32],
+        rule: crate::cpu::coarsen::CellRule,
     ) -> Result<Vec<MapImage>> {
         Ok(scales
             .iter()
-            .map(|&s| crate::cpu::coarsen::coarsen(image, classes, grid, s))
+            .map(|&s| crate::cpu::coarsen::coarsen(image, classes, grid, s, rule))
             .collect())
     }
 

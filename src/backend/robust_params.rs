@@ -2,7 +2,7 @@
 //! backend is given ([`crate::backend::DetectOptions`]) and the memory each one budgets must not depend on
 //! the detector ([`crate::robust`]) that sits a layer above the backends.
 
-use crate::cpu::coarsen::MAX_SCALE;
+use crate::cpu::coarsen::{CellRule, MAX_SCALE};
 use crate::error::{Error, Result};
 
 /// Options of the robust detector.
@@ -21,7 +21,16 @@ pub struct RobustParams {
     pub convex: bool,
     /// The grid angle in degrees; `None` estimates the map's dominant wall direction.
     pub angle: Option<f64>,
+    /// The shares of occupied and free samples that make a coarse cell occupied or free.
+    pub cells: CellRule,
+    /// Unknown samples a wall's cross-section bridges between occupied ones when a corner is placed on
+    /// the walls' centre lines (a wall seen from both sides: two lines of occupied pixels with unknown
+    /// ones between them).
+    pub wall_gap: u32,
 }
+
+/// The most unknown samples [`RobustParams::wall_gap`] may bridge.
+pub const MAX_WALL_GAP: u32 = 64;
 
 impl Default for RobustParams {
     /// The defaults the measurements in docs/detectors.md use: scales 2 to 12, walls of 12 px or more,
@@ -36,6 +45,8 @@ impl Default for RobustParams {
             min_strength: 12,
             convex: true,
             angle: None,
+            cells: CellRule::default(),
+            wall_gap: 8,
         }
     }
 }
@@ -58,6 +69,13 @@ impl RobustParams {
             return Err(Error::invalid(format!(
                 "suppression radius {} is too large (at most 1024 pixels)",
                 self.nms_radius
+            )));
+        }
+        self.cells.checked()?;
+        if self.wall_gap > MAX_WALL_GAP {
+            return Err(Error::invalid(format!(
+                "wall gap {} is too large (at most {MAX_WALL_GAP} samples)",
+                self.wall_gap
             )));
         }
         Ok((self.min_scale..=self.max_scale).collect())

@@ -18,6 +18,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
 
+use ogm_corners::cpu::coarsen::CellRule;
 use ogm_corners::cpu::CpuBackend;
 use ogm_corners::detector::BackendChoice;
 use ogm_corners::fast::FastCpuBackend;
@@ -200,6 +201,16 @@ pub(super) struct RobustArgs {
     /// Robust detector: concave corners only (no wall ends or outer corners).
     #[arg(long)]
     no_convex: bool,
+    /// Robust detector: percent of a coarse cell's samples that must be occupied for the cell to be.
+    #[arg(long, value_name = "PERCENT", default_value_t = CellRule::default().occupied_pct)]
+    cell_occupied: u32,
+    /// Robust detector: percent of a coarse cell's samples that must be free for a cell that is not
+    /// occupied to be free.
+    #[arg(long, value_name = "PERCENT", default_value_t = CellRule::default().free_pct)]
+    cell_free: u32,
+    /// Robust detector: unknown pixels bridged across a wall when placing a corner on its centre line.
+    #[arg(long, value_name = "PIXELS", default_value_t = RobustParams::default().wall_gap)]
+    wall_gap: u32,
 }
 
 impl RobustArgs {
@@ -211,6 +222,11 @@ impl RobustArgs {
             min_strength: self.min_strength,
             convex: !self.no_convex,
             angle: self.angle,
+            cells: CellRule {
+                occupied_pct: self.cell_occupied,
+                free_pct: self.cell_free,
+            },
+            wall_gap: self.wall_gap,
         }
     }
 }

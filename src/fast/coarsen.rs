@@ -6,7 +6,7 @@
 
 use rayon::prelude::*;
 
-use crate::cpu::coarsen::{cell_thresholds, Mosaic, FREE, MAX_SCALE, OCCUPIED, UNKNOWN};
+use crate::cpu::coarsen::{CellRule, Mosaic, FREE, MAX_SCALE, OCCUPIED, UNKNOWN};
 use crate::fast::bitplanes::{self, plane_row, ValueSet};
 use crate::grid::{nearest, RotatedGrid};
 use crate::map::MapImage;
@@ -34,6 +34,7 @@ pub fn coarsen(
     classes: &ClassTable,
     grid: &RotatedGrid,
     scales: &[u32],
+    rule: CellRule,
 ) -> Vec<MapImage> {
     assert!(scales.iter().all(|s| (1..=MAX_SCALE).contains(s)));
     let Some(&top) = scales.iter().max() else {
@@ -52,7 +53,7 @@ pub fn coarsen(
     drop(planes);
     scales
         .iter()
-        .map(|&s| coarse_map(&sat, grid, s, off, pw + 1))
+        .map(|&s| coarse_map(&sat, grid, s, rule, off, pw + 1))
         .collect()
 }
 
@@ -197,6 +198,7 @@ fn coarse_map(
     sat: &[Vec<u8>; 2],
     grid: &RotatedGrid,
     scale: u32,
+    rule: CellRule,
     off: usize,
     stride: usize,
 ) -> MapImage {
@@ -204,7 +206,7 @@ fn coarse_map(
     let (cw, ch) = mosaic.size();
     let (tw, th) = (mosaic.tile_w as usize, mosaic.tile_h as usize);
     let s = scale as usize;
-    let (occ_min, free_min) = cell_thresholds(scale);
+    let (occ_min, free_min) = rule.thresholds(scale);
     let (occ_min, free_min) = (occ_min as u8, free_min as u8);
     // Box origins p run from 1 - s (index off + 1 - s of the padded samples) to tw s - 1.
     let first = off + 1 - s;

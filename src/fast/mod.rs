@@ -17,6 +17,7 @@ use crate::backend::{
     Keypoint,
 };
 use crate::baselines::{Baseline, BaselineParams, Candidate, ExactParams};
+use crate::cpu::coarsen::CellRule;
 use crate::error::Result;
 use crate::grid::RotatedGrid;
 use crate::map::MapImage;
@@ -49,8 +50,9 @@ impl Backend for FastCpuBackend {
         classes: &ClassTable,
         grid: &RotatedGrid,
         scales: &[u32],
+        rule: CellRule,
     ) -> Result<Vec<MapImage>> {
-        Ok(coarsen::coarsen(image, classes, grid, scales))
+        Ok(coarsen::coarsen(image, classes, grid, scales, rule))
     }
 
     fn baseline_scores(

@@ -2,7 +2,7 @@
 //! with the rectangle of map pixels its samples reach uploaded beside it.
 
 use super::*;
-use crate::cpu::coarsen::{cell_thresholds, Mosaic, UNKNOWN};
+use crate::cpu::coarsen::{CellRule, Mosaic, UNKNOWN};
 use crate::grid::{RotatedGrid, FRAC_BITS};
 
 /// Invocations per workgroup of the coarsening kernel.
@@ -63,6 +63,7 @@ impl GpuBackend {
         classes: &ClassTable,
         grid: &RotatedGrid,
         scales: &[u32],
+        rule: CellRule,
     ) -> Result<Vec<MapImage>> {
         self.check()?;
         self.stats = GpuStats::default();
@@ -124,7 +125,7 @@ impl GpuBackend {
                     continue;
                 }
                 self.stats.tiles += 1;
-                let (occ_min, free_min) = cell_thresholds(scale);
+                let (occ_min, free_min) = rule.thresholds(scale);
                 let (gx, gy) = self.dispatch_shape_groups(groups as u32);
                 let params = CParams {
                     cos: grid.cos,

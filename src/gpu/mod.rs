@@ -486,8 +486,9 @@ impl Backend for GpuBackend {
         classes: &ClassTable,
         grid: &crate::grid::RotatedGrid,
         scales: &[u32],
+        rule: crate::cpu::coarsen::CellRule,
     ) -> Result<Vec<MapImage>> {
-        self.coarsen_maps(image, classes, grid, scales)
+        self.coarsen_maps(image, classes, grid, scales, rule)
     }
 
     fn score_transforms(

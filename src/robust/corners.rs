@@ -11,10 +11,6 @@ use crate::states::{CellState, ClassTable};
 /// Longest wall arm measured, in coarse cells.
 pub const MAX_ARM_CELLS: i32 = 64;
 
-/// Unknown samples a wall's cross-section bridges between occupied ones: a wall seen from both sides is
-/// two lines of occupied pixels with unknown ones between them, and a person marks the middle of it.
-pub const WALL_GAP: i32 = 8;
-
 /// The scale whose layout of cross-sections places every corner finally, whatever scale found it.
 pub const CANONICAL_SCALE: i32 = 4;
 
@@ -148,13 +144,17 @@ pub struct Sampler<'a> {
     pub classes: &'a ClassTable,
     /// The grid.
     pub grid: &'a RotatedGrid,
+    /// Unknown samples a wall's cross-section bridges between occupied ones
+    /// ([`crate::robust::RobustParams::wall_gap`]): a person marks the middle of a wall seen from both
+    /// sides.
+    pub wall_gap: i32,
 }
 
 impl Sampler<'_> {
     /// The median centre of the wall met walking `walk` from `base + j along` for t in `ts`, over the
     /// cross-sections `js`: where the wall's centre line lies along `walk`, in samples from `base`. The
     /// wall runs from the first occupied sample to the last one before a free sample, bridging up to
-    /// [`WALL_GAP`] unknown ones. `None` when no cross-section meets a wall.
+    /// `wall_gap` unknown ones. `None` when no cross-section meets a wall.
     fn wall_centre(
         &self,
         base: (i32, i32),
@@ -181,7 +181,7 @@ impl Sampler<'_> {
                     (CellState::Occupied, None) => run = Some((t, t)),
                     (CellState::Occupied, Some((s, _))) => run = Some((s, t)),
                     (CellState::Free, Some(_)) => break,
-                    (CellState::Unknown, Some((_, e))) if t - e > WALL_GAP => break,
+                    (CellState::Unknown, Some((_, e))) if t - e > self.wall_gap => break,
                     _ => {}
                 }
             }

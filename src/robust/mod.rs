@@ -72,11 +72,12 @@ pub fn detect(
     let grid = RotatedGrid::new(image.width(), image.height(), angle)?;
     // Between stages, a raised stop (Ctrl-C in Python) ends the detection.
     crate::stop::check()?;
-    let coarse = backend.coarsen(image, classes, &grid, &scales)?;
+    let coarse = backend.coarsen(image, classes, &grid, &scales, params.cells)?;
     let sampler = Sampler {
         image,
         classes,
         grid: &grid,
+        wall_gap: params.wall_gap as i32,
     };
     let mut found = Vec::new();
     for (&scale, map) in scales.iter().zip(&coarse) {

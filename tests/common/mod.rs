@@ -8,6 +8,22 @@ pub mod run;
 use ogm_corners::synth::{FREE, OCCUPIED, UNKNOWN};
 use ogm_corners::{DetectOptions, Detector, Keypoint, MapImage, OccupancyMap, RuleSet};
 
+/// A coarse-cell rule for a twin test: the default on even seeds, else shares drawn anywhere from 1% to all
+/// of a cell's samples.
+pub fn some_cell_rule(
+    seed: u64,
+    rng: &mut ogm_corners::synth::Rng,
+) -> ogm_corners::cpu::coarsen::CellRule {
+    if seed % 2 == 0 {
+        ogm_corners::cpu::coarsen::CellRule::default()
+    } else {
+        ogm_corners::cpu::coarsen::CellRule {
+            occupied_pct: rng.range(1, 101),
+            free_pct: rng.range(1, 101),
+        }
+    }
+}
+
 /// Runs the tool's `command` with `args` in `dir`.
 pub fn tool_in(dir: &std::path::Path, command: &str, args: &[&str]) -> std::process::Output {
     std::process::Command::new(env!("CARGO_BIN_EXE_ogm-corners"))
