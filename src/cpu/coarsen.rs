@@ -106,10 +106,10 @@ pub struct CellRule {
 }
 
 impl Default for CellRule {
-    /// 15% and 40%. Checked leave-one-building-out (`scripts/figures.py robust-lobo-cells`): lower
-    /// occupied shares catch walls thinner than 15% of a cell at the larger scales, but those cells then
-    /// flicker under rotation; from 15% to 20% the fit is flat, and refitting per fold does worse held
-    /// out than keeping these.
+    /// 15% and 40%. Checked leave-one-building-out (`scripts/figures.py robust-lobo-cells`, see
+    /// docs/detectors.md): lower occupied shares catch walls thinner than 15% of a cell at the larger
+    /// scales, but those cells then flicker under rotation; higher ones trade marked-corner recall for
+    /// repeatability.
     fn default() -> Self {
         CellRule {
             occupied_pct: 15,
