@@ -132,13 +132,13 @@ impl CellRule {
     }
 
     /// The fewest occupied samples that make a cell of `scale` occupied, and the fewest free ones that
-    /// make it free (when it is not occupied).
+    /// make it free (when it is not occupied). A share over 100% (refused by the options, possible
+    /// through this type alone) gives `scale^2 + 1`: a count no cell reaches, the same on every path (the
+    /// fast path compares in `u8`).
     pub fn thresholds(&self, scale: u32) -> (u32, u32) {
         let n = scale * scale;
-        (
-            (self.occupied_pct * n).div_ceil(100).max(1),
-            (self.free_pct * n).div_ceil(100).max(1),
-        )
+        let of = |pct: u32| (pct.min(101) * n).div_ceil(100).clamp(1, n + 1);
+        (of(self.occupied_pct), of(self.free_pct))
     }
 }
 
