@@ -31,7 +31,7 @@ if ! has_lib 'libvulkan\.so\.1' || { [ -e /usr/local/nvidia ] && ! has_lib 'libG
         ldconfig
     fi
 fi
-if ! ldconfig -p 2>/dev/null | grep 'libvulkan\.so\.1' >/dev/null; then
+if ! has_lib 'libvulkan\.so\.1'; then
     log "no Vulkan loader (libvulkan.so.1): install libvulkan1 or carry it in .gl/"
     exit 1
 fi

@@ -72,7 +72,7 @@ impl RobustParams {
                 self.nms_radius
             )));
         }
-        self.cells.checked()?;
+        self.cells.check()?;
         if self.wall_gap > MAX_WALL_GAP {
             return Err(Error::invalid(format!(
                 "wall gap {} is too large (at most {MAX_WALL_GAP} samples)",

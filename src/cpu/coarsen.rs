@@ -119,8 +119,8 @@ impl Default for CellRule {
 }
 
 impl CellRule {
-    /// The rule after checking its shares (each 1..=100).
-    pub fn checked(self) -> crate::error::Result<Self> {
+    /// Checks the shares (each 1..=100).
+    pub fn check(&self) -> crate::error::Result<()> {
         for (name, v) in [("occupied", self.occupied_pct), ("free", self.free_pct)] {
             if !(1..=100).contains(&v) {
                 return Err(crate::error::Error::invalid(format!(
@@ -128,7 +128,7 @@ impl CellRule {
                 )));
             }
         }
-        Ok(self)
+        Ok(())
     }
 
     /// The fewest occupied samples that make a cell of `scale` occupied, and the fewest free ones that
