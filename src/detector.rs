@@ -170,7 +170,10 @@ impl Detector {
     /// need the map's maximum, and with `max_corners`. `on_rows` sees each window's rows and core first (to
     /// draw a downsampled picture).
     ///
-    /// The robust detector turns the whole map to its walls and is refused: it needs the map in memory.
+    /// The robust detector turns the whole map to its walls, so it reads the rows once into a temporary
+    /// file and works in tiles of its turned grid ([`crate::robust::tiles`]): memory bounded by one tile's
+    /// window (and the corners no window could rule out); its keypoints come at the end. `on_rows` sees
+    /// the rows as they are read.
     pub fn detect_streamed(
         &mut self,
         source: &mut dyn RowSource,
@@ -178,12 +181,35 @@ impl Detector {
         sink: &mut dyn FnMut(&[Keypoint]) -> Result<()>,
         on_rows: &mut dyn FnMut(Rows, (usize, usize)),
     ) -> Result<Streamed> {
-        if self.options.detector == DetectorKind::OgmRobust {
-            return Err(Error::invalid(
-                "the ogm-robust detector resamples the whole map on a turned grid and needs it in memory: it is not streamed",
-            ));
-        }
         let (w, h) = (source.width(), source.height());
+        if self.options.detector == DetectorKind::OgmRobust {
+            use crate::robust::tiles::{detect_tiled, Spill};
+            let params = self.options.robust;
+            let plan = self.tile_plan()?;
+            let (mut spill, warnings) = Spill::from_source(source, on_rows)?;
+            let (found, info) = detect_tiled(
+                &mut *self.backend,
+                &mut spill,
+                classes,
+                &self.rules,
+                &params,
+                &plan,
+            )?;
+            let found = match self.options.max_corners {
+                Some(n) => strongest(found, n, DetectorKind::OgmRobust)?,
+                None => found,
+            };
+            for chunk in found.chunks(SINK_CHUNK) {
+                sink(chunk)?;
+            }
+            return Ok(Streamed {
+                width: w,
+                height: h,
+                count: found.len() as u64,
+                warnings,
+                robust: Some(info),
+            });
+        }
         let plan = self.window_plan(w);
         let mut windows = |f: &mut dyn FnMut(Window) -> Result<()>| {
             for_each_window(source, plan, &mut |win| {
@@ -201,7 +227,14 @@ impl Detector {
             height: h,
             count,
             warnings,
+            robust: None,
         })
+    }
+
+    /// The tiles the robust detector works in when streamed: windows of about
+    /// [`Detector::window_bytes`] each.
+    pub fn tile_plan(&self) -> Result<crate::robust::tiles::TilePlan> {
+        crate::robust::tiles::TilePlan::with_bytes(&self.options.robust, self.window_bytes())
     }
 
     /// How [`Detector::detect_streamed`] cuts a map `width` wide into windows: about
@@ -221,15 +254,31 @@ impl Detector {
         self.window_bytes = bytes;
     }
 
-    /// The pixels a streamed window holds now ([`Detector::set_window_bytes`], else the backend's choice).
+    /// The pixels a streamed window holds now ([`Detector::set_window_bytes`], else the backend's choice;
+    /// for the robust detector, the working memory of a tile's window, [`ROBUST_WINDOW_BYTES`] unless set).
     pub fn window_bytes(&self) -> u64 {
         self.window_bytes
-            .unwrap_or_else(|| self.backend.window_bytes(&self.options))
+            .unwrap_or_else(|| match self.options.detector {
+                DetectorKind::OgmRobust => ROBUST_WINDOW_BYTES,
+                _ => self.backend.window_bytes(&self.options),
+            })
     }
 
     /// Bytes [`Detector::detect_streamed`] allocates for a `width` x `height` map beyond the keypoints
     /// (and the decoder's own buffers): the windows in flight, and the backend's working memory for one.
     pub fn streamed_bytes(&self, width: u32, height: u32) -> u64 {
+        if self.options.detector == DetectorKind::OgmRobust {
+            // One tile's window at a time, and a chunk of the temporary file's rows; a plan the options
+            // refuse needs nothing (the detection reports them).
+            // A window never exceeds the whole grid (and its crop the map).
+            let whole = crate::robust::robust_working_bytes(width, height, &self.options.robust)
+                .saturating_add(u64::from(width) * u64::from(height));
+            return self.tile_plan().map_or(0, |p| {
+                p.bytes()
+                    .min(whole)
+                    .saturating_add(crate::robust::tiles::Spill::bytes(width))
+            });
+        }
         let plan = self.window_plan(width);
         let rows = (plan.core_rows + 2 * plan.halo).min(height as usize) as u32;
         plan.bytes(width, height)
@@ -335,7 +384,7 @@ type WindowsOf<'a> = dyn FnMut(&mut dyn FnMut(Window) -> Result<()>) -> Result<V
 const SINK_CHUNK: usize = 1 << 16;
 
 /// What a streamed detection saw ([`Detector::detect_streamed`]).
-#[derive(Clone, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct Streamed {
     /// Map width in pixels.
     pub width: u32,
@@ -345,7 +394,14 @@ pub struct Streamed {
     pub count: u64,
     /// The source's warnings (such as trailing bytes ignored).
     pub warnings: Vec<String>,
+    /// What the robust detector measured (its grid angle); `None` for the other detectors.
+    pub robust: Option<RobustInfo>,
 }
+
+/// Working memory of a streamed robust detection's tile window by default: tiles of about 4,800 samples
+/// a side at the default scales (the halo and ring around a tile are about 920 samples, so larger tiles
+/// waste less).
+pub const ROBUST_WINDOW_BYTES: u64 = 512 << 20;
 
 /// Where to detect: the backends a user chooses among by name.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]

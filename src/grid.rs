@@ -67,10 +67,14 @@ pub struct RotatedGrid {
     pub width: u32,
     /// Grid rows.
     pub height: u32,
-    /// Width of the sampled map.
+    /// Width of the sampled map (for a [`RotatedGrid::window`], of its crop).
     pub map_width: u32,
     /// Height of the sampled map.
     pub map_height: u32,
+    /// The whole map's pixel that the sampled map's pixel (0, 0) is: (0, 0) but for a window's crop.
+    pub crop_origin: (u32, u32),
+    /// The whole map's size: [`RotatedGrid::round_pixel`] clamps to it.
+    pub full_size: (u32, u32),
 }
 
 impl RotatedGrid {
@@ -149,7 +153,50 @@ impl RotatedGrid {
             height,
             map_width,
             map_height,
+            crop_origin: (0, 0),
+            full_size: (map_width, map_height),
         })
+    }
+
+    /// The samples `offset.0..offset.0 + width`, `offset.1..offset.1 + height` of this grid as a grid of
+    /// their own, reading the crop of the map whose top-left pixel is `crop.0`, `crop.1` and whose size is
+    /// `crop.2` x `crop.3`. Its samples are this grid's, bit for bit (the fixed-point origin moves by whole
+    /// samples and whole pixels; ties still round towards the whole map's centre), wherever the crop holds
+    /// the pixels they read; [`RotatedGrid::round_pixel`] still gives the whole map's pixels. The robust
+    /// detector works on a map of any size in such windows ([`crate::robust::tiles`]).
+    pub fn window(
+        &self,
+        offset: (i32, i32),
+        width: u32,
+        height: u32,
+        crop: (u32, u32, u32, u32),
+    ) -> Self {
+        let (p0, q0) = offset;
+        let (x0, y0) = (
+            (i64::from(crop.0) + i64::from(self.crop_origin.0)) << FRAC_BITS,
+            (i64::from(crop.1) + i64::from(self.crop_origin.1)) << FRAC_BITS,
+        );
+        let (cos, sin) = (i64::from(self.cos), i64::from(self.sin));
+        let (p, q) = (i64::from(p0), i64::from(q0));
+        // Relative to the whole map's pixel (0, 0) first: `self` may itself be a window.
+        let base_x = i64::from(self.ox) + (i64::from(self.crop_origin.0) << FRAC_BITS);
+        let base_y = i64::from(self.oy) + (i64::from(self.crop_origin.1) << FRAC_BITS);
+        let cx = i64::from(self.cx) + (i64::from(self.crop_origin.0) << FRAC_BITS);
+        let cy = i64::from(self.cy) + (i64::from(self.crop_origin.1) << FRAC_BITS);
+        RotatedGrid {
+            ox: (base_x + p * cos - q * sin - x0) as i32,
+            oy: (base_y + p * sin + q * cos - y0) as i32,
+            cx: (cx - x0) as i32,
+            cy: (cy - y0) as i32,
+            centre2: (self.centre2.0 - 2 * p, self.centre2.1 - 2 * q),
+            width,
+            height,
+            map_width: crop.2,
+            map_height: crop.3,
+            crop_origin: (crop.0 + self.crop_origin.0, crop.1 + self.crop_origin.1),
+            full_size: self.full_size,
+            ..*self
+        }
     }
 
     /// The sample nearest grid position `(p, q)`; exactly half-way, the one nearer the map's centre.
@@ -181,14 +228,18 @@ impl RotatedGrid {
         half as i32
     }
 
-    /// The map pixel nearest map position `(x, y)`, clamped to the map; exactly half-way, the one
-    /// nearer the map's centre.
+    /// The whole map's pixel nearest position `(x, y)` of the sampled map ([`RotatedGrid::to_map`]),
+    /// clamped to the whole map; exactly half-way, the one nearer the whole map's centre.
     pub fn round_pixel(&self, (x, y): (f64, f64)) -> (u32, u32) {
-        let r = |v: f64, n: u32| {
-            let k = round_towards(v, (f64::from(n) - 1.0) / 2.0);
-            k.clamp(0.0, f64::from(n - 1)) as u32
+        let one = f64::from(ONE);
+        let r = |v: f64, c: i32, o: u32, n: u32| {
+            let k = round_towards(v, f64::from(c) / one) + f64::from(o);
+            k.clamp(0.0, f64::from(n.max(1) - 1)) as u32
         };
-        (r(x, self.map_width), r(y, self.map_height))
+        (
+            r(x, self.cx, self.crop_origin.0, self.full_size.0),
+            r(y, self.cy, self.crop_origin.1, self.full_size.1),
+        )
     }
 
     /// The grid's angle in degrees, as quantised.
@@ -300,6 +351,37 @@ mod tests {
         let (dx, dy) = g.source(0, 0);
         for (p, q) in [(3, 4), (7, 1)] {
             assert_eq!(g.source(p, q), (p + dx, q + dy));
+        }
+    }
+
+    /// A window of the grid reads, through its crop, the pixels the whole grid reads, ties included, and
+    /// names the whole map's pixels.
+    #[test]
+    fn a_window_samples_and_rounds_as_the_whole_grid() {
+        for (w, h, deg) in [
+            (37, 23, 0.0),
+            (64, 50, 45.0),
+            (501, 300, -17.3),
+            (40, 41, 90.0),
+        ] {
+            let g = RotatedGrid::new(w, h, deg).unwrap();
+            let (p0, q0) = (5, 3);
+            let crop = (2, 1, w - 4, h - 3);
+            let win = g.window((p0, q0), g.width - 7, g.height - 4, crop);
+            for q in q0..g.height as i32 {
+                for p in p0..g.width as i32 {
+                    let (x, y) = g.source(p, q);
+                    let (cx, cy) = win.source(p - p0, q - q0);
+                    assert_eq!((cx + crop.0 as i32, cy + crop.1 as i32), (x, y));
+                    for (dp, dq) in [(0.0, 0.0), (0.5, 0.0), (0.25, 0.5), (-0.5, -0.5)] {
+                        let (fp, fq) = (f64::from(p) + dp, f64::from(q) + dq);
+                        let whole = g.round_pixel(g.to_map(fp, fq));
+                        let part =
+                            win.round_pixel(win.to_map(fp - f64::from(p0), fq - f64::from(q0)));
+                        assert_eq!(part, whole, "{w}x{h} at {deg}: ({fp}, {fq})");
+                    }
+                }
+            }
         }
     }
 

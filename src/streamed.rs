@@ -4,7 +4,7 @@
 
 use std::io::Write;
 
-use crate::detector::{Detector, Streamed};
+use crate::detector::{Detector, DetectorKind, Streamed};
 use crate::error::{Error, Result};
 use crate::map::MapRows;
 use crate::memory::Budget;
@@ -32,7 +32,16 @@ pub fn check_streamed_budget(
             .saturating_add(overlay)
     };
     // A tight limit gets smaller windows (down to a megabyte, or the fewest rows), not a refusal: the
-    // keypoints are the same for every window size.
+    // keypoints are the same for every window size. The robust detector's tile window takes what is left
+    // of half the limit: the corners its windows report come on top (about 60 bytes each, and as much
+    // again for the whole map's suppression at the end: a million corners on a 30000^2 office map), with
+    // the allocator's slack.
+    if detector.options().detector == DetectorKind::OgmRobust && need(detector) > budget.limit() {
+        let window = detector.window_bytes();
+        let others = need(detector).saturating_sub(window.min(need(detector)));
+        let room = (budget.limit() / 2).saturating_sub(others);
+        detector.set_window_bytes(Some(room.clamp(1, window)));
+    }
     while need(detector) > budget.limit() && detector.window_bytes() > 1 << 20 {
         let smaller = detector.window_bytes() / 2;
         detector.set_window_bytes(Some(smaller));
@@ -88,15 +97,40 @@ pub fn detect_to(
         angle_deg: None,
     };
     let classes = ClassTable::new(&map.thresholds);
-    let mut writers = Vec::with_capacity(outputs.len());
-    for o in outputs.iter_mut() {
-        let name = o.name.clone();
-        let w = KeypointWriter::begin(&mut *o.out, o.format, &about)
-            .map_err(|e| Error::write(&name, e))?;
-        writers.push((w, name));
-    }
     // Both callbacks draw on the canvas (rows, then marks), one at a time.
     let canvas = std::cell::RefCell::new(canvas);
+    let mut on_rows = |rows: crate::stream::Rows, core: (usize, usize)| {
+        if let Some(c) = canvas.borrow_mut().as_deref_mut() {
+            c.add_rows(rows, core);
+        }
+    };
+    if detector.options().detector == DetectorKind::OgmRobust {
+        // Its keypoints come at the end, with the angle the file's header names.
+        let mut found = Vec::new();
+        let done = detector.detect_streamed(
+            &mut map.source,
+            &classes,
+            &mut |k| {
+                found.extend_from_slice(k);
+                Ok(())
+            },
+            &mut on_rows,
+        )?;
+        let about = About {
+            angle_deg: done.robust.map(|r| r.angle),
+            ..about
+        };
+        let mut writers = begin(outputs, &about)?;
+        if let Some(c) = canvas.borrow_mut().as_deref_mut() {
+            c.mark(&found);
+        }
+        for (w, name) in writers.iter_mut() {
+            w.push(&found).map_err(|e| Error::write(&*name, e))?;
+        }
+        end(writers)?;
+        return Ok(done);
+    }
+    let mut writers = begin(outputs, &about)?;
     let done = detector.detect_streamed(
         &mut map.source,
         &classes,
@@ -109,14 +143,31 @@ pub fn detect_to(
             }
             Ok(())
         },
-        &mut |rows, core| {
-            if let Some(c) = canvas.borrow_mut().as_deref_mut() {
-                c.add_rows(rows, core);
-            }
-        },
+        &mut on_rows,
     )?;
+    end(writers)?;
+    Ok(done)
+}
+
+/// Begins a keypoint file on every output.
+fn begin<'a>(
+    outputs: &'a mut [Output],
+    about: &About,
+) -> Result<Vec<(KeypointWriter<'a>, String)>> {
+    let mut writers = Vec::with_capacity(outputs.len());
+    for o in outputs.iter_mut() {
+        let name = o.name.clone();
+        let w = KeypointWriter::begin(&mut *o.out, o.format, about)
+            .map_err(|e| Error::write(&name, e))?;
+        writers.push((w, name));
+    }
+    Ok(writers)
+}
+
+/// Ends every keypoint file.
+fn end(writers: Vec<(KeypointWriter<'_>, String)>) -> Result<()> {
     for (w, name) in writers {
         w.end().map_err(|e| Error::write(&name, e))?;
     }
-    Ok(done)
+    Ok(())
 }

@@ -648,6 +648,40 @@ fn robust_keypoints_match_the_reference() {
     }
 }
 
+/// The robust detector in tiles on the GPU (windows of the turned grid reading crops of the map): the
+/// keypoints of the whole map on the CPU.
+#[test]
+fn robust_tiles_on_the_gpu_match_the_whole_map_on_the_cpu() {
+    use ogm_corners::robust::tiles::{detect_tiled, ImageReader, TilePlan};
+    use ogm_corners::robust::{self, RobustParams};
+    let Some(mut gpu) = common::gpu_backend(GpuOptions::default()) else {
+        return;
+    };
+    let classes = ClassTable::default();
+    let rules = RuleTable::new(RuleSet::Paper);
+    let img = common::turned_rooms(700, 23.0, 9).0;
+    // Small scales, so that windows are crops of the map.
+    let params = RobustParams {
+        min_scale: 2,
+        max_scale: 3,
+        ..RobustParams::default()
+    };
+    let want = robust::detect(&mut CpuBackend, &img, &classes, &rules, &params).unwrap();
+    let plan = TilePlan::with_tile(&params, 100).unwrap();
+    assert!(plan.window_side() < 700, "{plan:?}");
+    let got = detect_tiled(
+        &mut gpu,
+        &mut ImageReader::new(&img),
+        &classes,
+        &rules,
+        &params,
+        &plan,
+    )
+    .unwrap();
+    assert!(want.0.len() >= 8, "{}", want.0.len());
+    assert_eq!(got, want);
+}
+
 /// Random flags, points (some landing outside) and transforms (any angle; translations inside, far
 /// outside and clamped; the identity) for the scoring kernel.
 fn scoring_case(

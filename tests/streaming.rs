@@ -203,22 +203,44 @@ fn streamed_keypoints_are_the_whole_maps_on_the_gpu() {
     }
 }
 
+/// The robust detector streams too: the rows once into a temporary file, then tiles of its turned grid,
+/// with the keypoints (and the angle, and the strongest N) of the map in memory.
 #[test]
-fn the_robust_detector_is_not_streamed() {
-    let image = office_map(64, 64, 1).unwrap();
-    let mut d = Detector::new(DetectOptions {
-        detector: DetectorKind::OgmRobust,
-        ..DetectOptions::default()
-    });
-    let e = d
-        .detect_streamed(
-            &mut SliceRows::new(&image),
-            &ClassTable::new(&Thresholds::default()),
-            &mut |_| Ok(()),
-            &mut |_, _| {},
-        )
-        .unwrap_err();
-    assert!(e.to_string().contains("needs it in memory"), "{e}");
+fn the_robust_detector_streams_in_tiles_to_its_in_memory_keypoints() {
+    let image = common::floor_plan(1100, 800, 7);
+    let thresholds = Thresholds::default();
+    let classes = ClassTable::new(&thresholds);
+    for max_corners in [None, Some(12)] {
+        let options = DetectOptions {
+            detector: DetectorKind::OgmRobust,
+            max_corners,
+            ..DetectOptions::default()
+        };
+        let want = Detector::new(options)
+            .detect_image(&image, &thresholds)
+            .unwrap();
+        let mut d = Detector::new(options);
+        // The smallest tiles: a dozen of them over this map.
+        d.set_window_bytes(Some(1));
+        let plan = d.tile_plan().unwrap();
+        assert!(plan.tile * 4 <= image.width(), "{plan:?}");
+        let (mut got, mut rows) = (Vec::new(), 0);
+        let done = d
+            .detect_streamed(
+                &mut SliceRows::new(&image),
+                &classes,
+                &mut |k| {
+                    got.extend_from_slice(k);
+                    Ok(())
+                },
+                &mut |_, core| rows += core.1 - core.0,
+            )
+            .unwrap();
+        assert!(want.keypoints.len() >= 12, "{}", want.keypoints.len());
+        assert_eq!(got, want.keypoints, "max_corners {max_corners:?}");
+        assert_eq!(done.robust, want.robust);
+        assert_eq!((done.count as usize, rows), (got.len(), 800));
+    }
 }
 
 #[test]
@@ -342,6 +364,77 @@ fn an_overlay_is_drawn_while_streaming() {
         got == want,
         "the streamed overlay differs from the in-memory one"
     );
+}
+
+/// `detect --detector ogm-robust` on a map whose whole-map detection does not fit the memory limit works
+/// in tiles from a temporary copy of its rows, under a cap on its data memory, and writes the file the
+/// in-memory run writes (angle included).
+#[test]
+fn the_robust_detector_streams_a_map_over_the_memory_limit_to_the_in_memory_file() {
+    let dir = tempfile::tempdir().unwrap();
+    common::floor_plan(3000, 2800, 11)
+        .write_pgm(&dir.path().join("map.pgm"))
+        .unwrap();
+    let args = [
+        "detect",
+        "map.pgm",
+        "--detector",
+        "ogm-robust",
+        "--backend",
+        "cpu",
+    ];
+    let run = |extra: &[&str], cap: Option<u64>| {
+        let mut c = match cap {
+            Some(cap) => {
+                let mut c = std::process::Command::new("prlimit");
+                c.arg(format!("--data={cap}"))
+                    .arg(env!("CARGO_BIN_EXE_ogm-corners"));
+                c
+            }
+            None => std::process::Command::new(env!("CARGO_BIN_EXE_ogm-corners")),
+        };
+        let out = c
+            .args(args)
+            .args(extra)
+            .current_dir(dir.path())
+            .output()
+            .expect("the tool (and prlimit, util-linux) run");
+        let err = String::from_utf8_lossy(&out.stderr).to_string();
+        assert!(out.status.success(), "{extra:?}: {err}");
+        err
+    };
+    run(&["--format", "json", "-o", "whole.json"], None);
+    // The whole-map detection needs about 190 MB here; 150M streams it, under a 230 MB data cap.
+    run(
+        &[
+            "--format",
+            "json",
+            "-o",
+            "tiled.json",
+            "--max-memory",
+            "150M",
+        ],
+        Some(230_000_000),
+    );
+    let read = |n: &str| std::fs::read_to_string(dir.path().join(n)).unwrap();
+    let (whole, tiled) = (read("whole.json"), read("tiled.json"));
+    assert!(whole.contains("\"angle_deg\": "), "{}", &whole[..400]);
+    assert!(whole.matches("\"x\":").count() >= 50);
+    assert!(
+        whole == tiled,
+        "the tiled file differs from the whole-map one"
+    );
+    // Below what one tile needs: a one-line refusal, before anything is read.
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_ogm-corners"))
+        .args(args)
+        .args(["--max-memory", "20M", "-o", "no.csv"])
+        .current_dir(dir.path())
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(err.contains("over the limit"), "{err}");
+    assert!(!dir.path().join("no.csv").exists());
 }
 
 /// A 20000 x 20000 map (400 MB) written by the tool row by row, then detected by the tool from the file

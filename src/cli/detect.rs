@@ -61,12 +61,12 @@ pub(super) fn run(a: DetectArgs, budget: &Budget) -> Result<()> {
     if a.output.is_none() {
         super::check_stdout()?;
     }
-    if a.opts.options().detector != DetectorKind::OgmRobust {
+    if a.opts.options().detector != DetectorKind::OgmRobust || !robust_fits(&a, budget)? {
         return run_streamed(&a, format, budget);
     }
-    // The robust detector holds the map in memory. The map before the backend, so a bad map is the only
-    // message; the map, the backend's buffers and the overlay are counted from the header, before the
-    // pixels are read.
+    // The robust detector holds the map in memory when it fits (faster: no temporary file, no halos).
+    // The map before the backend, so a bad map is the only message; the map, the backend's buffers and
+    // the overlay are counted from the header, before the pixels are read.
     let map = OccupancyMap::load_within(path, budget, &|w, h| a.extra_bytes(w, h))?;
     for w in &map.warnings {
         ogm_corners::say!("ogm-corners: warning: {w}");
@@ -95,6 +95,17 @@ pub(super) fn run(a: DetectArgs, budget: &Budget) -> Result<()> {
         overlay::write_overlay(png, &map.image, &det.keypoints)?;
     }
     Ok(())
+}
+
+/// Whether the robust detector fits the map in memory (from the header): otherwise it works in tiles from
+/// a temporary copy of the map's rows, with the same keypoints.
+fn robust_fits(a: &DetectArgs, budget: &Budget) -> Result<bool> {
+    let map = OccupancyMap::open_rows(&a.maps[0])?;
+    let (w, h) = map.size();
+    let need = (u64::from(w) * u64::from(h))
+        .saturating_add(map.decoder_bytes())
+        .saturating_add(a.extra_bytes(w, h));
+    Ok(ogm_corners::decode::check_in_memory(w, h).is_ok() && need <= budget.limit())
 }
 
 /// One map read row by row: the keypoints written as they come, the overlay drawn downsampled on the way;

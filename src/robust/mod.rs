@@ -15,9 +15,15 @@
 //!
 //! Steps 1 and 4 are host code shared by every backend; 2 and 3 are kernels, so the keypoints are the same
 //! on every backend, bit for bit.
+//!
+//! Steps 2-4 run in a [`Window`] of the turned grid: the whole grid for a map in memory, or the tiles of a
+//! map of any size ([`tiles`]), whose suppression ([`suppress`]) decides in each window what it can and
+//! leaves the rest to the whole map's, with the same keypoints.
 
 pub mod corners;
 pub mod orientation;
+pub mod suppress;
+pub mod tiles;
 /// The options, kept with the backend interface ([`crate::backend::robust_params`]) that every backend is
 /// given; here under their old name too.
 pub use crate::backend::robust_params as params;
@@ -32,6 +38,8 @@ use crate::rules::RuleTable;
 use crate::states::{CellState, ClassTable};
 use corners::{concave_arms, convex_arms, Arms, Cells, Sampler};
 use rayon::prelude::*;
+pub use suppress::suppress;
+use suppress::Fate;
 
 /// How a coarse map is read: its cell values as states; with `swapped`, free and occupied exchanged, so
 /// the paper's detector finds convex corners (occupied cells with free neighbours in its patterns).
@@ -65,62 +73,25 @@ pub fn detect(
     rules: &RuleTable,
     params: &RobustParams,
 ) -> Result<(Vec<Keypoint>, RobustInfo)> {
-    let scales = params.scales()?;
+    params.scales()?;
     let angle = params
         .angle
         .unwrap_or_else(|| orientation::dominant_angle(image, classes));
     let grid = RotatedGrid::new(image.width(), image.height(), angle)?;
     // Between stages, a raised stop (Ctrl-C in Python) ends the detection.
     crate::stop::check()?;
-    let coarse = backend.coarsen(image, classes, &grid, &scales, params.cells)?;
-    let sampler = Sampler {
+    // The map in memory is one window of the tiled path: every corner seen, every fate decided.
+    let window = Window {
         image,
-        classes,
-        grid: &grid,
-        wall_gap: params.wall_gap as i32,
+        grid,
+        offset: (0, 0),
+        owned: Span::ALL,
+        trusted: Span::ALL,
+        settled: Span::ALL,
     };
-    let mut found = Vec::new();
-    for (&scale, map) in scales.iter().zip(&coarse) {
-        crate::stop::check()?;
-        let cells = Cells::new(map);
-        let mosaic = Mosaic::new(&grid, scale);
-        let lattice = Lattice::new(&grid, &mosaic);
-        let mut masked = map.clone();
-        for convex in [false, true] {
-            if convex && !params.convex {
-                continue;
-            }
-            lattice.mask(map, &mut masked, if convex { OCCUPIED } else { FREE });
-            let hits = backend.detect(&masked, &coarse_classes(convex), rules, false)?;
-            // Scored on every core; collected in the order found, so the result does not depend on it.
-            let scored: Vec<Candidate> = hits
-                .par_iter()
-                .filter_map(|&k| score(&cells, &grid, &mosaic, k, convex, params.min_strength))
-                .collect();
-            found.extend(scored);
-        }
-    }
-    let candidates = found.len();
-    // Suppression on the cell positions first, so only the survivors are placed on the map's pixels
-    // (placing reads dozens of samples a corner); then again on the placed positions.
-    let centre2 = (i64::from(image.width()) - 1, i64::from(image.height()) - 1);
-    let survivors = suppress_candidates(found, params.nms_radius, centre2);
-    crate::stop::check()?;
-    let placed: Vec<Keypoint> = survivors
-        .par_iter()
-        .map(|c| match c.arms {
-            Some(arms) => {
-                let k = c.keypoint;
-                let at = sampler.place(c.centre, &arms, k.convex, i32::from(k.scale));
-                candidate(&grid, at, k, u32::from(k.scale), k.convex, k.score as u32)
-            }
-            None => c.keypoint,
-        })
-        .collect();
-    let mut kept = suppress(placed, params.nms_radius, centre2);
-    kept.sort_unstable();
+    let (found, candidates) = detect_window(backend, &window, classes, rules, params)?;
     Ok((
-        kept,
+        finish(found, params.nms_radius, &grid),
         RobustInfo {
             angle: grid.degrees(),
             candidates,
@@ -128,32 +99,265 @@ pub fn detect(
     ))
 }
 
+/// A rectangle of whole-grid samples, `p.0..p.1` by `q.0..q.1` (open ends at the `i64` limits).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Span {
+    /// Columns.
+    pub p: (i64, i64),
+    /// Rows.
+    pub q: (i64, i64),
+}
+
+impl Span {
+    /// Every sample.
+    pub const ALL: Span = Span {
+        p: (i64::MIN, i64::MAX),
+        q: (i64::MIN, i64::MAX),
+    };
+
+    fn contains(&self, (p, q): (f64, f64)) -> bool {
+        let inside = |v: f64, (a, b): (i64, i64)| {
+            (a == i64::MIN || v >= a as f64) && (b == i64::MAX || v < b as f64)
+        };
+        inside(p, self.p) && inside(q, self.q)
+    }
+
+    /// Grown by `d` samples on every side (an open end stays open; a negative `d` shrinks).
+    pub fn grown(&self, d: i64) -> Span {
+        let g = |(a, b): (i64, i64)| {
+            (
+                if a == i64::MIN { a } else { a - d },
+                if b == i64::MAX { b } else { b + d },
+            )
+        };
+        Span {
+            p: g(self.p),
+            q: g(self.q),
+        }
+    }
+}
+
+/// A window of the turned grid the robust detector works in: the whole grid for a map in memory, a tile
+/// and its halo for a map of any size ([`tiles`]).
+pub struct Window<'a> {
+    /// The map, or the crop of it that the window's samples read.
+    pub image: &'a MapImage,
+    /// The window's grid ([`RotatedGrid::window`] of the whole grid).
+    pub grid: RotatedGrid,
+    /// The window's sample (0, 0) in the whole grid.
+    pub offset: (i32, i32),
+    /// The cells (by their first sample, in the whole grid) whose corners the window reports: the tiles of
+    /// a map's windows share its cells out, each to one.
+    pub owned: Span,
+    /// The cells whose corners the window measures exactly (their walls and neighbours lie inside it):
+    /// `owned` and a ring around it.
+    pub trusted: Span,
+    /// Where a corner's position (whole-grid samples) has every corner within the suppression radius
+    /// among the trusted ones.
+    pub settled: Span,
+}
+
+/// A corner a window reports: its keypoint at the cell and its cell's middle (whole grid), which the whole
+/// map's suppression orders it by, and where it lands on the map's pixels. Kept compact: a large map's
+/// windows report hundreds of thousands.
+pub struct Found {
+    keypoint: Keypoint,
+    centre: (i32, i32),
+    placed: Keypoint,
+}
+
+/// The corners of `window` that the suppression does not rule out for the whole map, placed, and how many
+/// corners its cells had before suppression.
+pub fn detect_window(
+    backend: &mut dyn Backend,
+    window: &Window,
+    classes: &ClassTable,
+    rules: &RuleTable,
+    params: &RobustParams,
+) -> Result<(Vec<Found>, usize)> {
+    let scales = params.scales()?;
+    let grid = &window.grid;
+    let image = window.image;
+    let coarse = backend.coarsen(image, classes, grid, &scales, params.cells)?;
+    let mut found = Vec::new();
+    for (&scale, map) in scales.iter().zip(&coarse) {
+        crate::stop::check()?;
+        let cells = Cells::new(map);
+        let mosaic = Mosaic::new(grid, scale);
+        let lattice = Lattice::new(grid, &mosaic);
+        let mut masked = map.clone();
+        for convex in [false, true] {
+            if convex && !params.convex {
+                continue;
+            }
+            lattice.mask(map, &mut masked, if convex { OCCUPIED } else { FREE });
+            let hits = backend.detect(&masked, &coarse_classes(convex), rules, false)?;
+            // Scored on every core; collected in the order found (the suppression's order does not
+            // depend on it).
+            let scored: Vec<Candidate> = hits
+                .par_iter()
+                .filter_map(|&k| {
+                    let c = score(&cells, window, &mosaic, k, convex, params.min_strength)?;
+                    window.trusted.contains(whole(c.origin)).then_some(c)
+                })
+                .collect();
+            found.extend(scored);
+        }
+    }
+    drop(coarse);
+    let owned = found
+        .iter()
+        .filter(|c| window.owned.contains(whole(c.origin)))
+        .count();
+    // Suppression on the cell positions first, so only the survivors are placed on the map's pixels
+    // (placing reads dozens of samples a corner); then again on the placed positions ([`finish`]). A
+    // corner this window cannot rule out stays, even if another window will.
+    let centres = (grid_centre2(grid, window.offset), map_centre2(grid));
+    let fates = candidate_fates(
+        found.len(),
+        |i| (&found[i].keypoint, found[i].centre),
+        params.nms_radius,
+        centres,
+        &|i| window.settled.contains(found[i].at),
+    );
+    let keep: Vec<Candidate> = found
+        .into_iter()
+        .zip(fates)
+        .filter(|(c, f)| *f != Fate::Suppressed && window.owned.contains(whole(c.origin)))
+        .map(|(c, _)| c)
+        .collect();
+    crate::stop::check()?;
+    let sampler = Sampler {
+        image,
+        classes,
+        grid,
+        wall_gap: params.wall_gap as i32,
+    };
+    let placed = keep
+        .into_par_iter()
+        .map(|c| {
+            let k = c.keypoint;
+            let placed = match c.arms {
+                Some(arms) => {
+                    let centre = (c.centre.0 - window.offset.0, c.centre.1 - window.offset.1);
+                    let at = sampler.place(centre, &arms, k.convex, i32::from(k.scale));
+                    candidate(grid, at, k, u32::from(k.scale), k.convex, k.score as u32)
+                }
+                None => k,
+            };
+            Found {
+                keypoint: c.keypoint,
+                centre: c.centre,
+                placed,
+            }
+        })
+        .collect();
+    Ok((placed, owned))
+}
+
+/// The keypoints of the corners every window of a map reported ([`detect_window`]), in (y, x) order:
+/// the suppression on the cell positions decided for the whole map, then on the placed positions. `grid`
+/// is the whole map's grid.
+pub fn finish(found: Vec<Found>, radius: u32, grid: &RotatedGrid) -> Vec<Keypoint> {
+    let centre2 = map_centre2(grid);
+    let fates = candidate_fates(
+        found.len(),
+        |i| (&found[i].keypoint, found[i].centre),
+        radius,
+        (grid.centre2, centre2),
+        &|_| true,
+    );
+    let placed: Vec<Keypoint> = found
+        .iter()
+        .zip(fates)
+        .filter(|(_, f)| *f == Fate::Kept)
+        .map(|(f, _)| f.placed)
+        .collect();
+    let mut kept = suppress(placed, radius, centre2);
+    kept.sort_unstable();
+    kept
+}
+
+/// The whole map's centre in half pixels.
+fn map_centre2(grid: &RotatedGrid) -> (i64, i64) {
+    (
+        i64::from(grid.full_size.0) - 1,
+        i64::from(grid.full_size.1) - 1,
+    )
+}
+
+/// The whole grid's centre in half samples, from any window of it.
+fn grid_centre2(grid: &RotatedGrid, offset: (i32, i32)) -> (i64, i64) {
+    (
+        grid.centre2.0 + 2 * i64::from(offset.0),
+        grid.centre2.1 + 2 * i64::from(offset.1),
+    )
+}
+
+/// The fates of `n` corners (`corner(i)`: the keypoint at its cell and the cell's middle, whole grid) under
+/// the suppression on cell positions ([`suppress::fates`]), in a map whose grid centre is `grid_c2` (half
+/// samples) and whose centre is `map_c2` (half pixels). Corners equal as keypoints are ordered by their
+/// cell's middle, nearer the grid's centre first (then by its position), so every window orders them
+/// alike.
+fn candidate_fates<'a>(
+    n: usize,
+    corner: impl Fn(usize) -> (&'a Keypoint, (i32, i32)) + Sync,
+    radius: u32,
+    (grid_c2, map_c2): ((i64, i64), (i64, i64)),
+    settled: &(dyn Fn(usize) -> bool + Sync),
+) -> Vec<Fate> {
+    let centre_key = |i: usize| {
+        let c = corner(i).1;
+        let (dp, dq) = (
+            2 * i64::from(c.0) - grid_c2.0,
+            2 * i64::from(c.1) - grid_c2.1,
+        );
+        (dp * dp + dq * dq, c.1, c.0)
+    };
+    suppress::fates(n, |i| corner(i).0, radius, map_c2, settled, &|i, j| {
+        centre_key(i).cmp(&centre_key(j))
+    })
+}
+
+/// A whole-grid sample position as a point.
+fn whole((p, q): (i32, i32)) -> (f64, f64) {
+    (f64::from(p), f64::from(q))
+}
+
 /// A corner found on a coarse map, at its cell's position, before it is placed on the map's pixels.
-struct Candidate {
+pub struct Candidate {
     /// The keypoint at the cell position (the corner of the free cell where its walls meet; the
     /// occupied cell itself for a convex corner).
     keypoint: Keypoint,
     /// Its walls; `None` for a corner without two perpendicular walls (kept with `min_strength` 0).
     arms: Option<Arms>,
-    /// The cell's middle sample.
+    /// The cell's middle sample, in the whole grid.
     centre: (i32, i32),
+    /// The cell's first sample, in the whole grid.
+    origin: (i32, i32),
+    /// The keypoint's position in whole-grid samples.
+    at: (f64, f64),
 }
 
 /// The candidate of a rule that fired at coarse cell (`k.x`, `k.y`) of `mosaic`: its walls' strength;
 /// `None` below `min_strength`.
 fn score(
     cells: &Cells,
-    grid: &RotatedGrid,
+    window: &Window,
     mosaic: &Mosaic,
     k: Keypoint,
     convex: bool,
     min_strength: u32,
 ) -> Option<Candidate> {
+    let (grid, off) = (&window.grid, window.offset);
     let scale = mosaic.scale;
     let (u, v) = (k.x as i32, k.y as i32);
     // A rule fires only on a free or occupied cell, never in a gutter.
     let (p, q) = mosaic.origin(k.x, k.y)?;
     let c = (grid.box_middle(p, scale, 0), grid.box_middle(q, scale, 1));
+    // Positions in the whole grid, so that every window of a map names a corner alike.
+    let origin = (p + off.0, q + off.1);
+    let shift = |(a, b): (i32, i32)| (a + off.0, b + off.1);
     let arms = if convex {
         convex_arms(cells, u, v)
     } else {
@@ -163,7 +367,9 @@ fn score(
         return (min_strength == 0).then(|| Candidate {
             keypoint: candidate(grid, samples(c), k, scale, convex, 0),
             arms: None,
-            centre: c,
+            centre: shift(c),
+            origin,
+            at: samples(shift(c)),
         });
     };
     // Convex corners count half: most are wall ends and door jambs, which people rarely mark
@@ -188,7 +394,9 @@ fn score(
     Some(Candidate {
         keypoint: candidate(grid, samples(at), k, scale, convex, strength),
         arms: Some(arms),
-        centre: c,
+        centre: shift(c),
+        origin,
+        at: samples(shift(at)),
     })
 }
 
@@ -252,16 +460,6 @@ impl Lattice {
     }
 }
 
-/// [`suppress`] over candidates, keeping their walls.
-fn suppress_candidates(found: Vec<Candidate>, radius: u32, centre2: (i64, i64)) -> Vec<Candidate> {
-    let keys: Vec<Keypoint> = found.iter().map(|c| c.keypoint).collect();
-    let mut slots: Vec<Option<Candidate>> = found.into_iter().map(Some).collect();
-    suppressed_order(&keys, radius, centre2)
-        .into_iter()
-        .filter_map(|i| slots[i].take())
-        .collect()
-}
-
 /// A sample position as a point of the grid's frame.
 fn samples((p, q): (i32, i32)) -> (f64, f64) {
     (f64::from(p), f64::from(q))
@@ -286,96 +484,6 @@ fn candidate(
         score: i64::from(strength),
         scale: scale as u8,
         convex,
-    }
-}
-
-/// Greedy suppression: strongest first, a keypoint is kept unless a kept one lies within `radius` pixels.
-/// Ties go to the larger scale, then to the keypoint nearer the map's centre (`centre2`, in half pixels:
-/// a quarter turn or a mirror of the map about its centre keeps the same order), then (y, x) and the
-/// rest of the keypoint, so the result does not depend on the order found.
-pub fn suppress(found: Vec<Keypoint>, radius: u32, centre2: (i64, i64)) -> Vec<Keypoint> {
-    suppressed_order(&found, radius, centre2)
-        .into_iter()
-        .map(|i| found[i])
-        .collect()
-}
-
-/// [`suppress`] as indices into `found`, strongest first.
-fn suppressed_order(found: &[Keypoint], radius: u32, centre2: (i64, i64)) -> Vec<usize> {
-    let mut order: Vec<usize> = (0..found.len()).collect();
-    let dist = |k: &Keypoint| {
-        let (dx, dy) = (
-            2 * i64::from(k.x) - centre2.0,
-            2 * i64::from(k.y) - centre2.1,
-        );
-        dx * dx + dy * dy
-    };
-    order.par_sort_unstable_by(|&i, &j| {
-        let (a, b) = (&found[i], &found[j]);
-        b.score
-            .cmp(&a.score)
-            .then(b.scale.cmp(&a.scale))
-            .then(dist(a).cmp(&dist(b)))
-            .then(a.cmp(b))
-            .then(i.cmp(&j))
-    });
-    let cell = radius.max(1);
-    let r2 = i64::from(radius) * i64::from(radius);
-    let mut buckets: Buckets = Default::default();
-    let mut kept = Vec::new();
-    for i in order {
-        let k = &found[i];
-        let (bx, by) = (k.x / cell, k.y / cell);
-        let near = (bx.saturating_sub(1)..=bx + 1).any(|x| {
-            (by.saturating_sub(1)..=by + 1).any(|y| {
-                buckets.get(&(x, y)).is_some_and(|v| {
-                    v.iter().any(|&(px, py)| {
-                        let (dx, dy) = (
-                            i64::from(px) - i64::from(k.x),
-                            i64::from(py) - i64::from(k.y),
-                        );
-                        dx * dx + dy * dy <= r2
-                    })
-                })
-            })
-        });
-        if !near {
-            buckets.entry((bx, by)).or_default().push((k.x, k.y));
-            kept.push(i);
-        }
-    }
-    kept
-}
-
-/// Kept keypoints by bucket of `radius` pixels.
-type Buckets = std::collections::HashMap<
-    (u32, u32),
-    Vec<(u32, u32)>,
-    std::hash::BuildHasherDefault<CellHasher>,
->;
-
-/// A multiplicative hasher for bucket coordinates: the keys are small integers, not attacker-chosen,
-/// and SipHash would be most of the suppression's time.
-#[derive(Default)]
-struct CellHasher(u64);
-
-impl std::hash::Hasher for CellHasher {
-    fn finish(&self) -> u64 {
-        self.0
-    }
-
-    fn write(&mut self, bytes: &[u8]) {
-        for &b in bytes {
-            self.write_u64(u64::from(b));
-        }
-    }
-
-    fn write_u32(&mut self, v: u32) {
-        self.write_u64(u64::from(v));
-    }
-
-    fn write_u64(&mut self, v: u64) {
-        self.0 = (self.0.rotate_left(29) ^ v).wrapping_mul(0x9e37_79b9_7f4a_7c15);
     }
 }
 

@@ -8,6 +8,7 @@
 
 use rayon::prelude::*;
 
+use crate::error::Result;
 use crate::fast::bitplanes::{plane_row, words, ValueSet};
 use crate::map::MapImage;
 use crate::states::{CellState, ClassTable};
@@ -27,7 +28,53 @@ const TRIG_BITS: u32 = 20;
 /// about it, and ties are broken symmetrically), so the robust detector samples a turned map on the
 /// turned grid.
 pub fn dominant_angle(image: &MapImage, classes: &ClassTable) -> f64 {
-    let points = boundary_points(image, classes);
+    let mut rows = ImageRows(image);
+    match dominant_angle_of(&mut rows, classes) {
+        Ok(a) => a,
+        Err(_) => unreachable!("a map in memory reads without error"),
+    }
+}
+
+/// [`dominant_angle`] of a map read row by row, twice (once to count its wall boundary, once to take the
+/// subset): the same angle, in memory bounded by [`MAX_POINTS`] whatever the map's size.
+pub fn dominant_angle_of(rows: &mut dyn RowReader, classes: &ClassTable) -> Result<f64> {
+    let points = boundary_points(rows, classes)?;
+    Ok(angle_of_points(&points))
+}
+
+/// A map's rows, read top to bottom in passes.
+pub trait RowReader {
+    /// Width in pixels.
+    fn width(&self) -> usize;
+    /// Height in pixels.
+    fn height(&self) -> usize;
+    /// Row `y`: in one pass, rows 0, 1, 2, ... in turn.
+    fn row(&mut self, y: usize) -> Result<&[u8]>;
+    /// Back to row 0 for another pass.
+    fn rewind(&mut self) -> Result<()>;
+}
+
+/// The rows of a map in memory.
+pub struct ImageRows<'a>(pub &'a MapImage);
+
+impl RowReader for ImageRows<'_> {
+    fn width(&self) -> usize {
+        self.0.width() as usize
+    }
+    fn height(&self) -> usize {
+        self.0.height() as usize
+    }
+    fn row(&mut self, y: usize) -> Result<&[u8]> {
+        let w = self.width();
+        Ok(&self.0.pixels()[y * w..(y + 1) * w])
+    }
+    fn rewind(&mut self) -> Result<()> {
+        Ok(())
+    }
+}
+
+/// The angle of the wall boundary `points` (half pixels about the map's centre).
+fn angle_of_points(points: &[(i32, i32)]) -> f64 {
     if points.is_empty() {
         return 0.0;
     }
@@ -36,14 +83,14 @@ pub fn dominant_angle(image: &MapImage, classes: &ClassTable) -> f64 {
     let coarse: Vec<(i32, u128)> = (-45..45)
         .into_par_iter()
         .map_init(Vec::new, |hist, d| {
-            (d * 10, profile(&points, d * 10, 2, hist))
+            (d * 10, profile(points, d * 10, 2, hist))
         })
         .collect();
     let coarse = best(&coarse).0;
     let fine: Vec<(i32, u128)> = (-10..=10)
         .into_par_iter()
         .map_init(Vec::new, |hist, k| {
-            (coarse + k, profile(&points, coarse + k, 1, hist))
+            (coarse + k, profile(points, coarse + k, 1, hist))
         })
         .collect();
     // A wall of n pixels scores the same over about 1/n radians: take the middle of the plateau of
@@ -119,45 +166,15 @@ fn profile(points: &[(i32, i32)], tenths: i32, bin: i64, hist: &mut Vec<u32>) ->
 
 /// The occupied pixels with a free 4-neighbour, in half pixels about the map's centre; at most about
 /// [`MAX_POINTS`] of them.
-fn boundary_points(image: &MapImage, classes: &ClassTable) -> Vec<(i32, i32)> {
-    let (w, h) = (image.width() as usize, image.height() as usize);
-    let occ = ValueSet::of(classes, &[CellState::Occupied]);
-    let free = ValueSet::of(classes, &[CellState::Free]);
-    let n = words(w);
-    let row = |y: usize| &image.pixels()[y * w..(y + 1) * w];
-    let mut planes = vec![vec![0u64; n]; 4]; // occupied of row y; free of rows y - 1, y, y + 1
-    let mut visit = |f: &mut dyn FnMut(usize, usize)| {
-        for p in planes.iter_mut().skip(1) {
-            p.fill(0);
-        }
-        plane_row(&free, row(0), &mut planes[3]);
-        for y in 0..h {
-            plane_row(&occ, row(y), &mut planes[0]);
-            planes[1..].rotate_left(1);
-            if y + 1 < h {
-                plane_row(&free, row(y + 1), &mut planes[3]);
-            } else {
-                planes[3].fill(0);
-            }
-            let (o, up, mid, down) = (&planes[0], &planes[1], &planes[2], &planes[3]);
-            for k in 0..n {
-                let left = (mid[k] << 1) | if k > 0 { mid[k - 1] >> 63 } else { 0 };
-                let right = (mid[k] >> 1) | if k + 1 < n { mid[k + 1] << 63 } else { 0 };
-                let mut b = o[k] & (up[k] | down[k] | left | right);
-                while b != 0 {
-                    let j = b.trailing_zeros() as usize;
-                    b &= b - 1;
-                    f(k * 64 + j, y);
-                }
-            }
-        }
-    };
+fn boundary_points(rows: &mut dyn RowReader, classes: &ClassTable) -> Result<Vec<(i32, i32)>> {
+    let (w, h) = (rows.width(), rows.height());
     let mut count = 0usize;
-    visit(&mut |_, _| count += 1);
+    visit_boundary(rows, classes, &mut |_, _| count += 1)?;
     let stride = count.div_ceil(MAX_POINTS).max(1) as u64;
     let mut points = Vec::with_capacity(count.min(2 * MAX_POINTS));
     let (cx, cy) = (w as i64 - 1, h as i64 - 1);
-    visit(&mut |x, y| {
+    rows.rewind()?;
+    visit_boundary(rows, classes, &mut |x, y| {
         let (px, py) = (2 * x as i64 - cx, 2 * y as i64 - cy);
         // The same hash for every point of an orbit of the quarter turns and mirrors.
         let (a, b) = (px.unsigned_abs(), py.unsigned_abs());
@@ -165,8 +182,52 @@ fn boundary_points(image: &MapImage, classes: &ClassTable) -> Vec<(i32, i32)> {
         if stride == 1 || key % stride == 0 {
             points.push((px as i32, py as i32));
         }
-    });
-    points
+    })?;
+    Ok(points)
+}
+
+/// Calls `f(x, y)` for every occupied pixel with a free 4-neighbour, row by row, reading each row once.
+fn visit_boundary(
+    rows: &mut dyn RowReader,
+    classes: &ClassTable,
+    f: &mut dyn FnMut(usize, usize),
+) -> Result<()> {
+    let (w, h) = (rows.width(), rows.height());
+    if w == 0 || h == 0 {
+        return Ok(());
+    }
+    let occ = ValueSet::of(classes, &[CellState::Occupied]);
+    let free = ValueSet::of(classes, &[CellState::Free]);
+    let n = words(w);
+    // Occupied of rows y and y + 1; free of rows y - 1, y, y + 1.
+    let (mut o, mut o_next) = (vec![0u64; n], vec![0u64; n]);
+    let mut fr = vec![vec![0u64; n]; 3];
+    let first = rows.row(0)?;
+    plane_row(&occ, first, &mut o_next);
+    plane_row(&free, first, &mut fr[2]);
+    for y in 0..h {
+        std::mem::swap(&mut o, &mut o_next);
+        fr.rotate_left(1);
+        if y + 1 < h {
+            let r = rows.row(y + 1)?;
+            plane_row(&occ, r, &mut o_next);
+            plane_row(&free, r, &mut fr[2]);
+        } else {
+            fr[2].fill(0);
+        }
+        let (up, mid, down) = (&fr[0], &fr[1], &fr[2]);
+        for k in 0..n {
+            let left = (mid[k] << 1) | if k > 0 { mid[k - 1] >> 63 } else { 0 };
+            let right = (mid[k] >> 1) | if k + 1 < n { mid[k + 1] << 63 } else { 0 };
+            let mut b = o[k] & (up[k] | down[k] | left | right);
+            while b != 0 {
+                let j = b.trailing_zeros() as usize;
+                b &= b - 1;
+                f(k * 64 + j, y);
+            }
+        }
+    }
+    Ok(())
 }
 
 #[cfg(test)]

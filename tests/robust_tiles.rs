@@ -1,0 +1,119 @@
+//! The robust detector over a map in tiles of its turned grid (how it runs on maps of any size) finds the
+//! keypoints of the map in memory, bit for bit, whatever the tile size, angle or options.
+
+mod common;
+
+use ogm_corners::fast::FastCpuBackend;
+use ogm_corners::robust::tiles::{detect_tiled, ImageReader, TilePlan};
+use ogm_corners::robust::{self, RobustParams};
+use ogm_corners::{ClassTable, MapImage, OccupancyMap, RuleSet, RuleTable};
+
+/// The in-memory keypoints and the tiled ones, for tiles of `tile` samples.
+fn both(
+    img: &MapImage,
+    classes: &ClassTable,
+    params: &RobustParams,
+    tile: u32,
+) -> (
+    Vec<ogm_corners::Keypoint>,
+    Vec<ogm_corners::Keypoint>,
+    usize,
+) {
+    let rules = RuleTable::new(RuleSet::Paper);
+    let (want, info) = robust::detect(&mut FastCpuBackend, img, classes, &rules, params).unwrap();
+    let plan = TilePlan::with_tile(params, tile).unwrap();
+    let (got, tiled) = detect_tiled(
+        &mut FastCpuBackend,
+        &mut ImageReader::new(img),
+        classes,
+        &rules,
+        params,
+        &plan,
+    )
+    .unwrap();
+    assert_eq!(info, tiled, "the angle and the candidate count");
+    let (gw, gh) = {
+        let g = ogm_corners::grid::RotatedGrid::new(img.width(), img.height(), info.angle).unwrap();
+        (g.width, g.height)
+    };
+    let tiles = (gw.div_ceil(plan.tile) * gh.div_ceil(plan.tile)) as usize;
+    (want, got, tiles)
+}
+
+/// Synthetic floors, square and turned, with small scales so that small tiles have windows smaller than
+/// the map (the halo is 66 cells of the largest scale): tiles of sizes that are and are not multiples of
+/// every scale, so the cells' phases fall differently in every window.
+#[test]
+fn tiles_of_any_size_give_the_keypoints_of_the_whole_map() {
+    let classes = ClassTable::default();
+    let maps = [
+        (common::floor_plan(900, 700, 1), None),
+        (common::floor_plan(700, 900, 2), Some(0.0)),
+        (common::turned_rooms(800, 17.3, 3).0, None),
+        (common::turned_rooms(800, -38.0, 4).0, None),
+        (common::turned_rooms(800, 45.0, 5).0, Some(45.0)),
+    ];
+    for (seed, (img, deg)) in maps.into_iter().enumerate() {
+        let params = RobustParams {
+            min_scale: 2,
+            max_scale: 4,
+            angle: deg,
+            // A wide radius on some maps: chains of suppression cross the tiles' edges.
+            nms_radius: [4, 24][seed % 2],
+            ..RobustParams::default()
+        };
+        for tile in [97, 256, 4096] {
+            let (want, got, tiles) = both(&img, &classes, &params, tile);
+            assert!(want.len() >= 8, "map {seed}: {} keypoints", want.len());
+            assert_eq!(
+                got, want,
+                "map {seed} at {deg:?}, tiles of {tile} ({tiles} tiles)"
+            );
+            if tile < 200 {
+                assert!(tiles >= 16, "{tiles} tiles");
+            }
+        }
+    }
+}
+
+/// The real maps, at the default options (the halo of the largest scale): the same keypoints in tiles of
+/// MIN_TILE samples as in one piece.
+#[test]
+fn real_maps_in_tiles_give_the_keypoints_of_the_whole_map() {
+    let Some(dir) = common::shared_maps() else {
+        return;
+    };
+    let maps = [
+        "turtlebot3/turtlebot3_navigation2/map/map.yaml",
+        "mas_domestic_robotics/mdr_environments/brsu-c069/map.yaml",
+        "mapstitch_data/maps/tiz_02_rotated/map.yaml",
+        "mapstitch_data/maps/hector1_rc15_test_01/map.yaml",
+        "mapstitch_data/maps/tiz_01/map.yaml",
+    ];
+    let mut checked = 0;
+    for rel in maps {
+        let path = dir.join(rel);
+        let map = OccupancyMap::load(&path)
+            .unwrap_or_else(|e| panic!("{} is part of the shared maps: {e}", path.display()));
+        let classes = ClassTable::new(&map.thresholds);
+        let params = RobustParams::default();
+        let (want, got, tiles) = both(&map.image, &classes, &params, 256);
+        assert_eq!(got, want, "{rel} in {tiles} tiles");
+        checked += usize::from(tiles > 1);
+    }
+    assert!(checked >= 3, "{checked} maps were cut into several tiles");
+}
+
+/// A plan from a memory size: the largest tile whose window fits, never below the smallest tile.
+#[test]
+fn a_plan_fits_its_bytes() {
+    let params = RobustParams::default();
+    let plan = TilePlan::with_bytes(&params, 256 << 20).unwrap();
+    assert!(plan.bytes() <= 256 << 20, "{plan:?}");
+    let mut bigger = plan;
+    bigger.tile += 1;
+    assert!(bigger.bytes() > 256 << 20);
+    assert!(plan.tile >= 2000, "{plan:?}");
+    let tiny = TilePlan::with_bytes(&params, 1 << 20).unwrap();
+    assert_eq!(tiny.tile, ogm_corners::robust::tiles::MIN_TILE);
+}
