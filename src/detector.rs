@@ -398,8 +398,8 @@ pub struct Streamed {
     pub robust: Option<RobustInfo>,
 }
 
-/// Working memory of a streamed robust detection's tile window by default: tiles of about 4,800 samples
-/// a side at the default scales (the halo and ring around a tile are about 920 samples, so larger tiles
+/// Working memory of a streamed robust detection's tile window by default: tiles of about 4,600 samples
+/// a side at the default scales (the halo and ring around a tile are about 980 samples, so larger tiles
 /// waste less).
 pub const ROBUST_WINDOW_BYTES: u64 = 512 << 20;
 

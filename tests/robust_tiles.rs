@@ -8,20 +8,28 @@ use ogm_corners::robust::tiles::{detect_tiled, ImageReader, TilePlan};
 use ogm_corners::robust::{self, RobustParams};
 use ogm_corners::{ClassTable, MapImage, OccupancyMap, RuleSet, RuleTable};
 
-/// The in-memory keypoints and the tiled ones, for tiles of `tile` samples.
+/// Keypoints in memory and in tiles, and the tiles' count.
+type Both = (
+    Vec<ogm_corners::Keypoint>,
+    Vec<ogm_corners::Keypoint>,
+    usize,
+);
+
+/// The in-memory keypoints and the tiled ones, for tiles of `tile` samples (and no ring around them when
+/// `ringless`: exact still, with far more corners left open by the windows).
 fn both(
     img: &MapImage,
     classes: &ClassTable,
     params: &RobustParams,
     tile: u32,
-) -> (
-    Vec<ogm_corners::Keypoint>,
-    Vec<ogm_corners::Keypoint>,
-    usize,
-) {
+    ringless: bool,
+) -> Both {
     let rules = RuleTable::new(RuleSet::Paper);
     let (want, info) = robust::detect(&mut FastCpuBackend, img, classes, &rules, params).unwrap();
-    let plan = TilePlan::with_tile(params, tile).unwrap();
+    let mut plan = TilePlan::with_tile(params, tile).unwrap();
+    if ringless {
+        plan.ring = 0;
+    }
     let (got, tiled) = detect_tiled(
         &mut FastCpuBackend,
         &mut ImageReader::new(img),
@@ -62,8 +70,8 @@ fn tiles_of_any_size_give_the_keypoints_of_the_whole_map() {
             nms_radius: [4, 24][seed % 2],
             ..RobustParams::default()
         };
-        for tile in [97, 256, 4096] {
-            let (want, got, tiles) = both(&img, &classes, &params, tile);
+        for (tile, ringless) in [(97, false), (97, true), (256, false), (4096, false)] {
+            let (want, got, tiles) = both(&img, &classes, &params, tile, ringless);
             assert!(want.len() >= 8, "map {seed}: {} keypoints", want.len());
             assert_eq!(
                 got, want,
@@ -97,7 +105,7 @@ fn real_maps_in_tiles_give_the_keypoints_of_the_whole_map() {
             .unwrap_or_else(|e| panic!("{} is part of the shared maps: {e}", path.display()));
         let classes = ClassTable::new(&map.thresholds);
         let params = RobustParams::default();
-        let (want, got, tiles) = both(&map.image, &classes, &params, 256);
+        let (want, got, tiles) = both(&map.image, &classes, &params, 256, false);
         assert_eq!(got, want, "{rel} in {tiles} tiles");
         checked += usize::from(tiles > 1);
     }

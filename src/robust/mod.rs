@@ -88,6 +88,7 @@ pub fn detect(
         owned: Span::ALL,
         trusted: Span::ALL,
         settled: Span::ALL,
+        placed_settled: Span::ALL,
     };
     let (found, candidates) = detect_window(backend, &window, classes, rules, params)?;
     Ok((
@@ -155,6 +156,9 @@ pub struct Window<'a> {
     /// Where a corner's position (whole-grid samples) has every corner within the suppression radius
     /// among the trusted ones.
     pub settled: Span,
+    /// Where a placed corner's position (whole-grid samples) has every placed corner within the radius
+    /// among the trusted ones.
+    pub placed_settled: Span,
 }
 
 /// A corner a window reports: its keypoint at the cell and its cell's middle (whole grid), which the whole
@@ -163,11 +167,12 @@ pub struct Window<'a> {
 pub struct Found {
     keypoint: Keypoint,
     centre: (i32, i32),
-    placed: Keypoint,
+    /// `None` for a corner whose placed position its window knows to be suppressed.
+    placed: Option<Keypoint>,
 }
 
-/// The corners of `window` that the suppression does not rule out for the whole map, placed, and how many
-/// corners its cells had before suppression.
+/// The corners of `window`'s cells that the suppression does not rule out for the whole map, placed, and
+/// how many corners its cells had before suppression.
 pub fn detect_window(
     backend: &mut dyn Backend,
     window: &Window,
@@ -213,46 +218,98 @@ pub fn detect_window(
     // (placing reads dozens of samples a corner); then again on the placed positions ([`finish`]). A
     // corner this window cannot rule out stays, even if another window will.
     let centres = (grid_centre2(grid, window.offset), map_centre2(grid));
+    let radius = params.nms_radius;
     let fates = candidate_fates(
         found.len(),
         |i| (&found[i].keypoint, found[i].centre),
-        params.nms_radius,
+        radius,
         centres,
         &|i| window.settled.contains(found[i].at),
     );
-    let keep: Vec<Candidate> = found
-        .into_iter()
-        .zip(fates)
-        .filter(|(c, f)| *f != Fate::Suppressed && window.owned.contains(whole(c.origin)))
-        .map(|(c, _)| c)
-        .collect();
     crate::stop::check()?;
+    // The survivors are placed, those of the ring too: the suppression on the placed positions is then
+    // decided here as well where it can be, so that the window reports about one corner a keypoint.
+    let survivors: Vec<usize> = (0..found.len())
+        .filter(|&i| fates[i] != Fate::Suppressed)
+        .collect();
     let sampler = Sampler {
         image,
         classes,
         grid,
         wall_gap: params.wall_gap as i32,
     };
-    let placed = keep
-        .into_par_iter()
-        .map(|c| {
+    let off = window.offset;
+    let placed: Vec<(Keypoint, (f64, f64))> = survivors
+        .par_iter()
+        .map(|&i| {
+            let c = &found[i];
             let k = c.keypoint;
-            let placed = match c.arms {
+            match c.arms {
                 Some(arms) => {
-                    let centre = (c.centre.0 - window.offset.0, c.centre.1 - window.offset.1);
+                    let centre = (c.centre.0 - off.0, c.centre.1 - off.1);
                     let at = sampler.place(centre, &arms, k.convex, i32::from(k.scale));
-                    candidate(grid, at, k, u32::from(k.scale), k.convex, k.score as u32)
+                    let p = candidate(grid, at, k, u32::from(k.scale), k.convex, k.score as u32);
+                    (p, (at.0 + f64::from(off.0), at.1 + f64::from(off.1)))
                 }
-                None => k,
-            };
-            Found {
-                keypoint: c.keypoint,
-                centre: c.centre,
-                placed,
+                None => (k, c.at),
             }
         })
         .collect();
-    Ok((placed, owned))
+    // A placed corner is settled when every placed corner within the radius comes from the trusted cells
+    // and survived their suppression for sure; near the map's edges, where positions are clamped, never.
+    let (w, h) = grid.full_size;
+    let edge = i64::from(radius) + 3;
+    let inland = |k: &Keypoint| {
+        let inside = |v: u32, n: u32| i64::from(v) >= edge && i64::from(v) + edge < i64::from(n);
+        inside(k.x, w) && inside(k.y, h)
+    };
+    let fates2 = suppress::fates(
+        placed.len(),
+        |j| &placed[j].0,
+        radius,
+        centres.1,
+        &|j| {
+            fates[survivors[j]] == Fate::Kept
+                && window.placed_settled.contains(placed[j].1)
+                && inland(&placed[j].0)
+        },
+        // Corners placed on the same keypoint are ordered by their cells, as every window orders them
+        // (by the order found, two windows could each keep the corner the other one reports).
+        &|a, b| {
+            let (x, y) = (&found[survivors[a]], &found[survivors[b]]);
+            x.keypoint
+                .cmp(&y.keypoint)
+                .then_with(|| centre_key(x.centre, centres.0).cmp(&centre_key(y.centre, centres.0)))
+        },
+    );
+    // A corner suppressed for sure on its placed position still suppresses on its cell position in the
+    // whole map's first suppression: reported without a position where a corner of another window's
+    // cells lies within the radius (whose window may not have seen it suppressed), or where its own first
+    // fate is open.
+    let mut foreign = suppress::Near::new(radius);
+    for c in &found {
+        if !window.owned.contains(whole(c.origin)) {
+            foreign.add(&c.keypoint);
+        }
+    }
+    let mut out = Vec::new();
+    for (j, &i) in survivors.iter().enumerate() {
+        let c = &found[i];
+        if !window.owned.contains(whole(c.origin)) {
+            continue;
+        }
+        let placed = match (fates[i], fates2[j]) {
+            (Fate::Kept, Fate::Suppressed) if !foreign.any(&c.keypoint) => continue,
+            (_, Fate::Suppressed) => None,
+            _ => Some(placed[j].0),
+        };
+        out.push(Found {
+            keypoint: c.keypoint,
+            centre: c.centre,
+            placed,
+        });
+    }
+    Ok((out, owned))
 }
 
 /// The keypoints of the corners every window of a map reported ([`detect_window`]), in (y, x) order:
@@ -271,7 +328,7 @@ pub fn finish(found: Vec<Found>, radius: u32, grid: &RotatedGrid) -> Vec<Keypoin
         .iter()
         .zip(fates)
         .filter(|(_, f)| *f == Fate::Kept)
-        .map(|(f, _)| f.placed)
+        .filter_map(|(f, _)| f.placed)
         .collect();
     let mut kept = suppress(placed, radius, centre2);
     kept.sort_unstable();
@@ -306,17 +363,19 @@ fn candidate_fates<'a>(
     (grid_c2, map_c2): ((i64, i64), (i64, i64)),
     settled: &(dyn Fn(usize) -> bool + Sync),
 ) -> Vec<Fate> {
-    let centre_key = |i: usize| {
-        let c = corner(i).1;
-        let (dp, dq) = (
-            2 * i64::from(c.0) - grid_c2.0,
-            2 * i64::from(c.1) - grid_c2.1,
-        );
-        (dp * dp + dq * dq, c.1, c.0)
-    };
     suppress::fates(n, |i| corner(i).0, radius, map_c2, settled, &|i, j| {
-        centre_key(i).cmp(&centre_key(j))
+        centre_key(corner(i).1, grid_c2).cmp(&centre_key(corner(j).1, grid_c2))
     })
+}
+
+/// The order of a cell's middle `c` (whole grid) among corners equal as keypoints: nearer the grid's
+/// centre `grid_c2` (half samples) first, then by position; the same in every window.
+fn centre_key(c: (i32, i32), grid_c2: (i64, i64)) -> (i64, i32, i32) {
+    let (dp, dq) = (
+        2 * i64::from(c.0) - grid_c2.0,
+        2 * i64::from(c.1) - grid_c2.1,
+    );
+    (dp * dp + dq * dq, c.1, c.0)
 }
 
 /// A whole-grid sample position as a point.

@@ -104,14 +104,14 @@ fn strongest_first<'a>(
 }
 
 /// Keypoints by bucket of the radius, to find those within it of a point.
-struct Near {
+pub(super) struct Near {
     cell: u32,
     r2: i64,
     buckets: Buckets,
 }
 
 impl Near {
-    fn new(radius: u32) -> Self {
+    pub(super) fn new(radius: u32) -> Self {
         Near {
             cell: radius.max(1),
             r2: i64::from(radius) * i64::from(radius),
@@ -119,7 +119,8 @@ impl Near {
         }
     }
 
-    fn any(&self, k: &Keypoint) -> bool {
+    /// Whether a keypoint added lies within the radius of `k`.
+    pub(super) fn any(&self, k: &Keypoint) -> bool {
         if self.buckets.is_empty() {
             return false;
         }
@@ -139,7 +140,8 @@ impl Near {
         })
     }
 
-    fn add(&mut self, k: &Keypoint) {
+    /// Adds `k`.
+    pub(super) fn add(&mut self, k: &Keypoint) {
         self.buckets
             .entry((k.x / self.cell, k.y / self.cell))
             .or_default()

@@ -50,6 +50,9 @@ pub struct TilePlan {
     pub halo: u32,
     /// How far inside the measured cells a corner must lie to have all its neighbours in view.
     pub settle: u32,
+    /// How far inside the measured cells a placed corner must lie to have all its placed neighbours in
+    /// view.
+    pub placed_settle: u32,
     /// Samples beyond the window its crop covers (the coarsening reads past a window's last cell).
     pub margin: u32,
     /// Coarse maps a window holds (the scales).
@@ -86,8 +89,14 @@ impl TilePlan {
         // to pixels and the fixed-point turn move it by under 2 more. A corner `settle` inside the measured
         // cells has none unseen within the radius.
         let settle = top + r + 2 * (3 * top + 2) + 3;
-        // Every tile's corner settled, and chains of suppression a few radii long decided in view.
-        let ring = settle + top + 2 * r + 8;
+        // Placing moves a corner at most 3 `top` + 2 from its cell's middle (itself within `top` of the
+        // cell's first sample), then twice by at most 15 at the canonical scale. Placed corners are settled
+        // only away from the map's edges (where clamping moves them), so no clamping slack here.
+        let drift = 4 * top + 32;
+        let placed_settle = drift + r + 5;
+        // Every tile's corner settled, placed or not, and chains of suppression a few radii long decided
+        // in view.
+        let ring = (settle + top).max(placed_settle + drift) + 2 * r + 8;
         // A cell's walls run up to MAX_ARM_CELLS cells, one cell off its side, and its box `top` further.
         let halo = (MAX_ARM_CELLS as u32 + 2) * top + 4;
         Ok(TilePlan {
@@ -95,6 +104,7 @@ impl TilePlan {
             ring,
             halo,
             settle,
+            placed_settle,
             margin: 3 * top + 4,
             scales: scales.len() as u32,
         })
@@ -315,6 +325,7 @@ pub fn detect_tiled(
             };
             let trusted = owned.grown(i64::from(plan.ring));
             let settled = trusted.grown(-i64::from(plan.settle));
+            let placed_settled = trusted.grown(-i64::from(plan.placed_settle));
             // The window, clipped to the grid (beyond it every sample is outside the map).
             let (p0, p1) = ((i * t - reach).max(0), ((i + 1) * t + reach).min(gw));
             let (q0, q1) = ((j * t - reach).max(0), ((j + 1) * t + reach).min(gh));
@@ -341,6 +352,7 @@ pub fn detect_tiled(
                 owned,
                 trusted,
                 settled,
+                placed_settled,
             };
             let (f, n) = detect_window(backend, &window, classes, rules, params)?;
             lists.push(f);
