@@ -667,8 +667,9 @@ fn robust_tiles_on_the_gpu_match_the_whole_map_on_the_cpu() {
         ..RobustParams::default()
     };
     let want = robust::detect(&mut CpuBackend, &img, &classes, &rules, &params).unwrap();
-    let plan = TilePlan::with_tile(&params, 100).unwrap();
-    assert!(plan.window_side() < 700, "{plan:?}");
+    let plan = TilePlan::with_tile(&params, 60).unwrap();
+    // Windows smaller than the turned grid (about 900 samples a side here): crops of the map.
+    assert!(plan.window_side() < 750, "{plan:?}");
     let got = detect_tiled(
         &mut gpu,
         &mut ImageReader::new(&img),
