@@ -186,6 +186,8 @@ impl Detector {
             use crate::robust::tiles::{detect_tiled, Spill};
             let params = self.options.robust;
             let plan = self.tile_plan()?;
+            // A map the turned grid cannot hold is refused before its rows are copied.
+            crate::grid::RotatedGrid::new(w, h, 0.0)?;
             let (mut spill, warnings) = Spill::from_source(source, on_rows)?;
             let (found, info) = detect_tiled(
                 &mut *self.backend,

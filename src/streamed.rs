@@ -36,8 +36,8 @@ pub fn check_streamed_budget(
     // of half the limit: the corners its windows report come on top (about one a keypoint, 56 bytes, and
     // as much again for the whole map's suppression at the end: 290 thousand on a 30000^2 office map),
     // with the allocator's slack.
-    if detector.options().detector == DetectorKind::OgmRobust && need(detector) > budget.limit() {
-        let window = detector.window_bytes();
+    if detector.options().detector == DetectorKind::OgmRobust {
+        let window = detector.window_bytes().max(1);
         let others = need(detector).saturating_sub(window.min(need(detector)));
         let room = (budget.limit() / 2).saturating_sub(others);
         detector.set_window_bytes(Some(room.clamp(1, window)));

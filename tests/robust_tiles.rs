@@ -125,3 +125,39 @@ fn a_plan_fits_its_bytes() {
     let tiny = TilePlan::with_bytes(&params, 1 << 20).unwrap();
     assert_eq!(tiny.tile, ogm_corners::robust::tiles::MIN_TILE);
 }
+
+/// Two cells of an even scale share a middle sample beside the grid's centre; when a tile's edge falls
+/// between them and both fire on the same keypoint, each window must order them alike (by their first
+/// samples), or each keeps the twin the other one reports and the corner is lost. A room's corner on the
+/// centre column, tiles whose edges fall there.
+#[test]
+fn twin_cells_on_the_centre_column_split_by_a_tile_edge_keep_their_corner() {
+    use ogm_corners::grid::RotatedGrid;
+    let (w, h, y0, s, arm) = (625u32, 360u32, 40u32, 2i32, 200u32);
+    let g = RotatedGrid::new(w, h, 0.0).unwrap();
+    assert_eq!(g.centre2.0 % 2, 0);
+    let pc = (g.centre2.0 / 2) as i32;
+    let xf = g.source(pc - s / 2, 0).0 as u32; // the room's first free column
+    let mut px = vec![205u8; (w * h) as usize];
+    for y in (y0 - 2)..(y0 + arm) {
+        for x in (xf - 2)..(xf + arm) {
+            px[(y * w + x) as usize] = if x < xf || y < y0 { 0 } else { 254 };
+        }
+    }
+    let img = MapImage::new(w, h, px).unwrap();
+    let classes = ClassTable::default();
+    let params = RobustParams {
+        min_scale: 2,
+        max_scale: 2,
+        angle: Some(0.0),
+        ..RobustParams::default()
+    };
+    let mut split = 0;
+    for tile in (20..pc).filter(|t| pc % t == 0) {
+        let (want, got, _) = both(&img, &classes, &params, tile as u32, false);
+        assert!(!want.is_empty());
+        assert_eq!(got, want, "tiles of {tile}");
+        split += 1;
+    }
+    assert!(split >= 3, "{split} tilings");
+}

@@ -167,6 +167,8 @@ pub struct Window<'a> {
 pub struct Found {
     keypoint: Keypoint,
     centre: (i32, i32),
+    /// The cell's first sample (whole grid): two cells can share a middle, never a first sample.
+    origin: (i32, i32),
     /// `None` for a corner whose placed position its window knows to be suppressed.
     placed: Option<Keypoint>,
 }
@@ -221,7 +223,7 @@ pub fn detect_window(
     let radius = params.nms_radius;
     let fates = candidate_fates(
         found.len(),
-        |i| (&found[i].keypoint, found[i].centre),
+        |i| (&found[i].keypoint, found[i].centre, found[i].origin),
         radius,
         centres,
         &|i| window.settled.contains(found[i].at),
@@ -277,9 +279,10 @@ pub fn detect_window(
         // (by the order found, two windows could each keep the corner the other one reports).
         &|a, b| {
             let (x, y) = (&found[survivors[a]], &found[survivors[b]]);
-            x.keypoint
-                .cmp(&y.keypoint)
-                .then_with(|| centre_key(x.centre, centres.0).cmp(&centre_key(y.centre, centres.0)))
+            x.keypoint.cmp(&y.keypoint).then_with(|| {
+                cell_key(x.centre, x.origin, centres.0)
+                    .cmp(&cell_key(y.centre, y.origin, centres.0))
+            })
         },
     );
     // A corner suppressed for sure on its placed position still suppresses on its cell position in the
@@ -306,6 +309,7 @@ pub fn detect_window(
         out.push(Found {
             keypoint: c.keypoint,
             centre: c.centre,
+            origin: c.origin,
             placed,
         });
     }
@@ -319,7 +323,7 @@ pub fn finish(found: Vec<Found>, radius: u32, grid: &RotatedGrid) -> Vec<Keypoin
     let centre2 = map_centre2(grid);
     let fates = candidate_fates(
         found.len(),
-        |i| (&found[i].keypoint, found[i].centre),
+        |i| (&found[i].keypoint, found[i].centre, found[i].origin),
         radius,
         (grid.centre2, centre2),
         &|_| true,
@@ -358,24 +362,27 @@ fn grid_centre2(grid: &RotatedGrid, offset: (i32, i32)) -> (i64, i64) {
 /// alike.
 fn candidate_fates<'a>(
     n: usize,
-    corner: impl Fn(usize) -> (&'a Keypoint, (i32, i32)) + Sync,
+    corner: impl Fn(usize) -> (&'a Keypoint, (i32, i32), (i32, i32)) + Sync,
     radius: u32,
     (grid_c2, map_c2): ((i64, i64), (i64, i64)),
     settled: &(dyn Fn(usize) -> bool + Sync),
 ) -> Vec<Fate> {
     suppress::fates(n, |i| corner(i).0, radius, map_c2, settled, &|i, j| {
-        centre_key(corner(i).1, grid_c2).cmp(&centre_key(corner(j).1, grid_c2))
+        let (a, b) = (corner(i), corner(j));
+        cell_key(a.1, a.2, grid_c2).cmp(&cell_key(b.1, b.2, grid_c2))
     })
 }
 
-/// The order of a cell's middle `c` (whole grid) among corners equal as keypoints: nearer the grid's
-/// centre `grid_c2` (half samples) first, then by position; the same in every window.
-fn centre_key(c: (i32, i32), grid_c2: (i64, i64)) -> (i64, i32, i32) {
+/// The order of a cell (its middle `c` and first sample `o`, whole grid) among corners equal as keypoints:
+/// middle nearer the grid's centre `grid_c2` (half samples) first, then by the middle's position, then by
+/// the first sample's (two cells of an even scale share a middle beside the centre); the same in every
+/// window, and no two cells of one scale tie.
+fn cell_key(c: (i32, i32), o: (i32, i32), grid_c2: (i64, i64)) -> (i64, i32, i32, i32, i32) {
     let (dp, dq) = (
         2 * i64::from(c.0) - grid_c2.0,
         2 * i64::from(c.1) - grid_c2.1,
     );
-    (dp * dp + dq * dq, c.1, c.0)
+    (dp * dp + dq * dq, c.1, c.0, o.1, o.0)
 }
 
 /// A whole-grid sample position as a point.
