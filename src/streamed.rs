@@ -33,7 +33,7 @@ pub fn check_streamed_budget(
     };
     // A tight limit gets smaller windows (down to a megabyte, or the fewest rows), not a refusal: the
     // keypoints are the same for every window size. The robust detector's tile window takes what is left
-    // of half the limit: the corners its windows report come on top (about one a keypoint, 56 bytes, and
+    // of half the limit: the corners its windows report come on top (about one a keypoint, 64 bytes, and
     // as much again for the whole map's suppression at the end: 290 thousand on a 30000^2 office map),
     // with the allocator's slack.
     if detector.options().detector == DetectorKind::OgmRobust {
