@@ -17,7 +17,7 @@
 //! on every backend, bit for bit.
 //!
 //! Steps 2-4 run in a [`Window`] of the turned grid: the whole grid for a map in memory, or the tiles of a
-//! map of any size ([`tiles`]), whose suppression ([`suppress`]) decides in each window what it can and
+//! map of any size ([`tiles`]), whose suppression ([`mod@suppress`]) decides in each window what it can and
 //! leaves the rest to the whole map's, with the same keypoints.
 
 pub mod corners;

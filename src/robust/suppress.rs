@@ -1,5 +1,5 @@
 //! Greedy suppression of the robust detector's corners: strongest first, a corner is kept unless a kept
-//! one lies within the radius. In one window of a map ([`Settled`]) it is decided exactly for the corners
+//! one lies within the radius. In one window of a map ([`fates`]) it is decided exactly for the corners
 //! whose stronger neighbours are all in view, and left open for the others.
 //!
 //! Whatever order the corners come in, the order of strength is total (ties: the larger scale, then the
