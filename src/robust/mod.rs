@@ -205,7 +205,7 @@ pub fn detect_window(
                 .par_iter()
                 .filter_map(|&k| {
                     let c = score(&cells, window, &mosaic, k, convex, params.min_strength)?;
-                    window.trusted.contains(whole(c.origin)).then_some(c)
+                    window.trusted.contains(samples(c.origin)).then_some(c)
                 })
                 .collect();
             found.extend(scored);
@@ -214,7 +214,7 @@ pub fn detect_window(
     drop(coarse);
     let owned = found
         .iter()
-        .filter(|c| window.owned.contains(whole(c.origin)))
+        .filter(|c| window.owned.contains(samples(c.origin)))
         .count();
     // Suppression on the cell positions first, so only the survivors are placed on the map's pixels
     // (placing reads dozens of samples a corner); then again on the placed positions ([`finish`]). A
@@ -291,14 +291,14 @@ pub fn detect_window(
     // fate is open.
     let mut foreign = suppress::Near::new(radius);
     for c in &found {
-        if !window.owned.contains(whole(c.origin)) {
+        if !window.owned.contains(samples(c.origin)) {
             foreign.add(&c.keypoint);
         }
     }
     let mut out = Vec::new();
     for (j, &i) in survivors.iter().enumerate() {
         let c = &found[i];
-        if !window.owned.contains(whole(c.origin)) {
+        if !window.owned.contains(samples(c.origin)) {
             continue;
         }
         let placed = match (fates[i], fates2[j]) {
@@ -383,11 +383,6 @@ fn cell_key(c: (i32, i32), o: (i32, i32), grid_c2: (i64, i64)) -> (i64, i32, i32
         2 * i64::from(c.1) - grid_c2.1,
     );
     (dp * dp + dq * dq, c.1, c.0, o.1, o.0)
-}
-
-/// A whole-grid sample position as a point.
-fn whole((p, q): (i32, i32)) -> (f64, f64) {
-    (f64::from(p), f64::from(q))
 }
 
 /// A corner found on a coarse map, at its cell's position, before it is placed on the map's pixels.
