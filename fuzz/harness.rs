@@ -151,6 +151,13 @@ pub fn detect(data: &[u8]) {
         min_strength: u32::from(p3 % 5),
         convex: flags & 4 != 0,
         angle: (flags & 8 != 0).then_some(f64::from(*p0) - 128.0),
+        // Anchors near the map, far off it, and past the farthest allowed (refused).
+        anchor: match flags >> 6 {
+            0 => ogm_corners::robust::Anchor::World,
+            1 => ogm_corners::robust::Anchor::Centre,
+            2 => ogm_corners::robust::Anchor::Point(f64::from(*p1) / 3.0 - 20.0, f64::from(*p2)),
+            _ => ogm_corners::robust::Anchor::Point(f64::from(*p3) * 8192.0 - 1e6, -3.5),
+        },
         // Shares of 0 to 104 percent and gaps of 0 to 69: the out-of-range ones must be refused.
         cells: ogm_corners::cpu::coarsen::CellRule {
             occupied_pct: u32::from(*p1 % 105),

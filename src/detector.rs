@@ -5,8 +5,8 @@ use crate::baselines::streamed::CandidateList;
 use crate::baselines::Candidate;
 use crate::error::{Error, Result};
 use crate::fast::FastCpuBackend;
-use crate::map::{MapImage, OccupancyMap, Thresholds};
-use crate::robust::RobustInfo;
+use crate::map::{GeoRef, MapImage, OccupancyMap, Thresholds};
+use crate::robust::{RobustInfo, RobustParams};
 use crate::rules::RuleTable;
 use crate::states::ClassTable;
 use crate::stream::{for_each_window, RowSource, Rows, Window, WindowPlan};
@@ -83,14 +83,17 @@ impl Detector {
         self.backend.working_bytes(options, width, height)
     }
 
-    /// Detects corners in a loaded map, with the map's own thresholds.
+    /// Detects corners in a loaded map, with the map's own thresholds; the robust detector's grid is
+    /// anchored at the map's world origin where it has one ([`crate::robust::Anchor::World`]).
     pub fn detect(&mut self, map: &OccupancyMap) -> Result<Detection> {
-        self.detect_image(&map.image, &map.thresholds)
+        let classes = ClassTable::new(&map.thresholds);
+        self.detect_as(&map.image, &classes, false, map.georef.as_ref())
     }
 
-    /// Detects corners in an image, reading its pixels with `thresholds`.
+    /// Detects corners in an image, reading its pixels with `thresholds` (no world frame: the robust
+    /// detector's grid is anchored at the image's centre unless its options name a point).
     pub fn detect_image(&mut self, image: &MapImage, thresholds: &Thresholds) -> Result<Detection> {
-        self.detect_as(image, &ClassTable::new(thresholds), false)
+        self.detect_as(image, &ClassTable::new(thresholds), false, None)
     }
 
     /// Detects corners in an image whose values `classes` reads, such as `nav_msgs/OccupancyGrid` cells
@@ -101,15 +104,17 @@ impl Detector {
         image: &MapImage,
         classes: &ClassTable,
     ) -> Result<Detection> {
-        self.detect_as(image, classes, true)
+        self.detect_as(image, classes, true, None)
     }
 
-    /// The detection; `redraw`: the baselines read the states' grey levels, not the image's values.
+    /// The detection; `redraw`: the baselines read the states' grey levels, not the image's values;
+    /// `frame`: where the map lies in the world, if known.
     fn detect_as(
         &mut self,
         image: &MapImage,
         classes: &ClassTable,
         redraw: bool,
+        frame: Option<&GeoRef>,
     ) -> Result<Detection> {
         let (w, h) = (image.width(), image.height());
         let mut robust = None;
@@ -120,7 +125,7 @@ impl Detector {
                     image,
                     classes,
                     &self.rules,
-                    &self.options.robust,
+                    &robust_in_frame(&self.options.robust, frame, h),
                 )?;
                 robust = Some(info);
                 match self.options.max_corners {
@@ -174,17 +179,21 @@ impl Detector {
     /// file and works in tiles of its turned grid ([`crate::robust::tiles`]): memory bounded by one tile's
     /// window (and the corners no window could rule out); its keypoints come at the end. `on_rows` sees
     /// the rows as they are read.
+    ///
+    /// `frame` is where the map lies in the world, if known: the robust detector's grid is anchored at its
+    /// origin ([`crate::robust::Anchor::World`]), as [`Detector::detect`] anchors it.
     pub fn detect_streamed(
         &mut self,
         source: &mut dyn RowSource,
         classes: &ClassTable,
+        frame: Option<&GeoRef>,
         sink: &mut dyn FnMut(&[Keypoint]) -> Result<()>,
         on_rows: &mut dyn FnMut(Rows, (usize, usize)),
     ) -> Result<Streamed> {
         let (w, h) = (source.width(), source.height());
         if self.options.detector == DetectorKind::OgmRobust {
             use crate::robust::tiles::{detect_tiled, Spill};
-            let params = self.options.robust;
+            let params = robust_in_frame(&self.options.robust, frame, h);
             let plan = self.tile_plan()?;
             // A map the turned grid cannot hold is refused before its rows are copied.
             crate::grid::RotatedGrid::new(w, h, 0.0)?;
@@ -398,6 +407,11 @@ pub struct Streamed {
     pub warnings: Vec<String>,
     /// What the robust detector measured (its grid angle); `None` for the other detectors.
     pub robust: Option<RobustInfo>,
+}
+
+/// The robust detector's options for a map `height` pixels high that lies in the world at `frame`.
+fn robust_in_frame(params: &RobustParams, frame: Option<&GeoRef>, height: u32) -> RobustParams {
+    params.in_frame(frame.map(|g| g.world_to_point((0.0, 0.0), height)))
 }
 
 /// Working memory of a streamed robust detection's tile window by default: tiles of about 4,600 samples

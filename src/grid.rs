@@ -6,13 +6,15 @@
 //! cosine and sine are fixed-point integers with [`FRAC_BITS`] fraction bits, and sample (p, q) reads map
 //! pixel `((ox + p cos - q sin + h) >> F, (oy + p sin + q cos + h) >> F)` with `h = 2^(F-1)` (rounding
 //! to the nearest pixel centre; a sample exactly half-way between two pixels reads the one nearer the
-//! map's centre, so that a turned or mirrored map is sampled as the turned or mirrored grid). Every
+//! grid's anchor, so that a turned or mirrored map is sampled as the turned or mirrored grid). Every
 //! intermediate fits an `i32` (WGSL has no 64-bit integers by default) for maps up to [`MAX_SIDE`] pixels
 //! a side.
 //!
-//! The grid is anchored at the map's centre, so a quarter turn or a mirror of the map turns or mirrors
-//! its samples exactly (the sample lattice maps onto itself); at angle 0 it is anchored half a pixel off
-//! the centre of an even side instead, so that every sample is a pixel and none is a tie.
+//! The grid is anchored at a point of the map, its centre by default, so a quarter turn or a mirror of the
+//! map turns or mirrors its samples exactly (the sample lattice maps onto itself); at angle 0 it is
+//! anchored on the pixel centre at or before the anchor instead, so that every sample is a pixel and none
+//! is a tie. Anchored at a point fixed in the world (the map frame's origin), the samples of a crop of the
+//! map, or of the map grown by more rows and columns, are those of the map where both see it.
 
 use crate::error::{Error, Result};
 
@@ -22,6 +24,10 @@ pub const FRAC_BITS: u32 = 10;
 
 /// Largest map width or height the rotated grid handles: `ox + p cos - q sin` stays below 2^31.
 pub const MAX_SIDE: u32 = 1 << 18;
+
+/// Farthest the grid's anchor may lie from the map's pixel (0, 0), pixels along each axis: its fixed-point
+/// coordinates stay in an `i32`.
+pub const MAX_ANCHOR: u32 = 1 << 20;
 
 const ONE: i32 = 1 << FRAC_BITS;
 const HALF: i32 = 1 << (FRAC_BITS - 1);
@@ -56,13 +62,16 @@ pub struct RotatedGrid {
     pub ox: i32,
     /// Map y of sample (0, 0), fixed point.
     pub oy: i32,
-    /// Map x of the map's centre, fixed point: ties round towards it.
+    /// Map x of the anchor (the map's centre by default), fixed point: ties round towards it.
     pub cx: i32,
-    /// Map y of the map's centre, fixed point.
+    /// Map y of the anchor, fixed point.
     pub cy: i32,
-    /// The map's centre in the grid's frame, in half samples: a position half-way between two samples
-    /// is rounded towards it ([`RotatedGrid::round_sample`]), so a turned map rounds as the turned grid.
+    /// The anchor in the grid's frame, in half samples: a position half-way between two samples is
+    /// rounded towards it ([`RotatedGrid::round_sample`]), so a turned map rounds as the turned grid.
     pub centre2: (i64, i64),
+    /// The anchor in the whole map's pixels, in half pixels (pixel centres at even values): ties between
+    /// keypoints go to the one nearer it.
+    pub anchor2: (i64, i64),
     /// Samples per grid row.
     pub width: u32,
     /// Grid rows.
@@ -79,8 +88,32 @@ pub struct RotatedGrid {
 
 impl RotatedGrid {
     /// The grid turned by `degrees` (a positive angle turns clockwise on screen, since y points down),
-    /// centred on a `map_width` x `map_height` map with a margin of two samples around it.
+    /// anchored at the centre of a `map_width` x `map_height` map, covering it with a margin of two samples.
     pub fn new(map_width: u32, map_height: u32, degrees: f64) -> Result<Self> {
+        Self::anchored(
+            map_width,
+            map_height,
+            degrees,
+            (i64::from(map_width) - 1, i64::from(map_height) - 1),
+        )
+    }
+
+    /// [`RotatedGrid::new`] anchored at `anchor2` (map pixels, in half pixels: pixel centres at even
+    /// values) instead of the map's centre, at most [`MAX_ANCHOR`] pixels from the map's pixel (0, 0).
+    pub fn anchored(
+        map_width: u32,
+        map_height: u32,
+        degrees: f64,
+        anchor2: (i64, i64),
+    ) -> Result<Self> {
+        let far = 2 * i64::from(MAX_ANCHOR);
+        if anchor2.0.abs() > far || anchor2.1.abs() > far {
+            return Err(Error::invalid(format!(
+                "the grid's anchor ({}, {}) is more than {MAX_ANCHOR} pixels from the map",
+                anchor2.0 as f64 / 2.0,
+                anchor2.1 as f64 / 2.0
+            )));
+        }
         if map_width > MAX_SIDE || map_height > MAX_SIDE {
             return Err(Error::invalid(format!(
                 "the robust detector handles maps up to {MAX_SIDE} pixels a side; this one is \
@@ -100,12 +133,11 @@ impl RotatedGrid {
             f64::from(sin) / f64::from(ONE),
         );
         let det = c * c + s * s;
-        let (xc, yc) = (
-            (f64::from(map_width) - 1.0) / 2.0,
-            (f64::from(map_height) - 1.0) / 2.0,
-        );
-        // The map's corners in the grid's frame (the inverse of [[c, -s], [s, c]]), about its centre.
-        let (mut pmin, mut pmax, mut qmin, mut qmax) = (0f64, 0f64, 0f64, 0f64);
+        let (xc, yc) = (anchor2.0 as f64 / 2.0, anchor2.1 as f64 / 2.0);
+        // The map's corners in the grid's frame (the inverse of [[c, -s], [s, c]]), about the anchor.
+        // The map alone, not the anchor, which may lie far off it.
+        let (mut pmin, mut pmax) = (f64::INFINITY, f64::NEG_INFINITY);
+        let (mut qmin, mut qmax) = (f64::INFINITY, f64::NEG_INFINITY);
         for (x, y) in [
             (-0.5, -0.5),
             (f64::from(map_width) - 0.5, -0.5),
@@ -123,12 +155,12 @@ impl RotatedGrid {
         let (p0, q0) = (pmin.floor() as i64 - 2, qmin.floor() as i64 - 2);
         let width = (pmax.ceil() as i64 + 2 - p0 + 1) as u32;
         let height = (qmax.ceil() as i64 + 2 - q0 + 1) as u32;
-        // Centre in fixed point is exact: (W - 1) / 2 * 2^F.
-        let xcf = (i64::from(map_width) - 1) << (FRAC_BITS - 1);
-        let ycf = (i64::from(map_height) - 1) << (FRAC_BITS - 1);
+        // The anchor in fixed point is exact: a whole number of half pixels.
+        let xcf = anchor2.0 << (FRAC_BITS - 1);
+        let ycf = anchor2.1 << (FRAC_BITS - 1);
         // At angle 0 the lattice sits on pixel centres (half a pixel off an even side's centre), so no
-        // sample is a tie; at any other angle it is anchored at the centre itself, which a quarter turn
-        // or a mirror maps onto itself.
+        // sample is a tie; at any other angle it is anchored at the anchor itself, which a quarter turn
+        // or a mirror about it maps onto itself.
         let (ax, ay) = if sin == 0 && cos == ONE {
             (xcf & !i64::from(ONE - 1), ycf & !i64::from(ONE - 1))
         } else {
@@ -138,7 +170,7 @@ impl RotatedGrid {
         let oy = ay + p0 * i64::from(sin) + q0 * i64::from(cos);
         let fixed =
             |v: i64| i32::try_from(v).map_err(|_| Error::Internal("grid origin overflows".into()));
-        // The centre is sample (-p0, -q0), or half a sample further where the lattice sits off it.
+        // The anchor is sample (-p0, -q0), or half a sample further where the lattice sits off it.
         let off = |c: i64, a: i64| i64::from(c != a);
         let centre2 = (-2 * p0 + off(xcf, ax), -2 * q0 + off(ycf, ay));
         Ok(RotatedGrid {
@@ -149,6 +181,7 @@ impl RotatedGrid {
             cx: fixed(xcf)?,
             cy: fixed(ycf)?,
             centre2,
+            anchor2,
             width,
             height,
             map_width,
@@ -161,7 +194,7 @@ impl RotatedGrid {
     /// The samples `offset.0..offset.0 + width`, `offset.1..offset.1 + height` of this grid as a grid of
     /// their own, reading the crop of the map whose top-left pixel is `crop.0`, `crop.1` and whose size is
     /// `crop.2` x `crop.3`. Its samples are this grid's, bit for bit (the fixed-point origin moves by whole
-    /// samples and whole pixels; ties still round towards the whole map's centre), wherever the crop holds
+    /// samples and whole pixels; ties still round towards the anchor), wherever the crop holds
     /// the pixels they read; [`RotatedGrid::round_pixel`] still gives the whole map's pixels. The robust
     /// detector works on a map of any size in such windows ([`crate::robust::tiles`]).
     pub fn window(
@@ -199,7 +232,7 @@ impl RotatedGrid {
         }
     }
 
-    /// The sample nearest grid position `(p, q)`; exactly half-way, the one nearer the map's centre.
+    /// The sample nearest grid position `(p, q)`; exactly half-way, the one nearer the anchor.
     pub fn round_sample(&self, (p, q): (f64, f64)) -> (i32, i32) {
         let c = |c2: i64| c2 as f64 / 2.0;
         (
@@ -209,7 +242,7 @@ impl RotatedGrid {
     }
 
     /// The sample nearest the middle of the box of `scale` samples starting at `p` (its middle sample
-    /// when `scale` is odd; of the two, the one nearer the map's centre when even), one axis: `x`
+    /// when `scale` is odd; of the two, the one nearer the anchor when even), one axis: `x`
     /// chooses the axis (0 for p, 1 for q).
     pub fn box_middle(&self, p: i32, scale: u32, axis: usize) -> i32 {
         let twice = 2 * i64::from(p) + i64::from(scale) - 1;
@@ -229,7 +262,7 @@ impl RotatedGrid {
     }
 
     /// The whole map's pixel nearest position `(x, y)` of the sampled map ([`RotatedGrid::to_map`]),
-    /// clamped to the whole map; exactly half-way, the one nearer the whole map's centre.
+    /// clamped to the whole map; exactly half-way, the one nearer the anchor.
     pub fn round_pixel(&self, (x, y): (f64, f64)) -> (u32, u32) {
         let one = f64::from(ONE);
         let r = |v: f64, c: i32, o: u32, n: u32| {
@@ -240,6 +273,11 @@ impl RotatedGrid {
             r(x, self.cx, self.crop_origin.0, self.full_size.0),
             r(y, self.cy, self.crop_origin.1, self.full_size.1),
         )
+    }
+
+    /// The anchor in the whole map's pixels (pixel centres at integers).
+    pub fn anchor(&self) -> (f64, f64) {
+        (self.anchor2.0 as f64 / 2.0, self.anchor2.1 as f64 / 2.0)
     }
 
     /// The grid's angle in degrees, as quantised.
@@ -383,6 +421,51 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// Anchored at a point fixed to the map's pixels, a crop's grid (the anchor moved with the crop)
+    /// reads the pixels the map's grid reads, sample for sample up to a whole shift; and the grid covers
+    /// the map alone, wherever the anchor lies.
+    #[test]
+    fn an_anchored_grid_samples_a_crop_as_the_whole_map() {
+        for (deg, anchor2) in [
+            (0.0, (-41, 77)),
+            (-17.3, (9, 1000)),
+            (33.0, (-2_000_001, 5)),
+        ] {
+            let (w, h) = (301, 200);
+            let g = RotatedGrid::anchored(w, h, deg, anchor2).unwrap();
+            let c = RotatedGrid::new(w, h, deg).unwrap();
+            assert!(g.width.abs_diff(c.width) <= 2 && g.height.abs_diff(c.height) <= 2);
+            let (dx, dy) = (37, 11);
+            let crop = RotatedGrid::anchored(
+                w - dx,
+                h - dy,
+                deg,
+                (anchor2.0 - 2 * i64::from(dx), anchor2.1 - 2 * i64::from(dy)),
+            )
+            .unwrap();
+            // The anchor is sample `centre2 / 2` of both: the crop's sample (p, q) is the map's
+            // (p + sp, q + sq).
+            let (sp, sq) = (
+                (g.centre2.0 - crop.centre2.0) / 2,
+                (g.centre2.1 - crop.centre2.1) / 2,
+            );
+            assert_eq!(g.centre2.0 - crop.centre2.0, 2 * sp);
+            let mut compared = 0;
+            for q in 0..crop.height as i32 {
+                for p in 0..crop.width as i32 {
+                    if let Some(i) = crop.source_index(p, q) {
+                        let (x, y) = (i as u32 % (w - dx), i as u32 / (w - dx));
+                        let whole = g.source(p + sp as i32, q + sq as i32);
+                        assert_eq!(whole, (x as i32 + dx as i32, y as i32 + dy as i32), "{deg}");
+                        compared += 1;
+                    }
+                }
+            }
+            assert!(compared > 40_000, "{compared}");
+        }
+        assert!(RotatedGrid::anchored(9, 9, 0.0, (1 << 22, 0)).is_err());
     }
 
     #[test]

@@ -61,6 +61,7 @@ pub fn write_keypoints(
         options: *options,
         backend: backend.to_string(),
         angle_deg: det.robust.map(|r| r.angle),
+        anchor_px: det.robust.map(|r| [r.anchor.0, r.anchor.1]),
     };
     let mut w = KeypointWriter::begin(out, format, &about)?;
     w.push(&det.keypoints)?;
@@ -84,6 +85,8 @@ pub struct About {
     pub backend: String,
     /// The robust detector's grid angle, degrees.
     pub angle_deg: Option<f64>,
+    /// The robust detector's grid anchor, map pixels.
+    pub anchor_px: Option<[f64; 2]>,
 }
 
 /// Writes keypoints as they come, in (y, x) order, so that a streamed detection never holds its list:
@@ -94,7 +97,7 @@ pub struct About {
 /// metres when the map has a yaml; then one keypoint a line.
 ///
 /// JSON: `{"map", "width", "height", ["resolution", "origin",] "detector", "rules",
-/// "unknown_as_occupied", ["angle_deg",] "backend", "keypoints": [{"x", "y", ["rule", "code",]
+/// "unknown_as_occupied", ["angle_deg", "anchor_px",] "backend", "keypoints": [{"x", "y", ["rule", "code",]
 /// ["score",] ["scale", "convex",] ["world": [x, y]]}], "count"}`: the fields each detector has, as in the
 /// CSV, one keypoint a line; the count comes last, once known.
 pub struct KeypointWriter<'a> {
@@ -138,6 +141,8 @@ struct JsonHead<'a> {
     unknown_as_occupied: bool,
     #[serde(skip_serializing_if = "Option::is_none")]
     angle_deg: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    anchor_px: Option<[f64; 2]>,
     backend: &'a str,
 }
 
@@ -173,6 +178,7 @@ impl<'a> KeypointWriter<'a> {
                     rules: about.options.rules.name(),
                     unknown_as_occupied: about.options.unknown_as_occupied,
                     angle_deg: about.angle_deg,
+                    anchor_px: about.anchor_px,
                     backend: &about.backend,
                 };
                 let text = serde_json::to_string_pretty(&head)?;
@@ -271,6 +277,7 @@ mod tests {
             options: DetectOptions::default(),
             backend: "cpu".into(),
             angle_deg: None,
+            anchor_px: None,
         };
         for n in [0usize, 1, 3] {
             let mut text = Vec::new();

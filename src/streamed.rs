@@ -95,6 +95,7 @@ pub fn detect_to(
         options: detector.options(),
         backend: detector.backend_name(),
         angle_deg: None,
+        anchor_px: None,
     };
     let classes = ClassTable::new(&map.thresholds);
     // Both callbacks draw on the canvas (rows, then marks), one at a time.
@@ -110,6 +111,7 @@ pub fn detect_to(
         let done = detector.detect_streamed(
             &mut map.source,
             &classes,
+            map.georef.as_ref(),
             &mut |k| {
                 found.extend_from_slice(k);
                 Ok(())
@@ -118,6 +120,7 @@ pub fn detect_to(
         )?;
         let about = About {
             angle_deg: done.robust.map(|r| r.angle),
+            anchor_px: done.robust.map(|r| [r.anchor.0, r.anchor.1]),
             ..about
         };
         let mut writers = begin(outputs, &about)?;
@@ -134,6 +137,7 @@ pub fn detect_to(
     let done = detector.detect_streamed(
         &mut map.source,
         &classes,
+        map.georef.as_ref(),
         &mut |k| {
             if let Some(c) = canvas.borrow_mut().as_deref_mut() {
                 c.mark(k);

@@ -7,7 +7,7 @@ use ogm_corners::cpu::coarsen::{self, CellRule};
 use ogm_corners::cpu::CpuBackend;
 use ogm_corners::fast::FastCpuBackend;
 use ogm_corners::grid::RotatedGrid;
-use ogm_corners::robust::{self, orientation, RobustParams};
+use ogm_corners::robust::{self, orientation, Anchor, RobustParams};
 use ogm_corners::synth::Rng;
 use ogm_corners::{
     Backend, ClassTable, DetectOptions, Detector, DetectorKind, Keypoint, MapImage, OccupancyMap,
@@ -113,6 +113,8 @@ fn the_fast_path_and_the_reference_find_the_same_robust_keypoints() {
                 min_strength: 0,
                 convex: true,
                 angle: Some(12.5),
+                // Off the map, and not on a pixel: the reference and the fast path agree anywhere.
+                anchor: Anchor::Point(-31.5, 207.25),
                 cells: CellRule {
                     occupied_pct: 7,
                     free_pct: 55,
@@ -200,6 +202,14 @@ fn bad_robust_options_are_refused_with_input_errors() {
         },
         RobustParams {
             wall_gap: 65,
+            ..RobustParams::default()
+        },
+        RobustParams {
+            anchor: Anchor::Point(f64::NAN, 3.0),
+            ..RobustParams::default()
+        },
+        RobustParams {
+            anchor: Anchor::Point(0.0, -2e6),
             ..RobustParams::default()
         },
     ] {
@@ -443,4 +453,172 @@ fn a_hexagon_world_has_no_right_angle_and_gives_no_keypoint_at_the_default() {
     assert!(all
         .iter()
         .all(|k| k.score < i64::from(RobustParams::default().min_strength)));
+}
+
+/// `got` is `want`, or the first difference is shown (not thousands of keypoints).
+fn same(got: &[Keypoint], want: &[Keypoint], what: &str) {
+    let first = got.iter().zip(want).position(|(a, b)| a != b);
+    assert!(
+        got.len() == want.len() && first.is_none(),
+        "{what}: {} keypoints against {}, first difference at {first:?}: {:?} against {:?}",
+        got.len(),
+        want.len(),
+        first.map(|i| got[i]),
+        first.map(|i| want[i]),
+    );
+}
+
+/// `img`'s pixels from column `x0` and row `y0`, `w` x `h` of them, unknown where `img` has none (a crop,
+/// or with negative offsets the map grown at its edges).
+fn reframed(img: &MapImage, x0: i64, y0: i64, w: u32, h: u32) -> MapImage {
+    let mut px = vec![205u8; (w * h) as usize];
+    for y in 0..h {
+        for x in 0..w {
+            let (sx, sy) = (i64::from(x) + x0, i64::from(y) + y0);
+            if sx >= 0 && sy >= 0 && sx < i64::from(img.width()) && sy < i64::from(img.height()) {
+                px[(y * w + x) as usize] = img.get(sx as u32, sy as u32);
+            }
+        }
+    }
+    MapImage::new(w, h, px).unwrap()
+}
+
+/// The map's keypoints with its world frame: 5 cm pixels, the lower-left corner of its pixel
+/// (-x0, h0 - 1 - y0) of the first map at world (1, -2) m, as a yaml's origin moves when a map is cropped
+/// or grows.
+fn keypoints_in_frame(
+    img: &MapImage,
+    x0: i64,
+    bottom: i64,
+    params: &RobustParams,
+) -> Vec<Keypoint> {
+    detect_in_frame(img, x0, bottom, params).keypoints
+}
+
+/// [`keypoints_in_frame`]'s whole detection.
+fn detect_in_frame(
+    img: &MapImage,
+    x0: i64,
+    bottom: i64,
+    params: &RobustParams,
+) -> ogm_corners::Detection {
+    let mut map = OccupancyMap::from_image(img.clone());
+    map.georef = Some(ogm_corners::GeoRef {
+        resolution: 0.05,
+        origin: [1.0 + 0.05 * x0 as f64, -2.0 + 0.05 * bottom as f64, 0.0],
+    });
+    Detector::new(DetectOptions {
+        robust: *params,
+        ..robust_options()
+    })
+    .detect(&map)
+    .unwrap()
+}
+
+/// A SLAM map grows at its edges and is cropped, and its yaml's origin moves with them: the grid anchored
+/// at the world frame's origin samples the same pixels, scores the same boxes and breaks ties the same
+/// way, so for the same angle the keypoints are the map's, bit for bit, wherever both maps see a corner's
+/// walls. Anchored at each map's centre, they are not.
+#[test]
+fn a_grown_or_cropped_map_in_its_world_frame_keeps_its_keypoints() {
+    use ogm_corners::eval::{Pair, Transform};
+    let plan = common::floor_plan(1200, 800, 7);
+    let turned = Pair::new(
+        &plan,
+        Transform::Rotate {
+            degrees: 23.0,
+            tx: 0.0,
+            ty: 0.0,
+        },
+    )
+    .unwrap()
+    .second;
+    let (w, h) = (turned.width(), turned.height());
+    let estimated = robust::detect(
+        &mut FastCpuBackend,
+        &turned,
+        &ClassTable::default(),
+        &RuleTable::new(RuleSet::Paper),
+        &RobustParams::default(),
+    )
+    .unwrap()
+    .1
+    .angle;
+    let params = RobustParams {
+        max_scale: 4,
+        angle: Some(estimated),
+        ..RobustParams::default()
+    };
+    let base = keypoints_in_frame(&turned, 0, 0, &params);
+    assert!(base.len() >= 30, "{} keypoints", base.len());
+    let shifted = |kps: &[Keypoint], dx: i64, dy: i64| -> Vec<Keypoint> {
+        kps.iter()
+            .map(|k| Keypoint {
+                x: (i64::from(k.x) + dx) as u32,
+                y: (i64::from(k.y) + dy) as u32,
+                ..*k
+            })
+            .collect()
+    };
+    // Grown: 37 unknown columns on the left, 11 on the right, 23 rows on top, 5 below. A corner placed
+    // outside the map is clamped onto its edge, which the grown map does not have: the edges are left out.
+    let grown = reframed(&turned, -37, -23, w + 48, h + 28);
+    let off_edges = |kps: &[Keypoint], x0: u32, y0: u32| -> Vec<Keypoint> {
+        kps.iter()
+            .filter(|k| k.x > x0 && k.y > y0 && k.x < x0 + w - 1 && k.y < y0 + h - 1)
+            .copied()
+            .collect()
+    };
+    same(
+        &off_edges(&keypoints_in_frame(&grown, -37, -5, &params), 37, 23),
+        &off_edges(&shifted(&base, 37, 23), 37, 23),
+        "grown",
+    );
+    // Its wall direction too: estimated about the world origin, the grown map bins its walls' pixels as
+    // the map does.
+    let angle = |img: &MapImage, x0: i64, bottom: i64| {
+        let info = detect_in_frame(img, x0, bottom, &RobustParams::default()).robust;
+        info.unwrap().angle
+    };
+    assert_eq!(
+        angle(&grown, -37, -5),
+        angle(&turned, 0, 0),
+        "grown map's angle"
+    );
+    // Cropped: the left 250 columns and the bottom 30 rows cut off. The keypoints far enough from the
+    // cuts (a window's halo and ring, as the tiles need) are the map's.
+    let cut = reframed(&turned, 250, 0, w - 250, h - 30);
+    let tiles = ogm_corners::robust::tiles::TilePlan::with_tile(&params, 256).unwrap();
+    let reach = i64::from(tiles.halo + tiles.ring);
+    let inner = |kps: &[Keypoint]| -> Vec<Keypoint> {
+        kps.iter()
+            .filter(|k| i64::from(k.x) >= 250 + reach && i64::from(k.y) < i64::from(h) - 30 - reach)
+            .copied()
+            .collect()
+    };
+    let want = inner(&base);
+    assert!(
+        want.len() >= 8,
+        "{} keypoints inside the crop, reach {reach}, map {w}x{h}",
+        want.len()
+    );
+    let got = |anchor| {
+        let p = RobustParams { anchor, ..params };
+        inner(&shifted(&keypoints_in_frame(&cut, 250, 30, &p), 250, 0))
+    };
+    same(&got(Anchor::World), &want, "cropped");
+    // The test can tell: the same crop anchored at its own centre samples other pixels.
+    let centred = RobustParams {
+        anchor: Anchor::Centre,
+        ..params
+    };
+    assert_ne!(
+        inner(&shifted(
+            &keypoints_in_frame(&cut, 250, 30, &centred),
+            250,
+            0
+        )),
+        inner(&keypoints_in_frame(&turned, 0, 0, &centred)),
+        "cropped, anchored at the centres"
+    );
 }

@@ -5,7 +5,7 @@ mod common;
 
 use ogm_corners::fast::FastCpuBackend;
 use ogm_corners::robust::tiles::{detect_tiled, ImageReader, TilePlan};
-use ogm_corners::robust::{self, RobustParams};
+use ogm_corners::robust::{self, Anchor, RobustParams};
 use ogm_corners::{ClassTable, MapImage, OccupancyMap, RuleSet, RuleTable};
 
 /// Keypoints in memory and in tiles, and the tiles' count.
@@ -41,7 +41,9 @@ fn both(
     .unwrap();
     assert_eq!(info, tiled, "the angle and the candidate count");
     let (gw, gh) = {
-        let g = ogm_corners::grid::RotatedGrid::new(img.width(), img.height(), info.angle).unwrap();
+        let (w, h) = (img.width(), img.height());
+        let anchor = params.anchor2(w, h).unwrap();
+        let g = ogm_corners::grid::RotatedGrid::anchored(w, h, info.angle, anchor).unwrap();
         (g.width, g.height)
     };
     let tiles = (gw.div_ceil(plan.tile) * gh.div_ceil(plan.tile)) as usize;
@@ -68,6 +70,12 @@ fn tiles_of_any_size_give_the_keypoints_of_the_whole_map() {
             angle: deg,
             // A wide radius on some maps: chains of suppression cross the tiles' edges.
             nms_radius: [4, 24][seed % 2],
+            // Grids anchored off the map's centre (a world frame's origin) on some: off a pixel, outside.
+            anchor: [
+                Anchor::Centre,
+                Anchor::Point(-57.5, 1234.0),
+                Anchor::Point(301.25, 17.0),
+            ][seed % 3],
             ..RobustParams::default()
         };
         for (tile, ringless) in [(97, false), (97, true), (256, false), (4096, false)] {

@@ -70,6 +70,7 @@ fn streamed(
         .detect_streamed(
             &mut src,
             &classes,
+            None,
             &mut |k| {
                 sinks += 1;
                 out.extend_from_slice(k);
@@ -229,6 +230,7 @@ fn the_robust_detector_streams_in_tiles_to_its_in_memory_keypoints() {
             .detect_streamed(
                 &mut SliceRows::new(&image),
                 &classes,
+                None,
                 &mut |k| {
                     got.extend_from_slice(k);
                     Ok(())
@@ -267,6 +269,7 @@ fn real_maps_stream_to_their_keypoints() {
             d.detect_streamed(
                 &mut SliceRows::new(&map.image),
                 &classes,
+                map.georef.as_ref(),
                 &mut |k| {
                     got.extend_from_slice(k);
                     Ok(())

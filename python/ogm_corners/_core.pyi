@@ -75,6 +75,7 @@ class Detector:
         min_scale: Optional[int] = None,
         max_scale: Optional[int] = None,
         angle: Optional[float] = None,
+        anchor: Union[str, Tuple[float, float], None] = None,
         nms_radius: Optional[int] = None,
         min_strength: Optional[int] = None,
         convex: bool = True,

@@ -46,7 +46,11 @@ class Detector:
     ``max_corners`` (strongest first; the paper's detector refuses a cap it would exceed); Harris and
     Shi-Tomasi ``sigma``, ``harris_k``, ``quality``, ``min_distance``; Trajkovic ``t1``, ``t2``; the robust
     detector's ``min_scale``, ``max_scale``, ``angle`` (degrees), ``nms_radius``, ``min_strength``,
-    ``convex``, ``cell_occupied`` and ``cell_free`` (percent of a coarse cell's samples), ``wall_gap``.
+    ``convex``, ``cell_occupied`` and ``cell_free`` (percent of a coarse cell's samples), ``wall_gap``,
+    and ``anchor``: where its turned grid is anchored, ``"world"`` (the default: the origin of a map's
+    world frame, its centre for an array), ``"centre"`` or a point ``(x, y)`` in pixels. Anchored in the
+    world, a map that grows at its edges (as a SLAM map does) or is cropped keeps its keypoints wherever
+    both see a corner's walls, given the same ``angle`` (``Keypoints.angle`` of an earlier detection).
     """
 
     __slots__ = ("_d",)

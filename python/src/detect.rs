@@ -9,7 +9,7 @@ use pyo3::prelude::*;
 
 use ogm_corners::cpu::coarsen::CellRule;
 use ogm_corners::map::GridThresholds;
-use ogm_corners::robust::RobustParams;
+use ogm_corners::robust::{Anchor, RobustParams};
 use ogm_corners::{
     BackendChoice, Baseline, BaselineParams, DetectOptions, Detection, DetectorKind, Error, GeoRef,
     RuleSet,
@@ -94,7 +94,7 @@ impl Detector {
     #[pyo3(signature = (
         detector="ogm", backend="auto", *, rules="paper", unknown_as_occupied=false, max_corners=None,
         sigma=1.0, harris_k=0.04, quality=0.01, min_distance=3.0, t1=10_000, t2=20_000,
-        min_scale=None, max_scale=None, angle=None, nms_radius=None, min_strength=None, convex=true,
+        min_scale=None, max_scale=None, angle=None, anchor=None, nms_radius=None, min_strength=None, convex=true,
         cell_occupied=None, cell_free=None, wall_gap=None
     ))]
     #[allow(clippy::too_many_arguments)]
@@ -114,6 +114,7 @@ impl Detector {
         min_scale: Option<u32>,
         max_scale: Option<u32>,
         angle: Option<f64>,
+        anchor: Option<&Bound<'_, PyAny>>,
         nms_radius: Option<u32>,
         min_strength: Option<u32>,
         convex: bool,
@@ -151,6 +152,7 @@ impl Detector {
                 min_strength: min_strength.unwrap_or(r.min_strength),
                 convex,
                 angle,
+                anchor: anchor_of(anchor)?,
                 cells: CellRule {
                     occupied_pct: cell_occupied.unwrap_or(r.cells.occupied_pct),
                     free_pct: cell_free.unwrap_or(r.cells.free_pct),
@@ -288,6 +290,29 @@ fn detecting<T: Send>(
         interruptible(py, f)
     } else {
         unlocked(py, f)
+    }
+}
+
+/// The robust detector's `anchor` option: None or "world" (the map's world origin where it has one),
+/// "centre" (or "center"), or a point (x, y) in pixels.
+fn anchor_of(anchor: Option<&Bound<'_, PyAny>>) -> PyResult<Anchor> {
+    let Some(a) = anchor else {
+        return Ok(Anchor::World);
+    };
+    if let Ok(s) = a.extract::<String>() {
+        return match s.as_str() {
+            "world" => Ok(Anchor::World),
+            "centre" | "center" => Ok(Anchor::Centre),
+            _ => Err(to_py(Error::invalid(format!(
+                "unknown anchor {s:?}: expected \"world\", \"centre\" or a point (x, y) in pixels"
+            )))),
+        };
+    }
+    match a.extract::<(f64, f64)>() {
+        Ok((x, y)) => Ok(Anchor::Point(x, y)),
+        Err(_) => Err(pyo3::exceptions::PyTypeError::new_err(
+            "anchor is \"world\", \"centre\" or a point (x, y) in pixels",
+        )),
     }
 }
 

@@ -21,6 +21,8 @@ CASES = [
     ("ogm-robust", {"min_strength": 6}, ["--min-strength", "6"]),
     ("ogm-robust", {"cell_occupied": 9, "cell_free": 30, "wall_gap": 3},
      ["--cell-occupied", "9", "--cell-free", "30", "--wall-gap", "3"]),
+    ("ogm-robust", {"anchor": "centre"}, ["--anchor", "centre"]),
+    ("ogm-robust", {"anchor": (12.5, -3.0)}, ["--anchor", "12.5,-3"]),
     ("harris", {"max_corners": 300}, ["--max-corners", "300"]),
     ("shi-tomasi", {"min_distance": 5.0}, ["--min-distance", "5"]),
     ("trajkovic", {}, []),
@@ -66,6 +68,37 @@ def test_same_keypoints_as_the_cli_on_the_shared_maps(cli, shared_maps, tmp_path
     for path in shared_maps:
         doc = cli_keypoints(cli, path, tmp_path, detector, args)
         assert_same(doc, d.detect(path))
+
+
+def test_a_map_that_grows_at_its_edges_keeps_its_robust_keypoints(office):
+    """A SLAM map grows and its origin moves with it: the robust detector's grid is anchored at the world
+    frame's origin, so with the angle of the first detection the corners found before are found again,
+    the same, at their pixels in the grown map."""
+    turned = oc.synthetic.robot_maps(office, 2, seed=3)[0][0]
+    res = turned.resolution
+    first = oc.detect(turned, detector="ogm-robust", backend="cpu")
+    assert len(first) > 20 and first.angle not in (0.0, None)
+    # 37 unknown columns on the left, 11 on the right, 23 rows on top, 5 below: the origin (the lower
+    # left corner) moves 37 pixels left and 5 down.
+    px = np.pad(turned.pixels, ((23, 5), (37, 11)), constant_values=205)
+    ox, oy, yaw = turned.origin
+    grown = oc.Map(px, res, (ox - 37 * res, oy - 5 * res, yaw))
+    again = oc.detect(grown, detector="ogm-robust", backend="cpu", angle=first.angle)
+    h, w = turned.pixels.shape
+
+    def inside(a, x0, y0):
+        # A corner placed outside the map is clamped onto its edge, which the grown map does not have.
+        return (a["x"] > x0) & (a["y"] > y0) & (a["x"] < x0 + w - 1) & (a["y"] < y0 + h - 1)
+
+    was, now = inside(first.array, 0, 0), inside(again.array, 37, 23)
+    want, got = first.array[was].copy(), again.array[now]
+    want["x"] += 37
+    want["y"] += 23
+    assert len(got) == len(want) > 20
+    for field in ("x", "y", "score", "scale", "convex", "rule", "code"):
+        np.testing.assert_array_equal(got[field], want[field], field)
+    # The same places in the world.
+    np.testing.assert_allclose(again.world[now], first.world[was], atol=1e-9)
 
 
 def test_world_coordinates_follow_ros(office):
@@ -170,6 +203,10 @@ def test_gpu_backend_gives_the_cpu_keypoints(office):
                            backend="cpu"), "occupied share"),
         (lambda: oc.detect(np.full((64, 64), 254, np.uint8), detector="ogm-robust", wall_gap=100,
                            backend="cpu"), "wall gap"),
+        (lambda: oc.detect(np.full((64, 64), 254, np.uint8), detector="ogm-robust", anchor="middle",
+                           backend="cpu"), "unknown anchor"),
+        (lambda: oc.detect(np.full((64, 64), 254, np.uint8), detector="ogm-robust", anchor=(1e7, 0.0),
+                           backend="cpu"), "grid anchor"),
         (lambda: oc.Detector("harris", "cpu", sigma=-1.0).detect(np.full((9, 9), 254, np.uint8)), "sigma"),
         (lambda: oc.Map(np.zeros((4, 4), np.int8)), "from_occupancy_grid"),
         (lambda: oc.Map(np.zeros((4, 4), np.uint8), resolution=0.0), "resolution"),

@@ -4,6 +4,9 @@
 
 use crate::cpu::coarsen::{CellRule, MAX_SCALE};
 use crate::error::{Error, Result};
+#[cfg(doc)]
+use crate::grid::RotatedGrid;
+use crate::grid::MAX_ANCHOR;
 
 /// Options of the robust detector.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -21,12 +24,31 @@ pub struct RobustParams {
     pub convex: bool,
     /// The grid angle in degrees; `None` estimates the map's dominant wall direction.
     pub angle: Option<f64>,
+    /// The point the turned grid, its lattice of scored boxes and its ties are anchored at.
+    pub anchor: Anchor,
     /// The shares of occupied and free samples that make a coarse cell occupied or free.
     pub cells: CellRule,
     /// Unknown samples a wall's cross-section bridges between occupied ones when a corner is placed on
     /// the walls' centre lines (a wall seen from both sides: two lines of occupied pixels with unknown
     /// ones between them).
     pub wall_gap: u32,
+}
+
+/// Where the robust detector's turned grid is anchored: the point that its samples, its lattice of scored
+/// boxes and its ties (half-way positions, equal strengths) are laid out from.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Anchor {
+    /// The origin of the map's world frame (a yaml's or an occupancy grid's `origin` gives it) where the
+    /// map has one, else its centre. The frame stays where it is when a map is cropped or grows at its
+    /// edges, as a SLAM map does, so the keypoints there stay those of the map wherever both see a
+    /// corner's walls (for the same grid angle).
+    World,
+    /// The map's centre: the keypoints of the map turned by quarter turns or mirrored are exactly the
+    /// map's, turned or mirrored.
+    Centre,
+    /// A point in map pixels (pixel centres at integers; rounded to the nearest half pixel), at most
+    /// [`MAX_ANCHOR`] pixels from the map's pixel (0, 0) along each axis.
+    Point(f64, f64),
 }
 
 /// The most unknown samples [`RobustParams::wall_gap`] may bridge.
@@ -46,6 +68,7 @@ impl Default for RobustParams {
             min_strength: 12,
             convex: true,
             angle: None,
+            anchor: Anchor::World,
             cells: CellRule::default(),
             wall_gap: 8,
         }
@@ -72,6 +95,14 @@ impl RobustParams {
                 self.nms_radius
             )));
         }
+        if let Anchor::Point(x, y) = self.anchor {
+            let far = f64::from(MAX_ANCHOR);
+            if !(x.is_finite() && y.is_finite() && x.abs() <= far && y.abs() <= far) {
+                return Err(Error::invalid(format!(
+                    "grid anchor ({x}, {y}) is not a point within {MAX_ANCHOR} pixels of the map"
+                )));
+            }
+        }
         self.cells.check()?;
         if self.wall_gap > MAX_WALL_GAP {
             return Err(Error::invalid(format!(
@@ -80,6 +111,32 @@ impl RobustParams {
             )));
         }
         Ok(scale_ladder(self.min_scale, self.max_scale))
+    }
+
+    /// The grid's anchor for a `width` x `height` map, in half pixels ([`RotatedGrid::anchored`]): the
+    /// map's centre unless [`RobustParams::anchor`] is a point ([`Anchor::World`] resolves to a point
+    /// where the map's frame is known, [`RobustParams::in_frame`]).
+    pub fn anchor2(&self, width: u32, height: u32) -> Result<(i64, i64)> {
+        self.scales()?;
+        Ok(match self.anchor {
+            Anchor::Point(x, y) => ((2.0 * x).round() as i64, (2.0 * y).round() as i64),
+            Anchor::World | Anchor::Centre => (i64::from(width) - 1, i64::from(height) - 1),
+        })
+    }
+
+    /// These options for a map whose world frame's origin lies at `origin` (map pixels, pixel centres at
+    /// integers; `None` where the map has no frame): [`Anchor::World`] becomes that point, or the map's
+    /// centre where there is none or it lies more than [`MAX_ANCHOR`] pixels away.
+    pub fn in_frame(&self, origin: Option<(f64, f64)>) -> RobustParams {
+        let far = f64::from(MAX_ANCHOR);
+        let anchor = match (self.anchor, origin) {
+            (Anchor::World, Some((x, y))) if x.abs() <= far && y.abs() <= far => {
+                Anchor::Point(x, y)
+            }
+            (Anchor::World, _) => Anchor::Centre,
+            (a, _) => a,
+        };
+        RobustParams { anchor, ..*self }
     }
 }
 

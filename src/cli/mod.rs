@@ -24,7 +24,7 @@ use ogm_corners::detector::BackendChoice;
 use ogm_corners::fast::FastCpuBackend;
 use ogm_corners::gpu::GpuOptions;
 use ogm_corners::memory::{self, Budget};
-use ogm_corners::robust::RobustParams;
+use ogm_corners::robust::{Anchor, RobustParams};
 use ogm_corners::{
     Backend, Baseline, BaselineParams, DetectOptions, Detector, DetectorKind, Error, Result,
     RuleSet,
@@ -180,6 +180,23 @@ impl BaselineArgs {
     }
 }
 
+/// `--anchor`: `world`, `centre` (or `center`), or a point `X,Y` in pixels.
+fn parse_anchor(s: &str) -> std::result::Result<Anchor, String> {
+    match s {
+        "world" => Ok(Anchor::World),
+        "centre" | "center" => Ok(Anchor::Centre),
+        _ => {
+            let point = s.split_once(',').and_then(|(x, y)| {
+                let (x, y) = (x.trim().parse::<f64>().ok()?, y.trim().parse::<f64>().ok()?);
+                (x.is_finite() && y.is_finite()).then_some(Anchor::Point(x, y))
+            });
+            point.ok_or_else(|| {
+                format!("expected world, centre or a point X,Y in pixels, got {s:?}")
+            })
+        }
+    }
+}
+
 /// The robust detector's options ([`ogm_corners::robust::RobustParams`]).
 #[derive(Args, Debug, Clone)]
 pub(super) struct RobustArgs {
@@ -192,6 +209,12 @@ pub(super) struct RobustArgs {
     /// Robust detector: the map's wall direction in degrees, instead of estimating it.
     #[arg(long, value_name = "DEGREES", allow_negative_numbers = true)]
     angle: Option<f64>,
+    /// Robust detector: where its turned grid is anchored: `world`, the origin of the map's frame (its
+    /// yaml's `origin`; the centre for an image without one), so a crop of the map or the map grown at
+    /// its edges keeps its keypoints; `centre`, so the map turned by quarter turns or mirrored does; or a
+    /// point `X,Y` in pixels.
+    #[arg(long, value_name = "world|centre|X,Y", default_value = "world", value_parser = parse_anchor)]
+    anchor: Anchor,
     /// Robust detector: drop keypoints within this many pixels of a stronger one.
     #[arg(long, default_value_t = RobustParams::default().nms_radius)]
     nms_radius: u32,
@@ -222,6 +245,7 @@ impl RobustArgs {
             min_strength: self.min_strength,
             convex: !self.no_convex,
             angle: self.angle,
+            anchor: self.anchor,
             cells: CellRule {
                 occupied_pct: self.cell_occupied,
                 free_pct: self.cell_free,

@@ -14,7 +14,7 @@ use serde::Serialize;
 
 use crate::detector::{DetectOptions, Detector, DetectorKind, Keypoint};
 use crate::error::{Error, Result};
-use crate::map::{MapImage, OccupancyMap};
+use crate::map::{GeoRef, MapImage, OccupancyMap};
 use crate::output::{csv_field, md_cell, TableFormat};
 use crate::synth::{Rng, FREE, OCCUPIED, UNKNOWN};
 
@@ -157,14 +157,30 @@ impl Pair {
     }
 }
 
+impl Pair {
+    /// The two maps as a user has them: two crops share the map's world frame (as a cropped map's yaml,
+    /// or a SLAM map grown at its edges, keeps it: a pixel a metre, origin at the first crop's lower left
+    /// corner); the other transforms make maps of their own, without one.
+    pub fn maps(&self) -> (OccupancyMap, OccupancyMap) {
+        let mut a = OccupancyMap::from_image(self.first.clone());
+        let mut b = OccupancyMap::from_image(self.second.clone());
+        if let Transform::Overlap { .. } = self.transform {
+            let frame = |x: u32| GeoRef {
+                resolution: 1.0,
+                origin: [f64::from(x), 0.0, 0.0],
+            };
+            a.georef = Some(frame(0));
+            b.georef = Some(frame(self.shift));
+        }
+        (a, b)
+    }
+}
+
 /// Repeatability of `detector` under `pair`, or `None` when the shared region holds no keypoint.
 pub fn repeatability(detector: &mut Detector, pair: &Pair, tolerance: f64) -> Result<Option<f64>> {
-    let a = detector
-        .detect(&OccupancyMap::from_image(pair.first.clone()))?
-        .keypoints;
-    let b = detector
-        .detect(&OccupancyMap::from_image(pair.second.clone()))?
-        .keypoints;
+    let (first, second) = pair.maps();
+    let a = detector.detect(&first)?.keypoints;
+    let b = detector.detect(&second)?.keypoints;
     Ok(score(pair, &a, &b, tolerance))
 }
 

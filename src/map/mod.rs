@@ -280,6 +280,20 @@ impl GeoRef {
         (ox + c * mx - s * my, oy + s * mx + c * my)
     }
 
+    /// The position in pixels (pixel centres at integers) of world point `(wx, wy)` in a map `height`
+    /// pixels high: the inverse of [`GeoRef::point_to_world`].
+    pub fn world_to_point(&self, (wx, wy): (f64, f64), height: u32) -> (f64, f64) {
+        let [ox, oy, yaw] = self.origin;
+        let yaw = if yaw.is_finite() { yaw } else { 0.0 };
+        let (s, c) = yaw.sin_cos();
+        let (dx, dy) = (wx - ox, wy - oy);
+        let (mx, my) = (c * dx + s * dy, -s * dx + c * dy);
+        (
+            mx / self.resolution - 0.5,
+            f64::from(height) - 0.5 - my / self.resolution,
+        )
+    }
+
     /// Checks that every pixel of a `width` x `height` map has finite world coordinates (a resolution of
     /// 1e308 or an origin of 1e308 would make them infinite or NaN).
     pub fn check_finite(&self, width: u32, height: u32) -> std::result::Result<(), String> {

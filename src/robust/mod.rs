@@ -27,7 +27,7 @@ pub mod tiles;
 /// The options, kept with the backend interface ([`crate::backend::robust_params`]) that every backend is
 /// given; here under their old name too.
 pub use crate::backend::robust_params as params;
-pub use crate::backend::robust_params::{grid_samples, robust_working_bytes, RobustParams};
+pub use crate::backend::robust_params::{grid_samples, robust_working_bytes, Anchor, RobustParams};
 
 use crate::backend::{Backend, Keypoint};
 use crate::cpu::coarsen::{Mosaic, FREE, OCCUPIED};
@@ -60,6 +60,9 @@ pub fn coarse_classes(swapped: bool) -> ClassTable {
 pub struct RobustInfo {
     /// The grid angle used, degrees (as quantised, see [`crate::grid::FRAC_BITS`]).
     pub angle: f64,
+    /// The point the grid was anchored at, map pixels ([`RobustParams::anchor`]): with the angle, what
+    /// `Anchor::Point` and `angle` need to repeat the detection on a crop or a grown copy of the map.
+    pub anchor: (f64, f64),
     /// Corners found before suppression.
     pub candidates: usize,
 }
@@ -74,10 +77,12 @@ pub fn detect(
     params: &RobustParams,
 ) -> Result<(Vec<Keypoint>, RobustInfo)> {
     params.scales()?;
+    let (w, h) = (image.width(), image.height());
+    let anchor2 = params.anchor2(w, h)?;
     let angle = params
         .angle
-        .unwrap_or_else(|| orientation::dominant_angle(image, classes));
-    let grid = RotatedGrid::new(image.width(), image.height(), angle)?;
+        .unwrap_or_else(|| orientation::dominant_angle_about(image, classes, anchor2));
+    let grid = RotatedGrid::anchored(w, h, angle, anchor2)?;
     // Between stages, a raised stop (Ctrl-C in Python) ends the detection.
     crate::stop::check()?;
     // The map in memory is one window of the tiled path: every corner seen, every fate decided.
@@ -95,6 +100,7 @@ pub fn detect(
         finish(found, params.nms_radius, &grid),
         RobustInfo {
             angle: grid.degrees(),
+            anchor: grid.anchor(),
             candidates,
         },
     ))
@@ -219,7 +225,7 @@ pub fn detect_window(
     // Suppression on the cell positions first, so only the survivors are placed on the map's pixels
     // (placing reads dozens of samples a corner); then again on the placed positions ([`finish`]). A
     // corner this window cannot rule out stays, even if another window will.
-    let centres = (grid_centre2(grid, window.offset), map_centre2(grid));
+    let centres = (grid_centre2(grid, window.offset), grid.anchor2);
     let radius = params.nms_radius;
     let fates = candidate_fates(
         found.len(),
@@ -320,12 +326,12 @@ pub fn detect_window(
 /// the suppression on the cell positions decided for the whole map, then on the placed positions. `grid`
 /// is the whole map's grid.
 pub fn finish(found: Vec<Found>, radius: u32, grid: &RotatedGrid) -> Vec<Keypoint> {
-    let centre2 = map_centre2(grid);
+    let anchor2 = grid.anchor2;
     let fates = candidate_fates(
         found.len(),
         |i| (&found[i].keypoint, found[i].centre, found[i].origin),
         radius,
-        (grid.centre2, centre2),
+        (grid.centre2, anchor2),
         &|_| true,
     );
     let placed: Vec<Keypoint> = found
@@ -334,20 +340,12 @@ pub fn finish(found: Vec<Found>, radius: u32, grid: &RotatedGrid) -> Vec<Keypoin
         .filter(|(_, f)| *f == Fate::Kept)
         .filter_map(|(f, _)| f.placed)
         .collect();
-    let mut kept = suppress(placed, radius, centre2);
+    let mut kept = suppress(placed, radius, anchor2);
     kept.sort_unstable();
     kept
 }
 
-/// The whole map's centre in half pixels.
-fn map_centre2(grid: &RotatedGrid) -> (i64, i64) {
-    (
-        i64::from(grid.full_size.0) - 1,
-        i64::from(grid.full_size.1) - 1,
-    )
-}
-
-/// The whole grid's centre in half samples, from any window of it.
+/// The grid's anchor in the whole grid's half samples, from any window of it.
 fn grid_centre2(grid: &RotatedGrid, offset: (i32, i32)) -> (i64, i64) {
     (
         grid.centre2.0 + 2 * i64::from(offset.0),
@@ -356,9 +354,9 @@ fn grid_centre2(grid: &RotatedGrid, offset: (i32, i32)) -> (i64, i64) {
 }
 
 /// The fates of `n` corners (`corner(i)`: the keypoint at its cell and the cell's middle, whole grid) under
-/// the suppression on cell positions ([`suppress::fates`]), in a map whose grid centre is `grid_c2` (half
-/// samples) and whose centre is `map_c2` (half pixels). Corners equal as keypoints are ordered by their
-/// cell's middle, nearer the grid's centre first (then by its position), so every window orders them
+/// the suppression on cell positions ([`suppress::fates`]), in a map whose grid's anchor is `grid_c2` (half
+/// samples of the whole grid) and `map_c2` (half pixels of the whole map). Corners equal as keypoints are
+/// ordered by their cell's middle, nearer the anchor first (then by its position), so every window orders them
 /// alike.
 fn candidate_fates<'a>(
     n: usize,
@@ -374,7 +372,7 @@ fn candidate_fates<'a>(
 }
 
 /// The order of a cell (its middle `c` and first sample `o`, whole grid) among corners equal as keypoints:
-/// middle nearer the grid's centre `grid_c2` (half samples) first, then by the middle's position, then by
+/// middle nearer the grid's anchor `grid_c2` (half samples) first, then by the middle's position, then by
 /// the first sample's (two cells of an even scale share a middle beside the centre); the same in every
 /// window, and no two cells of one scale tie.
 fn cell_key(c: (i32, i32), o: (i32, i32), grid_c2: (i64, i64)) -> (i64, i32, i32, i32, i32) {
@@ -470,8 +468,8 @@ pub fn lattice_step(scale: u32) -> u32 {
 }
 
 /// The boxes a coarse map's rules are evaluated at: those whose middles lie on a lattice of
-/// [`lattice_step`] about the map's centre, symmetric under quarter turns and mirrors (a distance of `d`
-/// half samples from the centre, along each axis, is on it when `d / 2` is a multiple of the step).
+/// [`lattice_step`] about the grid's anchor (the map's centre by default), symmetric under quarter turns
+/// and mirrors about it (a distance of `d` half samples from the anchor, along each axis, is on it when `d / 2` is a multiple of the step).
 struct Lattice {
     columns: Vec<bool>,
     rows: Vec<bool>,
@@ -527,7 +525,7 @@ fn samples((p, q): (i32, i32)) -> (f64, f64) {
 }
 
 /// A keypoint at grid position `(p, q)` (samples), rounded to the nearest map pixel inside the map (ties
-/// towards the map's centre).
+/// towards the grid's anchor).
 fn candidate(
     grid: &RotatedGrid,
     (p, q): (f64, f64),

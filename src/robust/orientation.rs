@@ -28,17 +28,30 @@ const TRIG_BITS: u32 = 20;
 /// about it, and ties are broken symmetrically), so the robust detector samples a turned map on the
 /// turned grid.
 pub fn dominant_angle(image: &MapImage, classes: &ClassTable) -> f64 {
+    let centre = (i64::from(image.width()) - 1, i64::from(image.height()) - 1);
+    dominant_angle_about(image, classes, centre)
+}
+
+/// [`dominant_angle`] with the bins and the subset laid out about `anchor2` (map pixels, in half pixels)
+/// instead of the map's centre: about a point fixed in the world, a crop of the map or the map grown at
+/// its edges bins its walls' pixels as the map does, and its angle changes only by the walls it gains or
+/// loses.
+pub fn dominant_angle_about(image: &MapImage, classes: &ClassTable, anchor2: (i64, i64)) -> f64 {
     let mut rows = ImageRows(image);
-    match dominant_angle_of(&mut rows, classes) {
+    match dominant_angle_of(&mut rows, classes, anchor2) {
         Ok(a) => a,
         Err(_) => unreachable!("a map in memory reads without error"),
     }
 }
 
-/// [`dominant_angle`] of a map read row by row, twice (once to count its wall boundary, once to take the
-/// subset): the same angle, in memory bounded by [`MAX_POINTS`] whatever the map's size.
-pub fn dominant_angle_of(rows: &mut dyn RowReader, classes: &ClassTable) -> Result<f64> {
-    let points = boundary_points(rows, classes)?;
+/// [`dominant_angle_about`] of a map read row by row, twice (once to count its wall boundary, once to take
+/// the subset): the same angle, in memory bounded by [`MAX_POINTS`] whatever the map's size.
+pub fn dominant_angle_of(
+    rows: &mut dyn RowReader,
+    classes: &ClassTable,
+    anchor2: (i64, i64),
+) -> Result<f64> {
+    let points = boundary_points(rows, classes, anchor2)?;
     Ok(angle_of_points(&points))
 }
 
@@ -73,7 +86,7 @@ impl RowReader for ImageRows<'_> {
     }
 }
 
-/// The angle of the wall boundary `points` (half pixels about the map's centre).
+/// The angle of the wall boundary `points` (half pixels about the anchor).
 fn angle_of_points(points: &[(i32, i32)]) -> f64 {
     if points.is_empty() {
         return 0.0;
@@ -123,9 +136,9 @@ fn best(scores: &[(i32, u128)]) -> (i32, u128) {
 }
 
 /// Sum of squared bin counts of the points projected on both axes of the frame turned by `tenths` of a
-/// degree. Points are in half pixels about the map's centre; the bins are `bin` pixels wide and centred
-/// on multiples of it, a point exactly on a boundary going to the bin nearer the centre, so the histogram
-/// of a turned or mirrored map is this one turned or mirrored, in exact integers.
+/// degree. Points are in half pixels about the anchor; the bins are `bin` pixels wide and centred on
+/// multiples of it, a point exactly on a boundary going to the bin nearer the anchor, so the histogram of a
+/// map turned or mirrored about it is this one turned or mirrored, in exact integers.
 fn profile(points: &[(i32, i32)], tenths: i32, bin: i64, hist: &mut Vec<u32>) -> u128 {
     let t = (f64::from(tenths) / 10.0).to_radians();
     let one = f64::from(1u32 << TRIG_BITS);
@@ -146,15 +159,15 @@ fn profile(points: &[(i32, i32)], tenths: i32, bin: i64, hist: &mut Vec<u32>) ->
                 -x * s + y * c
             }
         };
-        let reach = points
-            .iter()
-            .map(|p| index(proj(p)).abs())
-            .max()
-            .unwrap_or(0);
+        // The bins the points reach (the anchor may lie far off the map: only these are counted).
+        let (lo, hi) = points.iter().fold((i64::MAX, i64::MIN), |(lo, hi), p| {
+            let i = index(proj(p));
+            (lo.min(i), hi.max(i))
+        });
         hist.clear();
-        hist.resize(2 * reach as usize + 1, 0);
+        hist.resize((hi - lo + 1) as usize, 0);
         for pt in points {
-            hist[(index(proj(pt)) + reach) as usize] += 1;
+            hist[(index(proj(pt)) - lo) as usize] += 1;
         }
         total += hist
             .iter()
@@ -164,19 +177,22 @@ fn profile(points: &[(i32, i32)], tenths: i32, bin: i64, hist: &mut Vec<u32>) ->
     total
 }
 
-/// The occupied pixels with a free 4-neighbour, in half pixels about the map's centre; at most about
-/// [`MAX_POINTS`] of them.
-fn boundary_points(rows: &mut dyn RowReader, classes: &ClassTable) -> Result<Vec<(i32, i32)>> {
-    let (w, h) = (rows.width(), rows.height());
+/// The occupied pixels with a free 4-neighbour, in half pixels about `anchor2` (half pixels; at most
+/// [`crate::grid::MAX_ANCHOR`] pixels from the map's pixel (0, 0)); at most about [`MAX_POINTS`] of them.
+fn boundary_points(
+    rows: &mut dyn RowReader,
+    classes: &ClassTable,
+    anchor2: (i64, i64),
+) -> Result<Vec<(i32, i32)>> {
     let mut count = 0usize;
     visit_boundary(rows, classes, &mut |_, _| count += 1)?;
     let stride = count.div_ceil(MAX_POINTS).max(1) as u64;
     let mut points = Vec::with_capacity(count.min(2 * MAX_POINTS));
-    let (cx, cy) = (w as i64 - 1, h as i64 - 1);
+    let (cx, cy) = anchor2;
     rows.rewind()?;
     visit_boundary(rows, classes, &mut |x, y| {
         let (px, py) = (2 * x as i64 - cx, 2 * y as i64 - cy);
-        // The same hash for every point of an orbit of the quarter turns and mirrors.
+        // The same hash for every point of an orbit of the quarter turns and mirrors about the anchor.
         let (a, b) = (px.unsigned_abs(), py.unsigned_abs());
         let key = (a.max(b) << 32 | a.min(b)).wrapping_mul(0x9e37_79b9_7f4a_7c15) >> 32;
         if stride == 1 || key % stride == 0 {
@@ -265,5 +281,15 @@ mod tests {
         }
         let blank = MapImage::filled(50, 40, 254).unwrap();
         assert_eq!(dominant_angle(&blank, &ClassTable::default()), 0.0);
+    }
+
+    #[test]
+    fn about_an_anchor_far_off_the_map_the_angle_is_found_too() {
+        // The histograms span the points, not the anchor's distance (a million pixels here).
+        let far = 2 * i64::from(crate::grid::MAX_ANCHOR);
+        for anchor2 in [(far, -far), (-far, 3), (479, 479)] {
+            let got = dominant_angle_about(&turned_room(-20.0), &ClassTable::default(), anchor2);
+            assert!((got + 20.0).abs() <= 0.3, "{anchor2:?}: got {got}");
+        }
     }
 }

@@ -24,8 +24,8 @@ pub enum Fate {
 }
 
 /// Greedy suppression: strongest first, a keypoint is kept unless a kept one lies within `radius` pixels.
-/// Ties go to the larger scale, then to the keypoint nearer the map's centre (`centre2`, in half pixels:
-/// a quarter turn or a mirror of the map about its centre keeps the same order), then (y, x) and the
+/// Ties go to the larger scale, then to the keypoint nearer the grid's anchor (`centre2`, in half pixels;
+/// the map's centre by default, and a quarter turn or a mirror of the map about it keeps the same order), then (y, x) and the
 /// rest of the keypoint, so the result does not depend on the order found.
 pub fn suppress(found: Vec<Keypoint>, radius: u32, centre2: (i64, i64)) -> Vec<Keypoint> {
     let fates = fates(

@@ -296,11 +296,12 @@ pub fn detect_tiled(
 ) -> Result<(Vec<Keypoint>, RobustInfo)> {
     params.scales()?;
     let (w, h) = (map.width() as u32, map.height() as u32);
+    let anchor2 = params.anchor2(w, h)?;
     let angle = match params.angle {
         Some(a) => a,
-        None => orientation::dominant_angle_of(map, classes)?,
+        None => orientation::dominant_angle_of(map, classes, anchor2)?,
     };
-    let grid = RotatedGrid::new(w, h, angle)?;
+    let grid = RotatedGrid::anchored(w, h, angle, anchor2)?;
     let t = i64::from(plan.tile);
     let (gw, gh) = (i64::from(grid.width), i64::from(grid.height));
     let (nx, ny) = ((gw + t - 1) / t, (gh + t - 1) / t);
@@ -367,6 +368,7 @@ pub fn detect_tiled(
         finish(found, params.nms_radius, &grid),
         RobustInfo {
             angle: grid.degrees(),
+            anchor: grid.anchor(),
             candidates,
         },
     ))
