@@ -358,6 +358,20 @@ def fig_robust_lobo_cells(r):
     return block + "\n\n" + summary + "\n\nThe free share (pooled, at the defaults otherwise): " + "; ".join(free) + "."
 
 
+LOBO_JOINT_MIN_STRENGTH = (8, 12, 16)
+
+
+def fig_robust_lobo_joint(r):
+    """The shortest wall and the occupied share fitted together, leave-one-building-out (the largest scale
+    and the wall gap at their defaults): the share changes which walls the cells see, so which shortest
+    wall is best."""
+    settings = [(ms, o) for ms in LOBO_JOINT_MIN_STRENGTH for o in LOBO_CELL_OCCUPIED if o >= 10]
+    block, summary = lobo_fit(
+        r, settings, lambda st: ("--min-strength", str(st[0]), "--cell-occupied", str(st[1])),
+        (ROBUST_DEFAULT[0], ROBUST_CELLS_DEFAULT[0]), lambda st: f"min strength {st[0]}, occupied {st[1]}%")
+    return block + "\n\n" + summary
+
+
 def fig_shared_maps(r):
     maps = shared_map_files()
     out = os.path.join(r.work, "compare")
@@ -573,6 +587,8 @@ FIGURES = {
                     "the robust detector's settings fitted leave-one-building-out, held-out recall"),
     "robust-lobo-cells": ("docs/detectors.md", fig_robust_lobo_cells,
                           "the coarse cells' share and the wall gap fitted leave-one-building-out"),
+    "robust-lobo-joint": ("docs/detectors.md", fig_robust_lobo_joint,
+                          "the shortest wall and the occupied share fitted together, leave-one-building-out"),
     "shared-maps": ("docs/detectors.md", fig_shared_maps,
                     "every detector on the 26 shared maps (compare --backend all)"),
     "repeatability": ("docs/detectors.md", fig_repeatability,
