@@ -6,7 +6,7 @@ use crate::baselines::Candidate;
 use crate::error::{Error, Result};
 use crate::fast::FastCpuBackend;
 use crate::map::{GeoRef, MapImage, OccupancyMap, Thresholds};
-use crate::robust::{RobustInfo, RobustParams};
+use crate::robust::RobustInfo;
 use crate::rules::RuleTable;
 use crate::states::ClassTable;
 use crate::stream::{for_each_window, RowSource, Rows, Window, WindowPlan};
@@ -125,7 +125,7 @@ impl Detector {
                     image,
                     classes,
                     &self.rules,
-                    &robust_in_frame(&self.options.robust, frame, h),
+                    &self.options.robust.in_frame(frame, h),
                 )?;
                 robust = Some(info);
                 match self.options.max_corners {
@@ -193,7 +193,7 @@ impl Detector {
         let (w, h) = (source.width(), source.height());
         if self.options.detector == DetectorKind::OgmRobust {
             use crate::robust::tiles::{detect_tiled, Spill};
-            let params = robust_in_frame(&self.options.robust, frame, h);
+            let params = self.options.robust.in_frame(frame, h);
             let plan = self.tile_plan()?;
             // A map the turned grid cannot hold is refused before its rows are copied.
             crate::grid::RotatedGrid::new(w, h, 0.0)?;
@@ -407,11 +407,6 @@ pub struct Streamed {
     pub warnings: Vec<String>,
     /// What the robust detector measured (its grid angle); `None` for the other detectors.
     pub robust: Option<RobustInfo>,
-}
-
-/// The robust detector's options for a map `height` pixels high that lies in the world at `frame`.
-fn robust_in_frame(params: &RobustParams, frame: Option<&GeoRef>, height: u32) -> RobustParams {
-    params.in_frame(frame.map(|g| g.world_to_point((0.0, 0.0), height)))
 }
 
 /// Working memory of a streamed robust detection's tile window by default: tiles of about 4,600 samples

@@ -42,7 +42,7 @@ fn both(
     assert_eq!(info, tiled, "the angle and the candidate count");
     let (gw, gh) = {
         let (w, h) = (img.width(), img.height());
-        let anchor = params.anchor2(w, h).unwrap();
+        let anchor = params.anchor2(w, h);
         let g = ogm_corners::grid::RotatedGrid::anchored(w, h, info.angle, anchor).unwrap();
         (g.width, g.height)
     };

@@ -300,13 +300,11 @@ fn anchor_of(anchor: Option<&Bound<'_, PyAny>>) -> PyResult<Anchor> {
         return Ok(Anchor::World);
     };
     if let Ok(s) = a.extract::<String>() {
-        return match s.as_str() {
-            "world" => Ok(Anchor::World),
-            "centre" | "center" => Ok(Anchor::Centre),
-            _ => Err(to_py(Error::invalid(format!(
+        return Anchor::named(&s).ok_or_else(|| {
+            to_py(Error::invalid(format!(
                 "unknown anchor {s:?}: expected \"world\", \"centre\" or a point (x, y) in pixels"
-            )))),
-        };
+            )))
+        });
     }
     match a.extract::<(f64, f64)>() {
         Ok((x, y)) => Ok(Anchor::Point(x, y)),

@@ -7,6 +7,7 @@ use crate::error::{Error, Result};
 #[cfg(doc)]
 use crate::grid::RotatedGrid;
 use crate::grid::MAX_ANCHOR;
+use crate::map::GeoRef;
 
 /// Options of the robust detector.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -96,8 +97,7 @@ impl RobustParams {
             )));
         }
         if let Anchor::Point(x, y) = self.anchor {
-            let far = f64::from(MAX_ANCHOR);
-            if !(x.is_finite() && y.is_finite() && x.abs() <= far && y.abs() <= far) {
+            if !within_reach(x, y) {
                 return Err(Error::invalid(format!(
                     "grid anchor ({x}, {y}) is not a point within {MAX_ANCHOR} pixels of the map"
                 )));
@@ -113,30 +113,46 @@ impl RobustParams {
         Ok(scale_ladder(self.min_scale, self.max_scale))
     }
 
-    /// The grid's anchor for a `width` x `height` map, in half pixels ([`RotatedGrid::anchored`]): the
-    /// map's centre unless [`RobustParams::anchor`] is a point ([`Anchor::World`] resolves to a point
-    /// where the map's frame is known, [`RobustParams::in_frame`]).
-    pub fn anchor2(&self, width: u32, height: u32) -> Result<(i64, i64)> {
-        self.scales()?;
-        Ok(match self.anchor {
+    /// The grid's anchor for a `width` x `height` map, in half pixels ([`RotatedGrid::anchored`]), of
+    /// options [`RobustParams::scales`] accepted: the map's centre unless [`RobustParams::anchor`] is a
+    /// point ([`Anchor::World`] resolves to a point where the map's frame is known,
+    /// [`RobustParams::in_frame`]).
+    pub fn anchor2(&self, width: u32, height: u32) -> (i64, i64) {
+        match self.anchor {
             Anchor::Point(x, y) => ((2.0 * x).round() as i64, (2.0 * y).round() as i64),
             Anchor::World | Anchor::Centre => (i64::from(width) - 1, i64::from(height) - 1),
-        })
+        }
     }
 
-    /// These options for a map whose world frame's origin lies at `origin` (map pixels, pixel centres at
-    /// integers; `None` where the map has no frame): [`Anchor::World`] becomes that point, or the map's
-    /// centre where there is none or it lies more than [`MAX_ANCHOR`] pixels away.
-    pub fn in_frame(&self, origin: Option<(f64, f64)>) -> RobustParams {
-        let far = f64::from(MAX_ANCHOR);
+    /// These options for a map `height` pixels high that lies in the world at `frame` (`None` where the
+    /// map has no frame): [`Anchor::World`] becomes the frame's origin, in pixels, or the map's centre
+    /// where there is no frame or its origin lies more than [`MAX_ANCHOR`] pixels away.
+    pub fn in_frame(&self, frame: Option<&GeoRef>, height: u32) -> RobustParams {
+        let origin = frame.map(|g| g.world_to_point((0.0, 0.0), height));
         let anchor = match (self.anchor, origin) {
-            (Anchor::World, Some((x, y))) if x.abs() <= far && y.abs() <= far => {
-                Anchor::Point(x, y)
-            }
+            (Anchor::World, Some((x, y))) if within_reach(x, y) => Anchor::Point(x, y),
             (Anchor::World, _) => Anchor::Centre,
             (a, _) => a,
         };
         RobustParams { anchor, ..*self }
+    }
+}
+
+/// Whether `(x, y)` (map pixels) is a point the grid can be anchored at: finite, and at most
+/// [`MAX_ANCHOR`] pixels from the map's pixel (0, 0) along each axis.
+fn within_reach(x: f64, y: f64) -> bool {
+    let far = f64::from(MAX_ANCHOR);
+    x.is_finite() && y.is_finite() && x.abs() <= far && y.abs() <= far
+}
+
+impl Anchor {
+    /// The anchor a name gives: `world`, `centre` (or `center`); `None` for any other text.
+    pub fn named(name: &str) -> Option<Anchor> {
+        match name {
+            "world" => Some(Anchor::World),
+            "centre" | "center" => Some(Anchor::Centre),
+            _ => None,
+        }
     }
 }
 

@@ -182,19 +182,14 @@ impl BaselineArgs {
 
 /// `--anchor`: `world`, `centre` (or `center`), or a point `X,Y` in pixels.
 fn parse_anchor(s: &str) -> std::result::Result<Anchor, String> {
-    match s {
-        "world" => Ok(Anchor::World),
-        "centre" | "center" => Ok(Anchor::Centre),
-        _ => {
-            let point = s.split_once(',').and_then(|(x, y)| {
-                let (x, y) = (x.trim().parse::<f64>().ok()?, y.trim().parse::<f64>().ok()?);
-                (x.is_finite() && y.is_finite()).then_some(Anchor::Point(x, y))
-            });
-            point.ok_or_else(|| {
-                format!("expected world, centre or a point X,Y in pixels, got {s:?}")
-            })
-        }
-    }
+    let point = || {
+        let (x, y) = s.split_once(',')?;
+        let (x, y) = (x.trim().parse::<f64>().ok()?, y.trim().parse::<f64>().ok()?);
+        (x.is_finite() && y.is_finite()).then_some(Anchor::Point(x, y))
+    };
+    Anchor::named(s)
+        .or_else(point)
+        .ok_or_else(|| format!("expected world, centre or a point X,Y in pixels, got {s:?}"))
 }
 
 /// The robust detector's options ([`ogm_corners::robust::RobustParams`]).

@@ -271,27 +271,31 @@ impl GeoRef {
 
     /// [`GeoRef::pixel_to_world`] of a fractional pixel position (pixel centres at integers).
     pub fn point_to_world(&self, (x, y): (f64, f64), height: u32) -> (f64, f64) {
-        let [ox, oy, yaw] = self.origin;
-        // Non-finite yaw (seen as `nan` in real yaml files) is treated as 0; the loader warns about it.
-        let yaw = if yaw.is_finite() { yaw } else { 0.0 };
+        let [ox, oy, _] = self.origin;
         let mx = (x + 0.5) * self.resolution;
         let my = (f64::from(height) - 1.0 - y + 0.5) * self.resolution;
-        let (s, c) = yaw.sin_cos();
+        let (s, c) = self.yaw_sin_cos();
         (ox + c * mx - s * my, oy + s * mx + c * my)
     }
 
     /// The position in pixels (pixel centres at integers) of world point `(wx, wy)` in a map `height`
     /// pixels high: the inverse of [`GeoRef::point_to_world`].
     pub fn world_to_point(&self, (wx, wy): (f64, f64), height: u32) -> (f64, f64) {
-        let [ox, oy, yaw] = self.origin;
-        let yaw = if yaw.is_finite() { yaw } else { 0.0 };
-        let (s, c) = yaw.sin_cos();
+        let [ox, oy, _] = self.origin;
+        let (s, c) = self.yaw_sin_cos();
         let (dx, dy) = (wx - ox, wy - oy);
         let (mx, my) = (c * dx + s * dy, -s * dx + c * dy);
         (
             mx / self.resolution - 0.5,
             f64::from(height) - 0.5 - my / self.resolution,
         )
+    }
+
+    /// Sine and cosine of the origin's yaw; a non-finite yaw (seen as `nan` in real yaml files) is treated as
+    /// 0, and the loader warns about it.
+    fn yaw_sin_cos(&self) -> (f64, f64) {
+        let yaw = self.origin[2];
+        if yaw.is_finite() { yaw } else { 0.0 }.sin_cos()
     }
 
     /// Checks that every pixel of a `width` x `height` map has finite world coordinates (a resolution of

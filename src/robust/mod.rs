@@ -78,7 +78,7 @@ pub fn detect(
 ) -> Result<(Vec<Keypoint>, RobustInfo)> {
     params.scales()?;
     let (w, h) = (image.width(), image.height());
-    let anchor2 = params.anchor2(w, h)?;
+    let anchor2 = params.anchor2(w, h);
     let angle = params
         .angle
         .unwrap_or_else(|| orientation::dominant_angle_about(image, classes, anchor2));

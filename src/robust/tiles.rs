@@ -296,7 +296,7 @@ pub fn detect_tiled(
 ) -> Result<(Vec<Keypoint>, RobustInfo)> {
     params.scales()?;
     let (w, h) = (map.width() as u32, map.height() as u32);
-    let anchor2 = params.anchor2(w, h)?;
+    let anchor2 = params.anchor2(w, h);
     let angle = match params.angle {
         Some(a) => a,
         None => orientation::dominant_angle_of(map, classes, anchor2)?,
