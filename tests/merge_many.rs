@@ -512,3 +512,71 @@ fn a_cached_run_redoes_only_the_changed_maps_and_pairs_and_equals_a_fresh_run() 
     run_cached(&maps, &other, &mut CpuBackend, &|_, _| {}, &mut cache).unwrap();
     assert_eq!(cache.last_use(), use_of(0, 5, 0, 10));
 }
+
+/// A large set is screened: each map aligned first with its most similar maps, then the pairs that close
+/// cycles. Two offices of 8 maps each (16, over the 12 that align every pair): every map placed within
+/// the synthetic limits, the offices apart, and far fewer pairs aligned than all 120.
+#[test]
+fn a_screened_set_places_every_map_with_a_fraction_of_the_pairs() {
+    use ogm_corners::merge::global::eval::synthetic_mixed;
+    let (names, maps, truths) = synthetic_mixed(16, 2, 3).unwrap();
+    let r = run_maps(names.clone(), &maps, &GlobalOptions::default(), &|_, _| {}).unwrap();
+    let poses = placed_poses(&r.placement);
+    assert!(poses.iter().all(Option::is_some), "{:?}", r.placement.maps);
+    assert_eq!(r.placement.groups.len(), 2, "{:?}", r.placement.groups);
+    for g in &r.placement.groups {
+        let office = |m: usize| names[m].split_once("-part-").unwrap().0.to_string();
+        assert!(g.iter().all(|&m| office(m) == office(g[0])), "{g:?}");
+    }
+    let checked = assert_placed_within(&names, &poses, &truths, 1.0, 3.0);
+    assert_eq!(checked, 2 * 8 * 7);
+    let aligned = r.pairwise.pairs.len();
+    assert_eq!(aligned + r.pairwise.screened_out, 120);
+    assert!(
+        aligned <= 60,
+        "{aligned} pairs aligned: {:?}",
+        r.pairwise.rounds
+    );
+    assert_eq!(
+        r.pairwise.rounds.iter().map(|x| x.pairs).sum::<usize>(),
+        aligned
+    );
+    // Every pair aligned: the same groups.
+    let all = run_maps(names, &maps, &GlobalOptions::with_partners(0), &|_, _| {}).unwrap();
+    assert_eq!(all.pairwise.pairs.len(), 120);
+    assert!(all.pairwise.rounds.is_empty());
+    assert_eq!(all.placement.groups, r.placement.groups);
+}
+
+/// The 22 real maps of three buildings, screened (22 maps: each aligned first with its 3 most similar):
+/// the three buildings whole and apart and every annotated pair accurate through the placement, as when
+/// every pair is aligned (docs/merging.md), with under half the pairs.
+#[test]
+fn the_real_buildings_screened_are_placed_as_with_every_pair() {
+    let Some(dir) = common::merge_pairs() else {
+        return;
+    };
+    let set = ogm_corners::merge::pairs::PairSet::load(&dir.join("pairs.json")).unwrap();
+    let mut names: Vec<String> = set
+        .pairs
+        .iter()
+        .flat_map(|p| [p.src.clone(), p.dst.clone()])
+        .collect();
+    names.sort();
+    names.dedup();
+    assert_eq!(names.len(), 22);
+    let maps: Vec<OccupancyMap> = names
+        .iter()
+        .map(|n| OccupancyMap::load(dir.join("maps").join(format!("{n}.png"))).unwrap())
+        .collect();
+    let r = run_maps(names.clone(), &maps, &GlobalOptions::default(), &|_, _| {}).unwrap();
+    let building = |n: &str| n.split('_').next().unwrap().to_string();
+    let row = score("real", &r, &set.pairs, &building);
+    assert_eq!(
+        (row.placed, row.wrong, row.groups, row.foreign),
+        (22, 0, 3, 0),
+        "{row:?}"
+    );
+    assert_eq!(row.derived_accurate, set.pairs.len(), "{row:?}");
+    assert!(row.aligned < 231 / 2 + 1, "{} pairs aligned", row.aligned);
+}

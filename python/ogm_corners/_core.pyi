@@ -119,5 +119,9 @@ class MergeCache:
     def _last_use(self) -> Tuple[int, int, int, int]: ...
 
 def merge_many(
-    maps: List[Map], names: List[str], backend: str = "cpu", cache: Optional[MergeCache] = None
+    maps: List[Map],
+    names: List[str],
+    backend: str = "cpu",
+    cache: Optional[MergeCache] = None,
+    partners: int = 3,
 ) -> ManyMerge: ...

@@ -260,16 +260,25 @@ def merge_many(
     names: Optional[Sequence[str]] = None,
     backend: str = "cpu",
     cache: Optional[MergeCache] = None,
+    partners: int = 3,
 ) -> ManyMerge:
     """Places every map at once (``Map`` objects or paths): groups of maps of one place, each map's pose
     in its group's merged map, merges no single pair would trust confirmed around cycles and accepted
     ones that cycles contradict dropped. ``names`` label the maps in the report (default: their source
     files, else ``map0``, ``map1``, ...). A ``cache`` (``MergeCache``) given to successive calls redoes
-    only what changed between them."""
+    only what changed between them. In a set of more than 12 maps each map is aligned first with only its
+    ``partners`` most similar maps (by the layout of their corners), then with the maps that close cycles
+    and may join groups; ``partners=0`` aligns every pair."""
+    if isinstance(partners, bool) or not isinstance(partners, int):
+        raise TypeError(f"partners must be an int, got {type(partners).__name__}")
+    if partners < 0:
+        raise ValueError(f"partners must be 0 or more (0 aligns every pair); got {partners}")
     if cache is not None and not isinstance(cache, MergeCache):
         raise TypeError(f"cache must be a MergeCache, got {type(cache).__name__}")
     ms = [_as_map(m) for m in maps]
     if names is None:
         names = [m.source or f"map{i}" for i, m in enumerate(ms)]
     core_cache = cache._core if cache is not None else None
-    return ManyMerge(_core.merge_many([m._m for m in ms], list(names), backend, core_cache))
+    return ManyMerge(
+        _core.merge_many([m._m for m in ms], list(names), backend, core_cache, partners)
+    )

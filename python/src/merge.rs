@@ -172,16 +172,25 @@ impl MergeCache {
     }
 }
 
+/// The most `partners` a many-map merge takes (as the command line's `--partners`).
+const MAX_PARTNERS: usize = 1000;
+
 /// Places every map at once (groups of maps of one place), each map's pose in its group's merged map.
 #[pyfunction]
-#[pyo3(signature = (maps, names, backend="cpu", cache=None))]
+#[pyo3(signature = (maps, names, backend="cpu", cache=None, partners=3))]
 pub fn merge_many(
     py: Python<'_>,
     maps: Vec<PyRef<'_, Map>>,
     names: Vec<String>,
     backend: &str,
     cache: Option<PyRef<'_, MergeCache>>,
+    partners: usize,
 ) -> PyResult<ManyMerge> {
+    if partners > MAX_PARTNERS {
+        return Err(to_py(Error::invalid(format!(
+            "partners must be at most {MAX_PARTNERS} (0 aligns every pair); got {partners}"
+        ))));
+    }
     if maps.len() < 2 {
         return Err(to_py(Error::invalid(format!(
             "merge needs at least two maps; found {}",
@@ -212,7 +221,7 @@ pub fn merge_many(
         global::merge_maps_cached(
             owned,
             &names,
-            &GlobalOptions::default(),
+            &GlobalOptions::with_partners(partners),
             on.as_mut(),
             &|_, _| {},
             held.as_deref_mut().unwrap_or(&mut fresh),

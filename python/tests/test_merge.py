@@ -106,6 +106,25 @@ def test_a_cache_redoes_only_the_changed_map_and_gives_the_same_report(robots):
         oc.merge_many(maps, cache={})
 
 
+def test_partners_is_checked_and_small_sets_align_every_pair(robots):
+    maps = [m for m, _ in robots]
+    names = ["r0", "r1", "r2"]
+    screened = oc.merge_many(maps, names=names)
+    every = oc.merge_many(maps, names=names, partners=0)
+    # Three maps are under the size a pre-screen starts at: every pair aligned either way.
+    assert screened.report["pairs_aligned"] == every.report["pairs_aligned"] == 3
+    assert screened.report["pairs_screened_out"] == 0
+    assert screened.report["maps"] == every.report["maps"]
+    with pytest.raises(ValueError, match="partners"):
+        oc.merge_many(maps, partners=-1)
+    with pytest.raises(ValueError, match="partners"):
+        oc.merge_many(maps, partners=5000)
+    with pytest.raises(TypeError, match="partners"):
+        oc.merge_many(maps, partners="3")
+    with pytest.raises(TypeError, match="partners"):
+        oc.merge_many(maps, partners=True)
+
+
 def test_merge_many_needs_two_maps(robots):
     with pytest.raises(ValueError, match="at least two maps"):
         oc.merge_many([robots[0][0]])

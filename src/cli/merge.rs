@@ -46,6 +46,11 @@ pub(super) struct MergeArgs {
     /// colours, and each map alone (sortable tables; opened from disk, no server).
     #[arg(long, value_name = "DIR")]
     pub(super) html: Option<PathBuf>,
+    /// Many maps: in a set of more than 12, align each map first with only its N most similar maps (by
+    /// their corners' layout), then the pairs that close cycles and may join groups, instead of every
+    /// pair (0: every pair).
+    #[arg(long, value_name = "N", default_value_t = 3, value_parser = clap::value_parser!(u32).range(0..=1000))]
+    pub partners: u32,
     /// Output format of the verdict.
     #[arg(long, value_enum, default_value = "text")]
     pub(super) format: super::TextOrJson,

@@ -74,8 +74,16 @@ pub(super) struct MergeEvalArgs {
     #[arg(long, conflicts_with_all = ["synthetic", "ablation"])]
     global: bool,
     /// Maps in the synthetic set of `--global`.
-    #[arg(long, default_value_t = 50, value_parser = clap::value_parser!(u32).range(2..=400))]
+    #[arg(long, default_value_t = 50, value_parser = clap::value_parser!(u32).range(2..=1000))]
     set_size: u32,
+    /// With --global: the synthetic set cut from this many synthetic offices (seeds `--seed` on), about
+    /// as many maps from each, mixed: maps of different offices must stay in different groups.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=100))]
+    buildings: u32,
+    /// With --global: in a set of more than 12 maps, align each map first with only its N most similar
+    /// maps, then the pairs that close cycles and may join groups (0: every pair; as `merge`).
+    #[arg(long, value_name = "N", default_value_t = 3, value_parser = clap::value_parser!(u32).range(0..=1000))]
+    partners: u32,
     /// Also write an HTML report into DIR (pair runs: a pair file or --synthetic): `index.html` with every
     /// pair's verdict, score, overlap, errors against the truth and runner-up (sortable; wrong accepts and
     /// missed pairs first), and each pair's two maps overlaid at the estimate (and, when it is wrong, at
@@ -379,8 +387,14 @@ fn run_global(a: &MergeEvalArgs, budget: &Budget) -> Result<()> {
         bar.set_length(n as u64);
         bar.set_position(k as u64);
     };
-    let options = GlobalOptions::default();
+    let options = GlobalOptions::with_partners(a.partners as usize);
     let size = a.set_size as usize;
+    let buildings = a.buildings as usize;
+    if buildings > size {
+        return Err(Error::invalid(format!(
+            "--buildings {buildings} is more than --set-size {size}: each office needs a map"
+        )));
+    }
     let rows = match &a.pairs {
         Some(pairs) => {
             if a.save_pairs.is_some() {
@@ -401,18 +415,25 @@ fn run_global(a: &MergeEvalArgs, budget: &Budget) -> Result<()> {
                 format_args!("{} maps placed at once", lib.maps.len()),
                 all.max(synthetic_bytes(size)),
             )?;
-            global_eval::suite(&lib, &set.pairs, &options, size, a.seed, &progress)?
+            global_eval::suite(
+                &lib,
+                &set.pairs,
+                &options,
+                (size, buildings),
+                a.seed,
+                &progress,
+            )?
         }
         None => {
             budget.check(
                 format_args!("a synthetic set of {size} maps"),
                 synthetic_bytes(size),
             )?;
-            let (names, maps, truths) = global_eval::synthetic_maps(size, a.seed)?;
+            let (names, maps, truths) = global_eval::synthetic_mixed(size, buildings, a.seed)?;
             if let Some(dir) = &a.save_pairs {
                 save_set(dir, &names, &maps, &truths)?;
             }
-            let label = format!("synthetic office, {size} maps");
+            let label = global_eval::synthetic_label(size, buildings);
             vec![global_eval::score_maps(
                 &label, names, &maps, &truths, &options, &progress,
             )?]

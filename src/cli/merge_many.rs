@@ -102,7 +102,7 @@ pub(super) fn run(a: MergeArgs, budget: &Budget) -> Result<()> {
     let many = merge_maps(
         maps,
         &names,
-        &GlobalOptions::default(),
+        &GlobalOptions::with_partners(a.partners as usize),
         backend.as_mut(),
         &|k, n| {
             bar.set_length(n as u64);

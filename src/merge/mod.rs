@@ -27,6 +27,7 @@ pub mod mosaic;
 pub mod pair;
 pub mod pairs;
 mod prepare;
+pub mod prescreen;
 mod refine;
 pub mod report;
 pub mod resample;

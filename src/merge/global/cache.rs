@@ -15,6 +15,10 @@ use std::hash::{Hash, Hasher};
 use super::GlobalOptions;
 use crate::map::{MapImage, OccupancyMap, Thresholds};
 use crate::merge::align::{Alignment, Prepared};
+use crate::merge::prescreen::Signature;
+
+/// A map's preparation and, once a pre-screen needed it, its signature.
+pub(super) type Kept = (Prepared, Option<Signature>);
 
 /// A map's content as the cache recognises it.
 #[derive(Clone)]
@@ -65,7 +69,7 @@ pub struct CacheUse {
 #[derive(Default)]
 pub struct Cache {
     options: Option<GlobalOptions>,
-    maps: Vec<(Key, Prepared)>,
+    maps: Vec<(Key, Kept)>,
     /// By the two maps' hashes (reference, moved) and checked against their keys.
     pairs: HashMap<(u64, u64), (Key, Key, Alignment)>,
     used: CacheUse,
@@ -92,8 +96,9 @@ impl Cache {
         self.used = CacheUse::default();
     }
 
-    /// The preparation kept for `key`, taken out of the cache ([`Cache::keep`] puts it back).
-    pub(super) fn take_map(&mut self, key: &Key) -> Option<Prepared> {
+    /// The preparation (and signature) kept for `key`, taken out of the cache ([`Cache::keep`] puts it
+    /// back).
+    pub(super) fn take_map(&mut self, key: &Key) -> Option<Kept> {
         let i = self.maps.iter().position(|(k, _)| k.same(key))?;
         self.used.maps_reused += 1;
         Some(self.maps.swap_remove(i).1)
@@ -108,7 +113,7 @@ impl Cache {
     /// Keeps this run's maps and pairs, and only them.
     pub(super) fn keep(
         &mut self,
-        maps: Vec<(Key, Prepared)>,
+        maps: Vec<(Key, Kept)>,
         pairs: Vec<(usize, usize, Alignment)>,
         used: CacheUse,
     ) {

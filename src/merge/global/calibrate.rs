@@ -122,7 +122,7 @@ mod tests {
         let pairwise = Pairwise {
             n: 2,
             edges: residuals.iter().map(|&(r, a, _)| edge(r, a)).collect(),
-            pairs: Vec::new(),
+            ..Pairwise::default()
         };
         let ev: Vec<EdgeEvidence> = residuals
             .iter()

@@ -296,14 +296,15 @@ impl Library {
 pub const SMALL_MIXED: usize = 12;
 
 /// The `--global` suite over a pair set's maps: each building alone; every two buildings together, and
-/// all of them; two maps of each of two buildings ([`SMALL_MIXED`] sets a pair of buildings); the first 4 and 8 maps of the largest building (the cost as N grows); and a synthetic set
-/// of `synthetic` maps cut from one large synthetic office (seed `seed`) (exact truth, the synthetic success
-/// test). `progress` hears what runs.
+/// all of them; two maps of each of two buildings ([`SMALL_MIXED`] sets a pair of buildings); the first 4
+/// and 8 maps of the largest building (the cost as N grows); and a synthetic set of `synthetic.0` maps
+/// cut from `synthetic.1` large synthetic offices (seeds `seed` on; [`synthetic_mixed`]) (exact truth,
+/// the synthetic success test). `progress` hears what runs.
 pub fn suite(
     lib: &Library,
     truths: &[TruePair],
     options: &GlobalOptions,
-    synthetic: usize,
+    synthetic: (usize, usize),
     seed: u64,
     progress: &(dyn Fn(&str, usize, usize) + Sync),
 ) -> Result<Vec<SetRow>> {
@@ -394,15 +395,51 @@ pub fn suite(
             }
         }
     }
-    let (names, maps, truths) = synthetic_maps(synthetic, seed)?;
-    let label = format!("synthetic office, {synthetic} maps");
+    let (names, maps, truths) = synthetic_mixed(synthetic.0, synthetic.1, seed)?;
+    let label = synthetic_label(synthetic.0, synthetic.1);
     rows.push(score_maps(
         &label, names, &maps, &truths, options, progress,
     )?);
     Ok(rows)
 }
 
-/// Places `maps` and scores them against `truths`, labelled `label`, each map its own "building".
+/// The label of a synthetic set of `n` maps of `buildings` offices.
+pub fn synthetic_label(n: usize, buildings: usize) -> String {
+    if buildings <= 1 {
+        format!("synthetic office, {n} maps")
+    } else {
+        format!("synthetic offices, {n} maps of {buildings} offices mixed")
+    }
+}
+
+/// `n` maps cut from `buildings` synthetic offices ([`synthetic_maps`], seeds `seed`, `seed + 1`, ...),
+/// as evenly as they divide (the first offices one more), named `oK-part-NN` for office K (`part-NN` for
+/// one office), with every ordered pair of one office's truth (its building `oK`).
+pub fn synthetic_mixed(
+    n: usize,
+    buildings: usize,
+    seed: u64,
+) -> Result<(Vec<String>, Vec<OccupancyMap>, Vec<TruePair>)> {
+    if buildings <= 1 {
+        return synthetic_maps(n, seed);
+    }
+    let (mut names, mut maps, mut truths) = (Vec::new(), Vec::new(), Vec::new());
+    for k in 0..buildings {
+        let count = n / buildings + usize::from(k < n % buildings);
+        let (nm, mp, tr) = synthetic_maps(count, seed.wrapping_add(k as u64))?;
+        let tag = |s: &str| format!("o{k}-{s}");
+        names.extend(nm.iter().map(|s| tag(s)));
+        maps.extend(mp);
+        truths.extend(tr.into_iter().map(|mut t| {
+            (t.src, t.dst, t.building) = (tag(&t.src), tag(&t.dst), format!("o{k}"));
+            t
+        }));
+    }
+    Ok((names, maps, truths))
+}
+
+/// Places `maps` and scores them against `truths`, labelled `label`; a map's building is its office's
+/// tag in a mixed set (`oK` of `oK-part-NN`), else "synthetic".
 pub fn score_maps(
     label: &str,
     names: Vec<String>,
@@ -412,7 +449,12 @@ pub fn score_maps(
     progress: &(dyn Fn(&str, usize, usize) + Sync),
 ) -> Result<SetRow> {
     let result = run_maps(names, maps, options, &|k, m| progress(label, k, m))?;
-    Ok(score(label, &result, truths, &|_| "synthetic".to_string()))
+    let building = |name: &str| {
+        name.split_once("-part-")
+            .map_or("synthetic", |(office, _)| office)
+            .to_string()
+    };
+    Ok(score(label, &result, truths, &building))
 }
 
 /// `n` maps cut from one synthetic office with every ordered pair's exact truth (the synthetic limits).

@@ -28,16 +28,19 @@ mod merged;
 pub mod page;
 pub mod posegraph;
 pub mod report;
+mod rounds;
 
 use serde::Serialize;
 
 use super::align::{
     align_prepared, not_contradicted, overlap_centre, Candidate, MergeOptions, Prepared,
 };
+use super::prescreen::{Prescreen, Signature};
 use super::transform::Rigid;
 use crate::error::Result;
 pub use cache::{Cache, CacheUse};
 pub use merged::{merge_maps, merge_maps_cached, ManyMerge};
+pub use rounds::Round;
 
 /// How to place many maps.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -50,6 +53,8 @@ pub struct GlobalOptions {
     pub loop_deg: f64,
     /// ... and move its walls' centre by at most this, pixels.
     pub loop_px: f64,
+    /// Which pairs are aligned in a large set ([`super::prescreen`]); `None`: every pair.
+    pub prescreen: Option<Prescreen>,
 }
 
 impl Default for GlobalOptions {
@@ -59,6 +64,21 @@ impl Default for GlobalOptions {
             weak_from: graph::WEAK_FROM,
             loop_deg: graph::LOOP_DEG,
             loop_px: graph::LOOP_PX,
+            prescreen: Some(Prescreen::default()),
+        }
+    }
+}
+
+impl GlobalOptions {
+    /// The defaults with each map of a large set aligned with its `partners` most similar maps first
+    /// ([`Prescreen::partners`]); 0 aligns every pair.
+    pub fn with_partners(partners: usize) -> GlobalOptions {
+        GlobalOptions {
+            prescreen: (partners > 0).then(|| Prescreen {
+                partners,
+                ..Prescreen::default()
+            }),
+            ..GlobalOptions::default()
         }
     }
 }
@@ -135,15 +155,20 @@ pub struct PairVerdict {
     pub reason: Option<String>,
 }
 
-/// Every pair of a set of maps aligned.
+/// The pairs of a set of maps aligned: every pair, or those the pre-screen chose.
 #[derive(Clone, Debug, Default, Serialize)]
 pub struct Pairwise {
     /// How many maps.
     pub n: usize,
-    /// Every usable candidate of every pair, pair by pair (`a` then `b` ascending), best first.
+    /// Every usable candidate of every aligned pair, pair by pair (`a` then `b` ascending), best first.
     pub edges: Vec<Edge>,
-    /// Each pair's verdict, in the same order.
+    /// Each aligned pair's verdict, in the same order.
     pub pairs: Vec<PairVerdict>,
+    /// Pairs of distinct maps the pre-screen left out ([`GlobalOptions::prescreen`]).
+    pub screened_out: usize,
+    /// When the set was screened: the pairs aligned in each round (the most similar maps first, then
+    /// the pairs closing cycles and joining components) and how many of them the pair test accepted.
+    pub rounds: Vec<Round>,
 }
 
 /// Aligns every pair of `maps` (map `b` onto map `a` for `a < b`), the pairs in parallel; `progress` is
@@ -154,30 +179,27 @@ pub fn align_all(
     options: &GlobalOptions,
     progress: &(dyn Fn(usize, usize) + Sync),
 ) -> Result<Pairwise> {
-    let none = pair_order(maps.len()).map(|_| None).collect();
-    align_known(maps, options, progress, none).map(|(pairwise, _)| pairwise)
+    let pairs = pair_order(maps.len()).map(|(a, b)| (a, b, None)).collect();
+    align_known(maps, options, progress, pairs).map(|(pairwise, _)| pairwise)
 }
 
-/// Every pair of `n` maps, `a` then `b` ascending (`a < b`): the order of [`Pairwise::pairs`].
+/// Every pair of `n` maps, `a` then `b` ascending (`a < b`).
 fn pair_order(n: usize) -> impl Iterator<Item = (usize, usize)> {
     (0..n).flat_map(move |a| (a + 1..n).map(move |b| (a, b)))
 }
 
-/// [`align_all`] taking each pair's alignment from `known` (one entry per pair, in [`pair_order`])
-/// where it has one (only the others are aligned, and `progress` counts only those); also returns every
-/// pair's alignment, in the same order.
+/// Aligns `pairs` (`a < b`, ascending) of `maps`, each taken from its known alignment where it has one
+/// (only the others are aligned, and `progress` counts only those); also returns each pair's alignment,
+/// in the same order.
 pub(crate) fn align_known(
     maps: &[Prepared],
     options: &GlobalOptions,
     progress: &(dyn Fn(usize, usize) + Sync),
-    known: Vec<Option<super::Alignment>>,
+    pairs: Vec<(usize, usize, Option<super::Alignment>)>,
 ) -> Result<(Pairwise, Vec<super::Alignment>)> {
     use rayon::prelude::*;
     let n = maps.len();
-    let pairs: Vec<(usize, usize, Option<super::Alignment>)> = pair_order(n)
-        .zip(known)
-        .map(|((a, b), kept)| (a, b, kept))
-        .collect();
+    let order: Vec<(usize, usize)> = pairs.iter().map(|p| (p.0, p.1)).collect();
     let done = std::sync::atomic::AtomicUsize::new(0);
     let total = pairs.iter().filter(|p| p.2.is_none()).count();
     // A raised stop ends each pair at its next check and skips the pairs not started.
@@ -197,10 +219,11 @@ pub(crate) fn align_known(
         .collect();
     let mut out = Pairwise {
         n,
+        screened_out: (n * n.saturating_sub(1) / 2).saturating_sub(order.len()),
         ..Pairwise::default()
     };
     let mut all = Vec::with_capacity(results.len());
-    for ((a, b), al) in pair_order(n).zip(results) {
+    for ((a, b), al) in order.into_iter().zip(results) {
         let al = al?;
         out.pairs.push(PairVerdict {
             a,
@@ -396,30 +419,51 @@ pub fn run_cached(
         .par_iter()
         .map(|&i| cache::Key::of(&maps[i]))
         .collect();
-    let kept: Vec<Option<Prepared>> = keys.iter().map(|k| cache.take_map(k)).collect();
+    let kept: Vec<Option<cache::Kept>> = keys.iter().map(|k| cache.take_map(k)).collect();
     let mut used = CacheUse {
         maps_reused: kept.iter().filter(|p| p.is_some()).count(),
         maps_prepared: kept.iter().filter(|p| p.is_none()).count(),
         ..CacheUse::default()
     };
     let stop = crate::stop::current();
-    let prepared: Vec<Prepared> = kept
+    let m = unique.len();
+    let screen = options.prescreen.filter(|p| m > p.above);
+    let (prepared, signatures): (Vec<Prepared>, Vec<Option<Signature>>) = kept
         .into_par_iter()
         .zip(unique.par_iter())
         .map(|(kept, &i)| {
-            kept.unwrap_or_else(|| crate::stop::with(stop.clone(), || Prepared::new(&maps[i])))
+            crate::stop::with(stop.clone(), || {
+                let (p, s) = kept.unwrap_or_else(|| (Prepared::new(&maps[i]), None));
+                // A signature only where a screen needs it; kept with the preparation once made.
+                let s = match (s, screen) {
+                    (None, Some(_)) => Some(Signature::of(&maps[i])?),
+                    (s, _) => s,
+                };
+                Ok((p, s))
+            })
         })
-        .collect();
+        .collect::<Result<Vec<_>>>()?
+        .into_iter()
+        .unzip();
     let prepare = t.elapsed().as_secs_f64();
     crate::stop::check()?;
     let t = Instant::now();
-    let m = unique.len();
-    let known: Vec<Option<super::Alignment>> = pair_order(m)
-        .map(|(a, b)| cache.pair(&keys[a], &keys[b]))
+    let (done, rounds) = rounds::align_rounds(
+        &prepared,
+        &signatures,
+        screen,
+        options,
+        progress,
+        &|a, b| cache.pair(&keys[a], &keys[b]),
+        &mut used,
+    )?;
+    let order: Vec<(usize, usize)> = done.keys().copied().collect();
+    let all = done
+        .into_iter()
+        .map(|((a, b), al)| (a, b, Some(al)))
         .collect();
-    used.pairs_reused = known.iter().filter(|al| al.is_some()).count();
-    used.pairs_aligned = known.len() - used.pairs_reused;
-    let (mut pairwise, alignments) = align_known(&prepared, options, progress, known)?;
+    let (mut pairwise, alignments) = align_known(&prepared, options, progress, all)?;
+    pairwise.rounds = rounds;
     let align = t.elapsed().as_secs_f64();
     crate::stop::check()?;
     let t = Instant::now();
@@ -428,12 +472,14 @@ pub fn run_cached(
     // The placement's last round may have ended at a stop: no placement is returned then.
     crate::stop::check()?;
     let place = t.elapsed().as_secs_f64();
-    let pairs = pair_order(m)
+    let pairs = order
+        .into_iter()
         .zip(alignments)
         .map(|((a, b), al)| (a, b, al))
         .collect();
     let alignable: Vec<bool> = prepared.iter().map(Prepared::alignable).collect();
-    cache.keep(keys.into_iter().zip(prepared).collect(), pairs, used);
+    let kept = prepared.into_iter().zip(signatures);
+    cache.keep(keys.into_iter().zip(kept).collect(), pairs, used);
     // Back to the maps' own indices.
     pairwise.n = maps.len();
     for e in &mut pairwise.edges {

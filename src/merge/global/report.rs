@@ -82,6 +82,9 @@ pub struct Poses {
     pub pairs_aligned: usize,
     /// Of them, accepted by the pair test.
     pub pairs_accepted: usize,
+    /// Pairs the pre-screen left out (a large set: each map aligned with its most similar maps, then
+    /// the pairs that close cycles).
+    pub pairs_screened_out: usize,
     /// Seconds, end to end (reading the maps aside).
     pub seconds: f64,
 }
@@ -165,6 +168,7 @@ pub fn poses(
             .collect(),
         pairs_aligned: pairwise.pairs.len(),
         pairs_accepted: pairwise.pairs.iter().filter(|p| p.accepted).count(),
+        pairs_screened_out: pairwise.screened_out,
         seconds,
     }
 }
@@ -206,10 +210,14 @@ pub fn write_text(out: &mut dyn Write, doc: &Poses) -> io::Result<()> {
         }
     }
     let placed = doc.maps.iter().filter(|m| m.placed).count();
+    let screened = match doc.pairs_screened_out {
+        0 => String::new(),
+        k => format!(" ({k} more left out by the pre-screen)"),
+    };
     writeln!(
         out,
-        "{placed} of {} maps placed in {} group(s); {} pairs aligned, {} accepted, {} of those dropped as \
-         inconsistent; {:.1} s",
+        "{placed} of {} maps placed in {} group(s); {} pairs aligned{screened}, {} accepted, {} of those \
+         dropped as inconsistent; {:.1} s",
         doc.maps.len(),
         doc.groups.len(),
         doc.pairs_aligned,
