@@ -447,6 +447,33 @@ def fig_global(r):
     return r.tool("merge-eval", PAIRS, "--global").strip()
 
 
+def fig_global_scale(r):
+    """Mixed synthetic sets of growing size, screened (the default) and, at one size, every pair."""
+    runs = [(n, 3) for n in (12, 48, 100, 200)] + [(48, 0)]
+    rows, by = [], {}
+    for n, k in runs:
+        rss = os.path.join(r.work, "time.txt")
+        args = ["merge-eval", "--global", "--set-size", n, "--buildings", 4, "--partners", k,
+                "--format", "json"]
+        out = r.run(["/usr/bin/time", "-f", "%M", "-o", rss, r.bin, *map(str, args)],
+                    shown_argv=["ogm-corners", *map(str, args)])
+        mb = int(open(rss).read().split()[-1]) / 1024
+        row = json.loads(out)[0]
+        t = row["timing"]
+        total = t["prepare"] + t["align"] + t["place"]
+        by[(n, k)] = total
+        rows.append([n, "every pair" if k == 0 else k, f"{row['aligned']} of {n * (n - 1) // 2}",
+                     row["placed"], row["correct"], row["wrong"], row["groups"], row["foreign"],
+                     f"{row['derived_accurate']} of {row['pairs']}", f"{t['prepare']:.1f}",
+                     f"{t['align']:.1f}", f"{t['place']:.1f}", f"{total:.1f}", f"{mb:.0f}"])
+    import math
+    slope = math.log(by[(200, 3)] / by[(48, 3)]) / math.log(200 / 48)
+    return table(["maps (4 offices)", "partners", "pairs aligned", "placed", "placed correctly",
+                  "placed wrongly", "groups", "in another office's group", "derived pairs accurate",
+                  "prepare s", "align s", "place s", "total s", "peak MB"], rows) + (
+        f"\n\nWall time from 48 to 200 maps grows as N^{slope:.2f} (screened).")
+
+
 # ---- Performance ----
 
 def fig_bench_ogm(r):
@@ -605,6 +632,8 @@ FIGURES = {
                 "partial overlaps cut from the generator and the shared maps"),
     "global": ("docs/merging.md", fig_global,
                "many maps at once (merge-eval --global)"),
+    "global-scale": ("docs/merging.md", fig_global_scale,
+                     "many maps at once as the set grows, screened (merge-eval --global --buildings 4)"),
     "bench-ogm": ("docs/performance.md", fig_bench_ogm,
                   "the paper's detector, 1024^2 to 16384^2, fast path and reference"),
     "bench-detectors": ("docs/performance.md", fig_bench_detectors,

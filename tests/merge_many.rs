@@ -67,7 +67,14 @@ fn synthetic_sets_are_placed_within_a_pixel_and_half_a_degree() {
 fn a_set_of_clean_maps_excludes_accepts_far_above_its_own_conflict_level() {
     let office = OccupancyMap::from_image(ogm_corners::synth::office_map(512, 384, 1).unwrap());
     let (names, maps, truths) = synthetic_maps_of(&office, 20, 1).unwrap();
-    let r = run_maps(names, &maps, &GlobalOptions::default(), &|_, _| {}).unwrap();
+    // Every pair aligned: the pair test's wrong accepts are all there for the level to exclude.
+    let r = run_maps(
+        names.clone(),
+        &maps,
+        &GlobalOptions::with_partners(0),
+        &|_, _| {},
+    )
+    .unwrap();
     let row = score("own scale", &r, &truths, &|_| "synthetic".to_string());
     // The class is there: the pair test alone accepts wrong poses in this set.
     assert!(row.pairwise_wrong >= 2, "{row:?}");
@@ -86,6 +93,10 @@ fn a_set_of_clean_maps_excludes_accepts_far_above_its_own_conflict_level() {
     );
     assert_eq!(row.wrong, 0, "{row:?}");
     assert!(row.placed >= 8 && row.derived_wrong == 0, "{row:?}");
+    // Screened (the default for 20 maps): no map placed wrongly either.
+    let r = run_maps(names, &maps, &GlobalOptions::default(), &|_, _| {}).unwrap();
+    let row = score("own scale", &r, &truths, &|_| "synthetic".to_string());
+    assert!(row.wrong == 0 && row.derived_wrong == 0, "{row:?}");
 }
 
 /// Each map's pose, when placed.

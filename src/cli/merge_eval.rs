@@ -406,11 +406,11 @@ fn run_global(a: &MergeEvalArgs, budget: &Budget) -> Result<()> {
             let maps = maps_folder(a, pairs);
             let lib = library(&set, &maps)?;
             // The largest set placed holds every map and its preparation at once, and the synthetic set.
-            let all: u64 = lib
-                .maps
-                .iter()
-                .map(|(_, _, m)| set_bytes(m.image.width(), m.image.height()))
-                .fold(0, u64::saturating_add);
+            let all = ogm_corners::merge::footprint::set_bytes(
+                lib.maps
+                    .iter()
+                    .map(|(_, _, m)| kept_working(m.image.width(), m.image.height())),
+            );
             budget.check(
                 format_args!("{} maps placed at once", lib.maps.len()),
                 all.max(synthetic_bytes(size)),
@@ -448,10 +448,23 @@ fn set_bytes(w: u32, h: u32) -> u64 {
     (u64::from(w) * u64::from(h)).saturating_add(ogm_corners::merge::align::prepared_bytes(w, h))
 }
 
+/// A `w` x `h` map in a set placed at once: (what it keeps while the others are prepared and aligned,
+/// its working memory while it is), for [`footprint::set_bytes`](ogm_corners::merge::footprint::set_bytes).
+fn kept_working(w: u32, h: u32) -> (u64, u64) {
+    let kept = (u64::from(w) * u64::from(h))
+        .saturating_add(ogm_corners::merge::align::kept_bytes(w, h).min(prepared(w, h)));
+    (kept, set_bytes(w, h) - kept)
+}
+
+fn prepared(w: u32, h: u32) -> u64 {
+    ogm_corners::merge::align::prepared_bytes(w, h)
+}
+
 /// A synthetic set of `n` maps: each a square canvas of about 1500 px a side (a 1044 px window turned),
 /// and the office they are cut from (about 580 px a map).
 fn synthetic_bytes(n: usize) -> u64 {
-    (n as u64).saturating_mul(set_bytes(1500, 1500) + 580 * 580)
+    let (kept, working) = kept_working(1500, 1500);
+    ogm_corners::merge::footprint::set_bytes((0..n).map(|_| (kept + 580 * 580, working)))
 }
 
 /// Writes a synthetic set into `dir`: `NAME.pgm` per map and `pairs.json` with every ordered pair's truth.

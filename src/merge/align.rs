@@ -27,7 +27,7 @@ use super::coarse::{coarse_hypotheses, screen, CoarseSet, Crop};
 pub use super::fft::FINE_FFT;
 use super::hypotheses::Hypotheses;
 use super::local::{local_both, local_fit};
-pub use super::prepare::{prepared_bytes, Prepared, Symmetry, CELLS};
+pub use super::prepare::{kept_bytes, prepared_bytes, Prepared, Symmetry, CELLS};
 use super::refine::{crop_to_map, icp, map_to_crop, polish, verify};
 use super::score::{score_both, Probe};
 use super::transform::Rigid;

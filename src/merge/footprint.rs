@@ -4,7 +4,7 @@
 //! holding one small room is not refused for the canvas.
 
 use super::compose::Canvas;
-use super::prepare::{crop_box, prepared_bytes, CROP_PAD};
+use super::prepare::{crop_box, kept_bytes, prepared_bytes, CROP_PAD};
 use super::resample::resampled_size;
 use super::transform::Rigid;
 use crate::error::Result;
@@ -40,6 +40,37 @@ impl Footprint {
             .saturating_add(copy)
             .saturating_add(prepared_bytes(side(self.crop.0), side(self.crop.1)))
     }
+
+    /// Bytes a set of maps keeps for this map while the others are prepared and aligned: the image, a
+    /// resampled copy, what its preparation keeps ([`kept_bytes`]).
+    pub fn kept(&self) -> u64 {
+        let side = |v: u64| u32::try_from(v).unwrap_or(u32::MAX);
+        let (c0, c1) = (side(self.crop.0), side(self.crop.1));
+        self.bytes() - prepared_bytes(c0, c1) + kept_bytes(c0, c1).min(prepared_bytes(c0, c1))
+    }
+
+    /// Working memory while this map is prepared or aligned: [`Footprint::bytes`] beyond
+    /// [`Footprint::kept`].
+    pub fn working(&self) -> u64 {
+        self.bytes() - self.kept()
+    }
+}
+
+/// Bytes a set holds at once: what every map keeps, and the working memory of as many of the largest as
+/// run at once (one a core).
+pub fn set_bytes(kept: impl IntoIterator<Item = (u64, u64)>) -> u64 {
+    let mut held = 0u64;
+    let mut working: Vec<u64> = Vec::new();
+    for (k, w) in kept {
+        held = held.saturating_add(k);
+        working.push(w);
+    }
+    working.sort_unstable_by(|a, b| b.cmp(a));
+    let at_once = rayon::current_num_threads().max(1);
+    working
+        .iter()
+        .take(at_once)
+        .fold(held, |t, &w| t.saturating_add(w))
 }
 
 /// `map`'s footprint once brought to `resolution` (metres a pixel; `None`: kept as it is), as
@@ -85,18 +116,19 @@ pub fn pair(a: &OccupancyMap, b: &OccupancyMap) -> Result<(Footprint, Footprint)
 }
 
 /// Bytes a many-map merge holds at once: every map at the first georeferenced map's cells (the
-/// resolution [`merge_maps`](super::global::merge_maps) brings them to) with its preparation.
+/// resolution [`merge_maps`](super::global::merge_maps) brings them to) with what its preparation keeps,
+/// and the working memory of the maps prepared and aligned at once ([`set_bytes`]).
 pub fn many_bytes<'m>(maps: impl IntoIterator<Item = &'m OccupancyMap> + Clone) -> Result<u64> {
     let resolution = maps
         .clone()
         .into_iter()
         .find_map(|m| m.georef)
         .map(|g| g.resolution);
-    let mut held = 0u64;
-    for m in maps {
-        held = held.saturating_add(footprint(m, resolution)?.bytes());
-    }
-    Ok(held)
+    let prints = maps
+        .into_iter()
+        .map(|m| footprint(m, resolution))
+        .collect::<Result<Vec<_>>>()?;
+    Ok(set_bytes(prints.iter().map(|f| (f.kept(), f.working()))))
 }
 
 /// The merged canvas of `a` and B (`b`: B's footprint at A's cells, from [`pair`]) placed by `t`,

@@ -33,6 +33,14 @@ pub fn prepared_bytes(width: u32, height: u32) -> u64 {
         .saturating_add((3 * tasks + 3) * n * n * 8)
 }
 
+/// Bytes a [`Prepared`] keeps for a `width` x `height` crop once made, about 16 a pixel: its distance map
+/// and nearest wall pixels (8), four flag targets (4), its walls and coarse masks. The rest of
+/// [`prepared_bytes`] is working memory, held only while it is prepared or aligned. (Measured: 200 maps
+/// of about 1476^2 px prepared and aligned together peaked at 6.4 GB with their images.)
+pub fn kept_bytes(width: u32, height: u32) -> u64 {
+    (u64::from(width) * u64::from(height)).saturating_mul(16)
+}
+
 /// The part of `map` a preparation holds: its known area's bounding box plus [`PAD`] px, within the map
 /// (the whole map when nothing is known), as (x0, y0, x1, y1), ends exclusive.
 pub fn crop_box(map: &OccupancyMap) -> (usize, usize, usize, usize) {
