@@ -506,51 +506,21 @@ pub fn synthetic_maps_of(
 /// maximum spanning tree by rule value (Kruskal, then outward from each tree's first map); `None` for a
 /// map in no accepted pair. The baseline the placement is measured against.
 pub fn chain(pairwise: &Pairwise) -> Vec<Option<(usize, Rigid)>> {
-    let n = pairwise.n;
-    let mut accepted: Vec<&super::PairVerdict> =
-        pairwise.pairs.iter().filter(|p| p.accepted).collect();
-    accepted.sort_by(|x, y| {
-        y.score
-            .total_cmp(&x.score)
-            .then((x.a, x.b).cmp(&(y.a, y.b)))
-    });
-    let mut root: Vec<usize> = (0..n).collect();
-    fn find(root: &mut [usize], mut i: usize) -> usize {
-        while root[i] != i {
-            root[i] = root[root[i]];
-            i = root[i];
-        }
-        i
+    let accepted: Vec<(usize, usize, Rigid, f64)> = pairwise
+        .pairs
+        .iter()
+        .filter(|p| p.accepted)
+        .map(|p| (p.a, p.b, p.transform, p.score))
+        .collect();
+    let mut in_one = vec![false; pairwise.n];
+    for &(a, b, _, _) in &accepted {
+        (in_one[a], in_one[b]) = (true, true);
     }
-    let mut tree: Vec<Vec<(usize, Rigid)>> = vec![Vec::new(); n];
-    for p in accepted {
-        let (ra, rb) = (find(&mut root, p.a), find(&mut root, p.b));
-        if ra != rb {
-            root[ra.max(rb)] = ra.min(rb);
-            // b -> a, and a -> b.
-            tree[p.a].push((p.b, p.transform));
-            tree[p.b].push((p.a, p.transform.inverse()));
-        }
-    }
-    let mut out: Vec<Option<(usize, Rigid)>> = vec![None; n];
-    for start in 0..n {
-        if out[start].is_some() || tree[start].is_empty() {
-            continue;
-        }
-        out[start] = Some((start, Rigid::IDENTITY));
-        let mut stack = vec![start];
-        while let Some(u) = stack.pop() {
-            let pu = out[u].expect("visited").1;
-            for &(v, t) in &tree[u] {
-                // t maps v's pixels to u's.
-                if out[v].is_none() {
-                    out[v] = Some((start, pu.after(&t)));
-                    stack.push(v);
-                }
-            }
-        }
-    }
-    out
+    crate::merge::prescreen::forest(pairwise.n, &accepted)
+        .into_iter()
+        .zip(in_one)
+        .map(|(tree, is)| is.then_some(tree))
+        .collect()
 }
 
 #[cfg(test)]
