@@ -522,6 +522,13 @@ fn a_cached_run_redoes_only_the_changed_maps_and_pairs_and_equals_a_fresh_run() 
     };
     run_cached(&maps, &other, &mut CpuBackend, &|_, _| {}, &mut cache).unwrap();
     assert_eq!(cache.last_use(), use_of(0, 5, 0, 10));
+    // Another pre-screen only: a preparation and an alignment do not depend on it, everything is reused.
+    let unscreened = GlobalOptions {
+        prescreen: None,
+        ..other
+    };
+    run_cached(&maps, &unscreened, &mut CpuBackend, &|_, _| {}, &mut cache).unwrap();
+    assert_eq!(cache.last_use(), use_of(5, 0, 10, 0));
 }
 
 /// A large set is screened: each map aligned first with its most similar maps, then the pairs that close

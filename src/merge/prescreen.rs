@@ -250,11 +250,14 @@ fn dot(x: &[(u32, f64)], y: &[(u32, f64)]) -> f64 {
     s
 }
 
-/// The pairs (a < b) to align: each map with its `k` most similar maps (ties to the lower index).
+/// The pairs (a < b) to align: each map with its `k` most similar maps (ties to the lower index); a map
+/// whose signature shares nothing with any other (a corridor of one corner, a map with no walls) with
+/// every map, since nothing tells its partners apart.
 pub fn pairs(similar: &[Vec<f64>], k: usize) -> Vec<(usize, usize)> {
     let n = similar.len();
     let mut keep = BTreeSet::new();
     for (a, row) in similar.iter().enumerate() {
+        let k = if row.iter().all(|&s| s <= 0.0) { n } else { k };
         let mut order: Vec<usize> = (0..n).filter(|&b| b != a).collect();
         order.sort_by(|&x, &y| row[y].total_cmp(&row[x]).then(x.cmp(&y)));
         for &b in order.iter().take(k) {
@@ -371,8 +374,9 @@ fn walls_on(u: &Prepared, v: &Prepared, v_to_u: &Rigid) -> f64 {
 
 /// The pairs that may join two components of the accepted pairs ([`forest`]): each map with the map of
 /// another component most similar to it, not yet aligned, when that similarity is at least
-/// [`JOIN_SHARE`] of the highest it has with a map of its own component (a map with no accepted pair:
-/// with any map it was aligned with). Pairs `a < b`, ascending.
+/// [`JOIN_SHARE`] of the highest it has with a map of its own component or one it was already aligned
+/// with (accepted or not: a map as alike as one that did not match is no better a candidate). Pairs
+/// `a < b`, ascending.
 pub fn joining_pairs(
     similar: &[Vec<f64>],
     forest: &[(usize, Rigid)],
@@ -526,6 +530,14 @@ mod tests {
         assert_eq!(pairs(&s, 1), vec![(0, 1), (2, 3)]);
         assert_eq!(pairs(&s, 2), vec![(0, 1), (0, 3), (1, 2), (2, 3)]);
         assert_eq!(pairs(&s, 9).len(), 6);
+        // Map 3 shares nothing with any map: it is aligned with all of them.
+        let s = vec![
+            vec![0.0, 0.9, 0.1, 0.0],
+            vec![0.9, 0.0, 0.3, 0.0],
+            vec![0.1, 0.3, 0.0, 0.0],
+            vec![0.0, 0.0, 0.0, 0.0],
+        ];
+        assert_eq!(pairs(&s, 1), vec![(0, 1), (0, 3), (1, 2), (1, 3), (2, 3)]);
     }
 
     fn shift(tx: f64, ty: f64) -> Rigid {

@@ -86,12 +86,17 @@ impl Cache {
         self.used
     }
 
-    /// Forgets everything kept under other options than `options`.
+    /// Forgets everything kept under other options than `options` (which pairs a pre-screen chooses
+    /// aside: a preparation and a pair's alignment do not depend on it).
     pub(super) fn start(&mut self, options: &GlobalOptions) {
-        if self.options.as_ref() != Some(options) {
+        let options = GlobalOptions {
+            prescreen: None,
+            ..*options
+        };
+        if self.options.as_ref() != Some(&options) {
             self.maps.clear();
             self.pairs.clear();
-            self.options = Some(*options);
+            self.options = Some(options);
         }
         self.used = CacheUse::default();
     }

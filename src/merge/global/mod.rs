@@ -1,4 +1,5 @@
-//! Merging many maps at once: every pair aligned (each map prepared once, the pairs in parallel), then
+//! Merging many maps at once: every pair aligned, or in a large set the pairs a pre-screen chooses
+//! ([`super::prescreen`]; each map prepared once, the pairs in parallel), then
 //! one consistent placement of every map chosen over the graph of all pairwise candidates, not only each
 //! pair's best one ([`place`]), and the merged map of each group ([`super::mosaic`]).
 //!
@@ -354,7 +355,7 @@ pub fn place(
 pub struct Timing {
     /// Preparing every map (in parallel).
     pub prepare: f64,
-    /// Aligning every pair (in parallel).
+    /// Aligning the pairs (in parallel; when screened, the signatures' comparison too).
     pub align: f64,
     /// The placement over the graph and the pose graph.
     pub place: f64,
@@ -370,7 +371,8 @@ impl Timing {
 /// Many maps placed ([`run`]).
 #[derive(Clone, Debug, Serialize)]
 pub struct Run {
-    /// Every pair of distinct maps aligned (indices of the maps as given).
+    /// The pairs of distinct maps aligned: every pair, or those the pre-screen chose (indices of the maps
+    /// as given).
     pub pairwise: Pairwise,
     /// Where every map lands (a duplicate where its first copy does, in its group after it).
     pub placement: graph::Placement,
@@ -380,9 +382,10 @@ pub struct Run {
     pub timing: Timing,
 }
 
-/// Places `maps`: every distinct map prepared once and every pair of them aligned (both in parallel),
-/// then [`place`]d; a map given twice is aligned once and placed with its first copy. `progress` hears
-/// (pairs done, pairs in all); `backend` scores the placement's dense checks.
+/// Places `maps`: every distinct map prepared once and every pair of them aligned (both in parallel; in a
+/// set of more than [`Prescreen::above`] maps, the pairs the pre-screen chooses, in rounds), then
+/// [`place`]d; a map given twice is aligned once and placed with its first copy. `progress` hears (pairs
+/// done, pairs in all) of each round; `backend` scores the placement's dense checks.
 pub fn run(
     maps: &[crate::map::OccupancyMap],
     options: &GlobalOptions,

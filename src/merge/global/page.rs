@@ -63,7 +63,7 @@ pub fn maps_table(many: &ManyMerge) -> Table {
 pub fn pairs_table(many: &ManyMerge) -> Table {
     let mut t = Table::new(
         "pairs",
-        "Every pair aligned: B (moved) onto A (reference), the pair test's verdict and score (the rule's value minus its threshold)",
+        "Every pair aligned (in a large set, those the pre-screen chose): B (moved) onto A (reference), the pair test's verdict and score (the rule's value minus its threshold)",
         &[
             ("A", false),
             ("B", false),
@@ -169,7 +169,7 @@ pub fn write(mut page: Report, many: &ManyMerge) -> Result<Staged> {
         let figure = page.picture(&file_name(g, "group", ""), &picture, caption)?;
         page.figures_at(vec![figure], 700);
     }
-    page.heading("Every pair");
+    page.heading("The pairs aligned");
     page.table(pairs_table(many));
     if !doc.dropped.is_empty() {
         page.table(dropped_table(many));

@@ -1,7 +1,7 @@
 //! Which pairs of a set are aligned: every pair, or, in a large set, the pairs the pre-screen
 //! ([`crate::merge::prescreen`]) chooses in rounds: each map with its most similar maps first, then the
 //! pairs that close the cycles of the accepted ones (their poses so far make them overlap) and that may
-//! join their components, until a round accepts nothing new.
+//! join their components, until one of those rounds accepts nothing.
 
 use std::collections::{BTreeMap, BTreeSet};
 
