@@ -180,8 +180,15 @@ pub fn align_all(
     options: &GlobalOptions,
     progress: &(dyn Fn(usize, usize) + Sync),
 ) -> Result<Pairwise> {
-    let pairs = pair_order(maps.len()).map(|(a, b)| (a, b, None)).collect();
-    align_known(maps, options, progress, pairs).map(|(pairwise, _)| pairwise)
+    let order: Vec<(usize, usize)> = pair_order(maps.len()).collect();
+    let pairs = order.iter().map(|&(a, b)| (a, b, None)).collect();
+    let aligned = align_pairs(maps, options, progress, pairs)?;
+    let all: Vec<(usize, usize, super::Alignment)> = order
+        .into_iter()
+        .zip(aligned)
+        .map(|((a, b), al)| (a, b, al))
+        .collect();
+    Ok(pairwise_of(maps, options, &all))
 }
 
 /// Every pair of `n` maps, `a` then `b` ascending (`a < b`).
@@ -189,18 +196,16 @@ fn pair_order(n: usize) -> impl Iterator<Item = (usize, usize)> {
     (0..n).flat_map(move |a| (a + 1..n).map(move |b| (a, b)))
 }
 
-/// Aligns `pairs` (`a < b`, ascending) of `maps`, each taken from its known alignment where it has one
-/// (only the others are aligned, and `progress` counts only those); also returns each pair's alignment,
+/// Aligns `pairs` of `maps` (map `b` onto map `a`), each taken from its known alignment where it has one
+/// (only the others are aligned, and `progress` counts only those), in parallel; each pair's alignment,
 /// in the same order.
-pub(crate) fn align_known(
+pub(crate) fn align_pairs(
     maps: &[Prepared],
     options: &GlobalOptions,
     progress: &(dyn Fn(usize, usize) + Sync),
     pairs: Vec<(usize, usize, Option<super::Alignment>)>,
-) -> Result<(Pairwise, Vec<super::Alignment>)> {
+) -> Result<Vec<super::Alignment>> {
     use rayon::prelude::*;
-    let n = maps.len();
-    let order: Vec<(usize, usize)> = pairs.iter().map(|p| (p.0, p.1)).collect();
     let done = std::sync::atomic::AtomicUsize::new(0);
     let total = pairs.iter().filter(|p| p.2.is_none()).count();
     // A raised stop ends each pair at its next check and skips the pairs not started.
@@ -218,14 +223,25 @@ pub(crate) fn align_known(
             }),
         })
         .collect();
+    // The first error in the pairs' order, whichever thread met it first.
+    results.into_iter().collect()
+}
+
+/// The record of the aligned `pairs` (`a < b`, ascending, each with its alignment) of `maps`: each
+/// pair's verdict and its usable candidates as edges.
+fn pairwise_of(
+    maps: &[Prepared],
+    options: &GlobalOptions,
+    pairs: &[(usize, usize, super::Alignment)],
+) -> Pairwise {
+    let n = maps.len();
     let mut out = Pairwise {
         n,
-        screened_out: (n * n.saturating_sub(1) / 2).saturating_sub(order.len()),
+        screened_out: (n * n.saturating_sub(1) / 2).saturating_sub(pairs.len()),
         ..Pairwise::default()
     };
-    let mut all = Vec::with_capacity(results.len());
-    for ((a, b), al) in order.into_iter().zip(results) {
-        let al = al?;
+    for (a, b, al) in pairs {
+        let (a, b) = (*a, *b);
         out.pairs.push(PairVerdict {
             a,
             b,
@@ -241,9 +257,8 @@ pub(crate) fn align_known(
             al.accepted,
             options,
         ));
-        all.push(al);
     }
-    Ok((out, all))
+    out
 }
 
 /// A pair's usable candidates as edges: the accepted choice, and every candidate from the weak rule
@@ -460,12 +475,9 @@ pub fn run_cached(
         &|a, b| cache.pair(&keys[a], &keys[b]),
         &mut used,
     )?;
-    let order: Vec<(usize, usize)> = done.keys().copied().collect();
-    let all = done
-        .into_iter()
-        .map(|((a, b), al)| (a, b, Some(al)))
-        .collect();
-    let (mut pairwise, alignments) = align_known(&prepared, options, progress, all)?;
+    let pairs: Vec<(usize, usize, super::Alignment)> =
+        done.into_iter().map(|((a, b), al)| (a, b, al)).collect();
+    let mut pairwise = pairwise_of(&prepared, options, &pairs);
     pairwise.rounds = rounds;
     let align = t.elapsed().as_secs_f64();
     crate::stop::check()?;
@@ -475,11 +487,6 @@ pub fn run_cached(
     // The placement's last round may have ended at a stop: no placement is returned then.
     crate::stop::check()?;
     let place = t.elapsed().as_secs_f64();
-    let pairs = order
-        .into_iter()
-        .zip(alignments)
-        .map(|((a, b), al)| (a, b, al))
-        .collect();
     let alignable: Vec<bool> = prepared.iter().map(Prepared::alignable).collect();
     let kept = prepared.into_iter().zip(signatures);
     cache.keep(keys.into_iter().zip(kept).collect(), pairs, used);

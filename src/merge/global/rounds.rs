@@ -7,7 +7,7 @@ use std::collections::{BTreeMap, BTreeSet};
 
 use serde::Serialize;
 
-use super::{align_known, pair_order, CacheUse, GlobalOptions};
+use super::{align_pairs, pair_order, CacheUse, GlobalOptions};
 use crate::error::Result;
 use crate::merge::align::{Alignment, Prepared};
 use crate::merge::prescreen::{self, Prescreen, Signature};
@@ -53,7 +53,7 @@ pub(super) fn align_rounds(
             chosen.iter().map(|&(a, b)| (a, b, known(a, b))).collect();
         used.pairs_reused += pairs.iter().filter(|p| p.2.is_some()).count();
         used.pairs_aligned += pairs.iter().filter(|p| p.2.is_none()).count();
-        let (_, alignments) = align_known(maps, options, progress, pairs)?;
+        let alignments = align_pairs(maps, options, progress, pairs)?;
         let accepted = alignments.iter().filter(|al| al.accepted).count();
         rounds.push(Round {
             pairs: chosen.len(),
