@@ -598,3 +598,218 @@ fn the_real_buildings_screened_are_placed_as_with_every_pair() {
     assert_eq!(row.derived_accurate, set.pairs.len(), "{row:?}");
     assert!(row.aligned < 231 / 2 + 1, "{} pairs aligned", row.aligned);
 }
+
+/// A map added to an earlier merge (`merge --from`): the earlier run's pair alignments, written to its
+/// `--poses` document and read back, count as aligned; only pairs with the new map (and the cycles it
+/// closes) are aligned, and the result is what carrying the records in memory gives, to the bit, and
+/// as good as a full run: every map placed within the synthetic limits, the same groups.
+#[test]
+fn a_map_added_to_an_earlier_merge_aligns_only_its_pairs_and_places_as_a_full_run() {
+    use ogm_corners::merge::global::eval::synthetic_mixed;
+    use ogm_corners::merge::global::previous::Previous;
+    use ogm_corners::merge::global::{content_id, merge_maps_cached, run, run_cached, Cache};
+    let (names, maps, truths) = synthetic_mixed(16, 2, 5).unwrap();
+    let options = GlobalOptions::default();
+    let old = merge_maps_cached(
+        maps[..15].to_vec(),
+        &names[..15],
+        &options,
+        &mut CpuBackend,
+        &|_, _| {},
+        &mut Cache::new(),
+    )
+    .unwrap();
+    let old_pairs = old.run.pairwise.pairs.len();
+    assert_eq!(old.report.alignments.len(), old_pairs);
+    // Through the file.
+    let text = serde_json::to_string_pretty(&old.report).unwrap();
+    let previous = Previous::parse(&text, "test").unwrap();
+    assert_eq!(previous.maps, names[..15]);
+    assert!(previous.fits(&options));
+    let mut cache = previous.cache(&options);
+    let added = run_cached(&maps, &options, &mut CpuBackend, &|_, _| {}, &mut cache).unwrap();
+    let used = cache.last_use();
+    assert_eq!(used.pairs_reused, old_pairs, "{used:?}");
+    assert!(
+        used.pairs_aligned >= 1 && used.pairs_aligned < old_pairs,
+        "{used:?}"
+    );
+    // Every old pair is kept; the new ones are the new map's, or cycles it closes.
+    assert_eq!(added.pairwise.pairs.len(), old_pairs + used.pairs_aligned);
+    assert!(added.pairwise.pairs.iter().any(|p| p.b == 15));
+    // The same as carrying the records in memory.
+    let mut direct = Cache::new();
+    direct.carry(
+        old.run
+            .records
+            .iter()
+            .map(|(a, b, r)| (content_id(&maps[*a]), content_id(&maps[*b]), r.clone())),
+    );
+    let again = run_cached(&maps, &options, &mut CpuBackend, &|_, _| {}, &mut direct).unwrap();
+    assert_eq!(again.placement, added.placement);
+    // As good as a full run.
+    let poses = placed_poses(&added.placement);
+    assert!(
+        poses.iter().all(Option::is_some),
+        "{:?}",
+        added.placement.maps
+    );
+    assert_eq!(
+        assert_placed_within(&names, &poses, &truths, 1.0, 3.0),
+        8 * 7 + 8 * 7
+    );
+    let full = run(&maps, &options, &mut CpuBackend, &|_, _| {}).unwrap();
+    assert_eq!(added.placement.groups, full.placement.groups);
+    // Other options: the file's alignments are not taken up.
+    let other = GlobalOptions {
+        weak_from: options.weak_from + 0.5,
+        ..options
+    };
+    let previous = Previous::parse(&text, "test").unwrap();
+    assert!(!previous.fits(&other));
+    let mut cache = previous.cache(&other);
+    run_cached(&maps, &other, &mut CpuBackend, &|_, _| {}, &mut cache).unwrap();
+    assert_eq!(cache.last_use().pairs_reused, 0);
+}
+
+/// The real buildings, one map added to the other 21's merge: every annotated pair accurate through the
+/// placement, the three buildings whole and apart, as in a full run.
+#[test]
+fn a_real_map_added_to_an_earlier_merge_is_placed_as_in_a_full_run() {
+    use ogm_corners::merge::global::{content_id, run_cached, Cache};
+    let Some(dir) = common::merge_pairs() else {
+        return;
+    };
+    let set = ogm_corners::merge::pairs::PairSet::load(&dir.join("pairs.json")).unwrap();
+    let mut names: Vec<String> = set
+        .pairs
+        .iter()
+        .flat_map(|p| [p.src.clone(), p.dst.clone()])
+        .collect();
+    names.sort();
+    names.dedup();
+    // KPT4A_04 last: added to the merge of the others.
+    let last = names.iter().position(|n| n == "KPT4A_04").unwrap();
+    let n = names.remove(last);
+    names.push(n);
+    let maps: Vec<OccupancyMap> = names
+        .iter()
+        .map(|n| OccupancyMap::load(dir.join("maps").join(format!("{n}.png"))).unwrap())
+        .collect();
+    let options = GlobalOptions::default();
+    let old = run_cached(
+        &maps[..21],
+        &options,
+        &mut CpuBackend,
+        &|_, _| {},
+        &mut Cache::new(),
+    )
+    .unwrap();
+    let mut cache = Cache::new();
+    cache.carry(
+        old.records
+            .iter()
+            .map(|(a, b, r)| (content_id(&maps[*a]), content_id(&maps[*b]), r.clone())),
+    );
+    let added = run_cached(&maps, &options, &mut CpuBackend, &|_, _| {}, &mut cache).unwrap();
+    assert_eq!(cache.last_use().pairs_reused, old.pairwise.pairs.len());
+    assert!(
+        cache.last_use().pairs_aligned <= 21,
+        "{:?}",
+        cache.last_use()
+    );
+    let r = ogm_corners::merge::global::eval::SetResult {
+        names: names.clone(),
+        pairwise: added.pairwise,
+        placement: added.placement,
+        timing: added.timing,
+    };
+    let building = |n: &str| n.split('_').next().unwrap().to_string();
+    let row = score("real", &r, &set.pairs, &building);
+    assert_eq!(
+        (row.placed, row.wrong, row.groups, row.foreign),
+        (22, 0, 3, 0),
+        "{row:?}"
+    );
+    assert_eq!(row.derived_accurate, set.pairs.len(), "{row:?}");
+}
+
+/// `merge --from FILE NEW...`: the earlier merge's maps read from the paths it recorded, its pairs taken
+/// up, the file replaced in place as the new `--poses`; its failures are one-line errors.
+#[test]
+fn merge_from_an_earlier_poses_file_adds_maps_and_says_what_it_took_up() {
+    let d = tempfile::tempdir().unwrap();
+    let (names, maps, _) = synthetic_maps(4, 3).unwrap();
+    for (n, m) in names.iter().zip(&maps) {
+        write_map(d.path(), n, m, 0.05);
+    }
+    let run = |args: &[&str]| common::tool_in(d.path(), "merge", args);
+    let yaml = |k: usize| format!("{}.yaml", names[k]);
+    let o = run(&[&yaml(0), &yaml(1), &yaml(2), "--poses", "fleet.json"]);
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let first: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(d.path().join("fleet.json")).unwrap()).unwrap();
+    assert_eq!(first["alignments"].as_array().unwrap().len(), 3);
+    // The fourth map added, an old one given again (taken once), the file updated in place.
+    let o = run(&[
+        "--from",
+        "fleet.json",
+        &yaml(3),
+        &yaml(1),
+        "--poses",
+        "fleet.json",
+        "--format",
+        "json",
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(0), "{err}");
+    assert!(err.contains("--from: 3 pairs taken up, 3 aligned"), "{err}");
+    let out: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert!(
+        out.get("alignments").is_none(),
+        "standard output leaves them out"
+    );
+    let v: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(d.path().join("fleet.json")).unwrap()).unwrap();
+    let listed: Vec<&str> = v["maps"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|m| m["map"].as_str().unwrap())
+        .collect();
+    assert_eq!(listed, [yaml(0), yaml(1), yaml(2), yaml(3)]);
+    assert!(
+        v["maps"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .all(|m| m["placed"] == true),
+        "{v}"
+    );
+    assert_eq!(v["alignments"].as_array().unwrap().len(), 6);
+    // Taken up again: nothing left to align.
+    let o = run(&["--from", "fleet.json"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(0), "{err}");
+    assert!(err.contains("--from: 6 pairs taken up, 0 aligned"), "{err}");
+    // Failures: no file, not a poses document, a map it lists gone.
+    for (args, says) in [
+        (vec!["--from", "none.json"], "--from none.json: "),
+        (vec!["--from", &yaml(0)], "not a `merge --poses` document"),
+    ] {
+        let o = run(&args);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{err}");
+        assert!(err.contains(says) && err.lines().count() == 1, "{err}");
+    }
+    std::fs::remove_file(d.path().join(yaml(2))).unwrap();
+    let o = run(&["--from", "fleet.json"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("is not there"), "{err}");
+}

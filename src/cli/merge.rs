@@ -23,8 +23,14 @@ pub(super) struct MergeArgs {
     /// The maps (yaml or image) or folders of maps. Two maps: B aligned onto A (the merged map is in A's
     /// frame). More, or a folder: every map placed at once, each group's merged map in the frame of its
     /// first map.
-    #[arg(required = true, value_name = "A B | MAPS... | DIR")]
+    #[arg(required_unless_present = "from", value_name = "A B | MAPS... | DIR")]
     pub(super) maps: Vec<PathBuf>,
+    /// Add the maps given to an earlier many-map merge: read the maps its `--poses` FILE lists (by the
+    /// paths recorded there) and the pairs it aligned, and align only the pairs with a new or changed
+    /// map (the old pairs count as aligned); then place every map afresh. FILE may also be the new
+    /// `--poses` (it is replaced only once everything is written).
+    #[arg(long, value_name = "FILE")]
+    pub(super) from: Option<PathBuf>,
     /// Write the merged map: `NAME.yaml` (with `NAME.pgm` beside it) or `NAME.pgm`. Only when merged; with
     /// many maps, group 0 as NAME and group k as `NAME-k`.
     #[arg(short, long, value_name = "MERGED.yaml|.pgm")]
@@ -79,6 +85,7 @@ impl MergeArgs {
             && self.poses.is_none()
             && self.init_poses.is_none()
             && self.html.is_none()
+            && self.from.is_none()
     }
 }
 

@@ -8,7 +8,8 @@ use ogm_corners::files;
 use ogm_corners::map::{save_names, yaml_text};
 use ogm_corners::memory::Budget;
 use ogm_corners::merge::footprint;
-use ogm_corners::merge::global::{merge_maps, page, report, GlobalOptions};
+use ogm_corners::merge::global::previous::Previous;
+use ogm_corners::merge::global::{merge_maps_cached, page, report, Cache, GlobalOptions};
 use ogm_corners::{Error, OccupancyMap, Result};
 
 use super::merge::MergeArgs;
@@ -30,9 +31,51 @@ fn group_path(base: &Path, g: usize) -> PathBuf {
     base.with_file_name(name)
 }
 
+/// The earlier merge of `--from FILE`: its record, read within the budget.
+fn previous(file: &Path, budget: &Budget) -> Result<Previous> {
+    let what = format!("--from {}", file.display());
+    let size = std::fs::metadata(file)
+        .map_err(|e| Error::invalid(format!("{what}: {e}")))?
+        .len();
+    budget.check(format_args!("{what}"), size.saturating_mul(4))?;
+    let text = std::fs::read_to_string(file).map_err(|e| Error::invalid(format!("{what}: {e}")))?;
+    Previous::parse(&text, &what)
+}
+
 pub(super) fn run(a: MergeArgs, budget: &Budget) -> Result<()> {
     super::check_stdout()?;
-    let (paths, mut inputs) = super::map_inputs(&a.maps, budget, &|_, _| 0)?;
+    let previous = a.from.as_deref().map(|f| previous(f, budget)).transpose()?;
+    // The earlier merge's maps first, in its order (so its pairs are found the same way round), then
+    // the maps given that it does not list.
+    let mut args: Vec<PathBuf> = previous
+        .iter()
+        .flat_map(|p| p.maps.iter().map(PathBuf::from))
+        .collect();
+    if let Some(p) = &previous {
+        for m in &p.maps {
+            if !Path::new(m).exists() {
+                return Err(Error::invalid(format!(
+                    "--from {}: a map it lists, {m:?}, is not there (its paths are as given to that \
+                     merge: run this one from the same folder)",
+                    a.from.as_deref().unwrap_or(Path::new("")).display()
+                )));
+            }
+        }
+    }
+    let listed = args.len();
+    args.extend(a.maps.iter().cloned());
+    let (mut paths, mut inputs) = super::map_inputs(&args, budget, &|_, _| 0)?;
+    // A map given again that the earlier merge lists is taken once (a map given twice otherwise is
+    // placed with its first copy, as always).
+    if previous.is_some() {
+        let id = |p: &PathBuf| std::fs::canonicalize(p).unwrap_or_else(|_| p.clone());
+        let old: std::collections::HashSet<PathBuf> = paths[..listed].iter().map(id).collect();
+        let mut k = 0;
+        paths.retain(|p| {
+            k += 1;
+            k <= listed || !old.contains(&id(p))
+        });
+    }
     if paths.len() < 2 {
         return Err(Error::invalid(format!(
             "merge needs at least two maps; found {}",
@@ -99,16 +142,37 @@ pub(super) fn run(a: MergeArgs, budget: &Budget) -> Result<()> {
         .expect("valid template"),
     );
     let mut backend = super::backend_on(a.backend)?;
-    let many = merge_maps(
+    let options = GlobalOptions::with_partners(a.partners as usize);
+    let mut cache = match previous {
+        Some(p) if !p.fits(&options) => {
+            ogm_corners::say!(
+                "ogm-corners: note: --from: its alignments were made by another version or with other \
+                 options ({}); every pair is aligned again",
+                p.options
+            );
+            Cache::new()
+        }
+        Some(p) => p.cache(&options),
+        None => Cache::new(),
+    };
+    let many = merge_maps_cached(
         maps,
         &names,
-        &GlobalOptions::with_partners(a.partners as usize),
+        &options,
         backend.as_mut(),
         &|k, n| {
             bar.set_length(n as u64);
             bar.set_position(k as u64);
         },
+        &mut cache,
     )?;
+    let reused = cache.last_use().pairs_reused;
+    if a.from.is_some() {
+        ogm_corners::say!(
+            "ogm-corners: --from: {reused} pairs taken up, {} aligned",
+            cache.last_use().pairs_aligned
+        );
+    }
     bar.finish_and_clear();
     let mut doc = many.report.clone();
     // Every output staged, then all renamed into place together: a failure leaves none of them.
@@ -160,6 +224,8 @@ pub(super) fn run(a: MergeArgs, budget: &Budget) -> Result<()> {
             ogm_corners::error::one_line(&index.display().to_string())
         );
     }
+    // The alignments are the --poses file's: a later `--from` reads them there.
+    doc.alignments.clear();
     write_stdout(|out| match a.format {
         super::TextOrJson::Json => {
             serde_json::to_writer_pretty(&mut *out, &doc)?;

@@ -33,7 +33,7 @@ use super::score::{score_both, Probe};
 use super::transform::Rigid;
 use crate::backend::Backend;
 use crate::cpu::CpuBackend;
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::map::OccupancyMap;
 
 /// The rule value from which the self-symmetry is measured: the operating curve's lowest offset.
@@ -155,6 +155,11 @@ pub fn align_prepared_with(
 ) -> Result<Alignment> {
     // In the prototype's terms: src = B (moved), dst = A (reference); transforms map src to dst.
     let (src, dst) = (b, a);
+    if !src.can_align() || !dst.can_align() {
+        return Err(Error::invalid(
+            "a preparation read in its placement form cannot be aligned (it has no distance maps)",
+        ));
+    }
     if !src.alignable() || !dst.alignable() {
         return Ok(declined(
             "a map has (almost) no walls next to free space: nothing to align",

@@ -15,6 +15,7 @@
 mod accept;
 pub mod align;
 mod coarse;
+pub mod codec;
 pub mod compose;
 mod distance;
 pub mod eval;

@@ -336,6 +336,12 @@ impl Prepared {
         [(x0, y0), (x1, y0), (x0, y1), (x1, y1)]
     }
 
+    /// Whether it holds what aligning reads (a preparation read in its placement form does not:
+    /// [`super::codec::Form::Placement`]).
+    pub(super) fn can_align(&self) -> bool {
+        self.dist.len() == self.w * self.h && !self.levels.is_empty()
+    }
+
     /// Whether it has enough walls next to free space to be aligned at all.
     pub(super) fn alignable(&self) -> bool {
         self.walls.len() >= 20

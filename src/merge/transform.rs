@@ -7,7 +7,7 @@ use serde::Serialize;
 use crate::map::GeoRef;
 
 /// A rigid transform from map B's pixel coordinates to map A's.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, serde::Deserialize)]
 pub struct Rigid {
     /// Rotation, degrees.
     pub theta_deg: f64,

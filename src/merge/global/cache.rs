@@ -8,14 +8,35 @@
 //! Entries are matched by a hash of the pixels and confirmed by comparing the pixels themselves, so a
 //! hash collision can never hand one map's preparation to another. The cache keeps only what the last
 //! run used: its memory is one run's preparations and a copy of each map's pixels.
+//!
+//! An earlier run's pair alignments read from its `--poses` file can be carried in ([`Cache::carry`]):
+//! they are matched by the maps' content ids alone ([`content_id`], 128 bits), and count as aligned.
 
 use std::collections::HashMap;
-use std::hash::{Hash, Hasher};
 
-use super::GlobalOptions;
+use super::rounds::Aligned;
+use super::{GlobalOptions, PairRecord};
 use crate::map::{MapImage, OccupancyMap, Thresholds};
-use crate::merge::align::{Alignment, Prepared};
+use crate::merge::align::Prepared;
 use crate::merge::prescreen::Signature;
+
+/// A map's content id: XXH3-128 of its size, pixels and thresholds (a stable format, so ids written
+/// to a file by one run are recognised by another).
+pub type ContentId = u128;
+
+/// `map`'s [`ContentId`].
+pub fn content_id(map: &OccupancyMap) -> ContentId {
+    use xxhash_rust::xxh3::Xxh3;
+    let mut h = Xxh3::new();
+    h.update(&map.image.width().to_le_bytes());
+    h.update(&map.image.height().to_le_bytes());
+    let t = &map.thresholds;
+    h.update(&[u8::from(t.negate)]);
+    h.update(&t.occupied_thresh.to_bits().to_le_bytes());
+    h.update(&t.free_thresh.to_bits().to_le_bytes());
+    h.update(map.image.pixels());
+    h.digest128()
+}
 
 /// A map's preparation and, once a pre-screen needed it, its signature.
 pub(super) type Kept = (Prepared, Option<Signature>);
@@ -23,25 +44,15 @@ pub(super) type Kept = (Prepared, Option<Signature>);
 /// A map's content as the cache recognises it.
 #[derive(Clone)]
 pub(super) struct Key {
-    hash: u64,
+    pub(super) hash: ContentId,
     image: MapImage,
     thresholds: Thresholds,
 }
 
 impl Key {
     pub(super) fn of(map: &OccupancyMap) -> Key {
-        let mut h = std::collections::hash_map::DefaultHasher::new();
-        (map.image.width(), map.image.height()).hash(&mut h);
-        map.image.pixels().hash(&mut h);
-        let t = &map.thresholds;
-        (
-            t.negate,
-            t.occupied_thresh.to_bits(),
-            t.free_thresh.to_bits(),
-        )
-            .hash(&mut h);
         Key {
-            hash: h.finish(),
+            hash: content_id(map),
             image: map.image.clone(),
             thresholds: map.thresholds,
         }
@@ -71,7 +82,9 @@ pub struct Cache {
     options: Option<GlobalOptions>,
     maps: Vec<(Key, Kept)>,
     /// By the two maps' hashes (reference, moved) and checked against their keys.
-    pairs: HashMap<(u64, u64), (Key, Key, Alignment)>,
+    pairs: HashMap<(ContentId, ContentId), (Key, Key, PairRecord)>,
+    /// An earlier run's, by the two maps' content ids (reference, moved).
+    carried: HashMap<(ContentId, ContentId), PairRecord>,
     used: CacheUse,
 }
 
@@ -110,16 +123,42 @@ impl Cache {
     }
 
     /// The alignment kept for the pair (`a` reference, `b` moved).
-    pub(super) fn pair(&self, a: &Key, b: &Key) -> Option<Alignment> {
+    pub(super) fn pair(&self, a: &Key, b: &Key) -> Option<PairRecord> {
         let (ka, kb, al) = self.pairs.get(&(a.hash, b.hash))?;
         (ka.same(a) && kb.same(b)).then(|| al.clone())
+    }
+
+    /// Takes up an earlier run's pair alignments (reference map's content id, moved map's, record):
+    /// the next run counts those between its maps as aligned (in the same order of the two maps; a
+    /// pair given the other way round is aligned again) and aligns only the pairs they leave. The run
+    /// keeps them as its own; no later run carries them again.
+    pub fn carry(&mut self, records: impl IntoIterator<Item = (ContentId, ContentId, PairRecord)>) {
+        self.carried
+            .extend(records.into_iter().map(|(a, b, r)| ((a, b), r)));
+    }
+
+    /// The carried pairs among the maps of `keys` (`a < b`), taken out of the cache.
+    pub(super) fn carried(&mut self, keys: &[Key]) -> Aligned {
+        let mut out = Aligned::new();
+        if self.carried.is_empty() {
+            return out;
+        }
+        for (a, ka) in keys.iter().enumerate() {
+            for (b, kb) in keys.iter().enumerate().skip(a + 1) {
+                if let Some(r) = self.carried.remove(&(ka.hash, kb.hash)) {
+                    out.insert((a, b), r);
+                }
+            }
+        }
+        self.carried.clear();
+        out
     }
 
     /// Keeps this run's maps and pairs, and only them.
     pub(super) fn keep(
         &mut self,
         maps: Vec<(Key, Kept)>,
-        pairs: Vec<(usize, usize, Alignment)>,
+        pairs: Vec<(usize, usize, PairRecord)>,
         used: CacheUse,
     ) {
         self.pairs = pairs

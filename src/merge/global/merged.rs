@@ -69,7 +69,7 @@ pub fn merge_maps_cached(
         })
         .collect::<Result<Vec<_>>>()?;
     let seconds = start.elapsed().as_secs_f64();
-    let report = report::poses(names, &maps, &scales, &run, &frames, seconds);
+    let report = report::poses(names, &maps, &scales, &run, &frames, seconds, options);
     Ok(ManyMerge {
         maps,
         scales,

@@ -23,24 +23,27 @@
 
 mod cache;
 pub mod calibrate;
+mod engine;
 pub mod eval;
 pub mod graph;
 mod merged;
 pub mod page;
 pub mod posegraph;
+pub mod previous;
+mod record;
 pub mod report;
 mod rounds;
 
 use serde::Serialize;
 
-use super::align::{
-    align_prepared, not_contradicted, overlap_centre, Candidate, MergeOptions, Prepared,
-};
+use super::align::{align_prepared, MergeOptions, Prepared};
 use super::prescreen::{Prescreen, Signature};
 use super::transform::Rigid;
 use crate::error::Result;
-pub use cache::{Cache, CacheUse};
+pub use cache::{content_id, Cache, CacheUse, ContentId};
+pub use engine::{Engine, Local};
 pub use merged::{merge_maps, merge_maps_cached, ManyMerge};
+pub use record::{EdgeRecord, PairRecord};
 pub use rounds::Round;
 
 /// How to place many maps.
@@ -181,14 +184,13 @@ pub fn align_all(
     progress: &(dyn Fn(usize, usize) + Sync),
 ) -> Result<Pairwise> {
     let order: Vec<(usize, usize)> = pair_order(maps.len()).collect();
-    let pairs = order.iter().map(|&(a, b)| (a, b, None)).collect();
-    let aligned = align_pairs(maps, options, progress, pairs)?;
-    let all: Vec<(usize, usize, super::Alignment)> = order
+    let records = align_pairs(maps, options, progress, &order)?;
+    let all: Vec<(usize, usize, PairRecord)> = order
         .into_iter()
-        .zip(aligned)
-        .map(|((a, b), al)| (a, b, al))
+        .zip(records)
+        .map(|((a, b), r)| (a, b, r))
         .collect();
-    Ok(pairwise_of(maps, options, &all))
+    Ok(pairwise_of(maps.len(), &all))
 }
 
 /// Every pair of `n` maps, `a` then `b` ascending (`a < b`).
@@ -196,99 +198,48 @@ fn pair_order(n: usize) -> impl Iterator<Item = (usize, usize)> {
     (0..n).flat_map(move |a| (a + 1..n).map(move |b| (a, b)))
 }
 
-/// Aligns `pairs` of `maps` (map `b` onto map `a`), each taken from its known alignment where it has one
-/// (only the others are aligned, and `progress` counts only those), in parallel; each pair's alignment,
-/// in the same order.
+/// Aligns `pairs` of `maps` (map `b` onto map `a`) in parallel, on this process's threads; each pair's
+/// record, in the same order. `progress` hears (pairs done, pairs in all).
 pub(crate) fn align_pairs(
     maps: &[Prepared],
     options: &GlobalOptions,
     progress: &(dyn Fn(usize, usize) + Sync),
-    pairs: Vec<(usize, usize, Option<super::Alignment>)>,
-) -> Result<Vec<super::Alignment>> {
+    pairs: &[(usize, usize)],
+) -> Result<Vec<PairRecord>> {
     use rayon::prelude::*;
     let done = std::sync::atomic::AtomicUsize::new(0);
-    let total = pairs.iter().filter(|p| p.2.is_none()).count();
+    let total = pairs.len();
     // A raised stop ends each pair at its next check and skips the pairs not started.
     let stop = crate::stop::current();
-    let results: Vec<Result<super::Alignment>> = pairs
-        .into_par_iter()
-        .map(|(a, b, kept)| match kept {
-            Some(al) => Ok(al),
-            None => crate::stop::with(stop.clone(), || {
+    let results: Vec<Result<PairRecord>> = pairs
+        .par_iter()
+        .map(|&(a, b)| {
+            crate::stop::with(stop.clone(), || {
                 crate::stop::check()?;
-                let al = align_prepared(&maps[a], &maps[b], &options.pair);
+                let al = align_prepared(&maps[a], &maps[b], &options.pair)?;
                 let k = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
                 progress(k, total);
-                al
-            }),
+                Ok(PairRecord::of(&maps[a], &maps[b], &al, options))
+            })
         })
         .collect();
     // The first error in the pairs' order, whichever thread met it first.
     results.into_iter().collect()
 }
 
-/// The record of the aligned `pairs` (`a < b`, ascending, each with its alignment) of `maps`: each
+/// The record of the aligned `pairs` (`a < b`, ascending, each with its record) of `n` maps: each
 /// pair's verdict and its usable candidates as edges.
-fn pairwise_of(
-    maps: &[Prepared],
-    options: &GlobalOptions,
-    pairs: &[(usize, usize, super::Alignment)],
-) -> Pairwise {
-    let n = maps.len();
+fn pairwise_of(n: usize, pairs: &[(usize, usize, PairRecord)]) -> Pairwise {
     let mut out = Pairwise {
         n,
         screened_out: (n * n.saturating_sub(1) / 2).saturating_sub(pairs.len()),
         ..Pairwise::default()
     };
-    for (a, b, al) in pairs {
-        let (a, b) = (*a, *b);
-        out.pairs.push(PairVerdict {
-            a,
-            b,
-            accepted: al.accepted,
-            transform: al.transform,
-            score: al.score,
-            reason: al.reason.clone(),
-        });
-        out.edges.extend(edges_of(
-            (a, &maps[a]),
-            (b, &maps[b]),
-            &al.candidates,
-            al.accepted,
-            options,
-        ));
+    for (a, b, r) in pairs {
+        out.pairs.push(r.verdict(*a, *b));
+        out.edges.extend(r.edges(*a, *b));
     }
     out
-}
-
-/// A pair's usable candidates as edges: the accepted choice, and every candidate from the weak rule
-/// value on that no contradiction veto declines (the self-symmetry aside: cycles are what settle a
-/// symmetric map's placement).
-fn edges_of(
-    (a, pa): (usize, &Prepared),
-    (b, pb): (usize, &Prepared),
-    candidates: &[Candidate],
-    accepted: bool,
-    options: &GlobalOptions,
-) -> Vec<Edge> {
-    candidates
-        .iter()
-        .enumerate()
-        .filter(|(rank, c)| {
-            (*rank == 0 && accepted)
-                || (c.score >= options.weak_from && not_contradicted(&c.features))
-        })
-        .map(|(rank, c)| Edge {
-            a,
-            b,
-            rank,
-            transform: c.transform,
-            score: c.score,
-            accepted: rank == 0 && accepted,
-            at: overlap_centre(pa, pb, &c.transform),
-            residual: c.features.residual,
-        })
-        .collect()
 }
 
 /// Half the side of the square of points where a pose-graph constraint is measured, pixels (150, 300 and
@@ -389,6 +340,10 @@ pub struct Run {
     /// The pairs of distinct maps aligned: every pair, or those the pre-screen chose (indices of the maps
     /// as given).
     pub pairwise: Pairwise,
+    /// Each aligned pair's record (the maps' indices as given, `a < b` among distinct maps), as a later
+    /// run may take them up again ([`Cache::carry`]).
+    #[serde(skip)]
+    pub records: Vec<(usize, usize, PairRecord)>,
     /// Where every map lands (a duplicate where its first copy does, in its group after it).
     pub placement: graph::Placement,
     /// For each map, the earlier map it is a copy of (the same pixels and thresholds), if any.
@@ -411,13 +366,28 @@ pub fn run(
 }
 
 /// [`run`] with the preparations and pair alignments of the last run kept in `cache`: only the maps not
-/// seen there are prepared and only the pairs not seen there aligned; the result is [`run`]'s.
+/// seen there are prepared and only the pairs not seen there aligned; the result is [`run`]'s. Pairs
+/// carried into the cache from an earlier run's file ([`Cache::carry`]) count as aligned from the start.
 pub fn run_cached(
     maps: &[crate::map::OccupancyMap],
     options: &GlobalOptions,
     backend: &mut dyn crate::backend::Backend,
     progress: &(dyn Fn(usize, usize) + Sync),
     cache: &mut Cache,
+) -> Result<Run> {
+    run_with(maps, options, backend, progress, cache, &mut Local)
+}
+
+/// [`run_cached`] with the preparations and pair alignments the cache does not hold computed by
+/// `engine` (this process's threads: [`Local`]; or workers elsewhere): the result is the same, to the
+/// bit, whichever engine computes them.
+pub fn run_with(
+    maps: &[crate::map::OccupancyMap],
+    options: &GlobalOptions,
+    backend: &mut dyn crate::backend::Backend,
+    progress: &(dyn Fn(usize, usize) + Sync),
+    cache: &mut Cache,
+    engine: &mut dyn Engine,
 ) -> Result<Run> {
     use rayon::prelude::*;
     use std::time::Instant;
@@ -437,47 +407,60 @@ pub fn run_cached(
         .par_iter()
         .map(|&i| cache::Key::of(&maps[i]))
         .collect();
-    let kept: Vec<Option<cache::Kept>> = keys.iter().map(|k| cache.take_map(k)).collect();
-    let mut used = CacheUse {
-        maps_reused: kept.iter().filter(|p| p.is_some()).count(),
-        maps_prepared: kept.iter().filter(|p| p.is_none()).count(),
-        ..CacheUse::default()
-    };
-    let stop = crate::stop::current();
+    let mut kept: Vec<Option<cache::Kept>> = keys.iter().map(|k| cache.take_map(k)).collect();
     let m = unique.len();
     let screen = options.prescreen.filter(|p| m > p.above);
+    let missing: Vec<usize> = (0..m).filter(|&k| kept[k].is_none()).collect();
+    let mut used = CacheUse {
+        maps_reused: m - missing.len(),
+        maps_prepared: missing.len(),
+        ..CacheUse::default()
+    };
+    let todo: Vec<(usize, &crate::map::OccupancyMap)> =
+        missing.iter().map(|&k| (k, &maps[unique[k]])).collect();
+    let made = engine.prepare(&todo, screen.is_some())?;
+    if made.len() != missing.len() {
+        return Err(crate::Error::invalid(format!(
+            "the engine prepared {} maps of {}",
+            made.len(),
+            missing.len()
+        )));
+    }
+    for (&k, p) in missing.iter().zip(made) {
+        kept[k] = Some(p);
+    }
+    // A map kept from a run that needed no signature gets one now that a screen needs it.
+    if screen.is_some() {
+        let stop = crate::stop::current();
+        kept.par_iter_mut()
+            .zip(unique.par_iter())
+            .try_for_each(|(kept, &i)| -> Result<()> {
+                if let Some((_, s @ None)) = kept {
+                    *s = Some(crate::stop::with(stop.clone(), || Signature::of(&maps[i]))?);
+                }
+                Ok(())
+            })?;
+    }
     let (prepared, signatures): (Vec<Prepared>, Vec<Option<Signature>>) = kept
-        .into_par_iter()
-        .zip(unique.par_iter())
-        .map(|(kept, &i)| {
-            crate::stop::with(stop.clone(), || {
-                let (p, s) = kept.unwrap_or_else(|| (Prepared::new(&maps[i]), None));
-                // A signature only where a screen needs it; kept with the preparation once made.
-                let s = match (s, screen) {
-                    (None, Some(_)) => Some(Signature::of(&maps[i])?),
-                    (s, _) => s,
-                };
-                Ok((p, s))
-            })
-        })
-        .collect::<Result<Vec<_>>>()?
         .into_iter()
+        .map(|p| p.expect("every map prepared"))
         .unzip();
     let prepare = t.elapsed().as_secs_f64();
     crate::stop::check()?;
     let t = Instant::now();
+    let start = cache.carried(&keys);
     let (done, rounds) = rounds::align_rounds(
         &prepared,
         &signatures,
         screen,
-        options,
-        progress,
         &|a, b| cache.pair(&keys[a], &keys[b]),
+        start,
+        &mut |pairs| engine.align(&prepared, pairs, options, progress),
         &mut used,
     )?;
-    let pairs: Vec<(usize, usize, super::Alignment)> =
-        done.into_iter().map(|((a, b), al)| (a, b, al)).collect();
-    let mut pairwise = pairwise_of(&prepared, options, &pairs);
+    let pairs: Vec<(usize, usize, PairRecord)> =
+        done.into_iter().map(|((a, b), r)| (a, b, r)).collect();
+    let mut pairwise = pairwise_of(prepared.len(), &pairs);
     pairwise.rounds = rounds;
     let align = t.elapsed().as_secs_f64();
     crate::stop::check()?;
@@ -488,6 +471,10 @@ pub fn run_cached(
     crate::stop::check()?;
     let place = t.elapsed().as_secs_f64();
     let alignable: Vec<bool> = prepared.iter().map(Prepared::alignable).collect();
+    let records: Vec<(usize, usize, PairRecord)> = pairs
+        .iter()
+        .map(|(a, b, r)| (unique[*a], unique[*b], r.clone()))
+        .collect();
     let kept = prepared.into_iter().zip(signatures);
     cache.keep(keys.into_iter().zip(kept).collect(), pairs, used);
     // Back to the maps' own indices.
@@ -545,6 +532,7 @@ pub fn run_cached(
     }
     Ok(Run {
         pairwise,
+        records,
         placement,
         duplicate_of,
         timing: Timing {

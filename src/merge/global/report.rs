@@ -37,6 +37,20 @@ pub struct MapEntry {
     /// The map given earlier that it is a copy of (the same pixels): aligned once, placed with it.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub copy_of: Option<String>,
+    /// Its content id (32 hex digits, [`super::content_id`] of the map as aligned): what the
+    /// alignments below name it by when a later run takes them up (`merge --from`).
+    pub content: String,
+}
+
+/// One aligned pair's record, as a later run takes it up ([`super::Cache::carry`]).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct AlignmentEntry {
+    /// The reference map.
+    pub a: String,
+    /// The moved map.
+    pub b: String,
+    /// Its alignment.
+    pub alignment: super::PairRecord,
 }
 
 /// One group's entry.
@@ -87,6 +101,28 @@ pub struct Poses {
     pub pairs_screened_out: usize,
     /// Seconds, end to end (reading the maps aside).
     pub seconds: f64,
+    /// The options the alignments were made with ([`options_id`]): a later run takes them up only
+    /// under the same.
+    pub alignments_of: String,
+    /// Every aligned pair's record, in the pairs' order (the `--poses` file's; left out of the report
+    /// on standard output).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub alignments: Vec<AlignmentEntry>,
+}
+
+/// What the pair alignments depend on besides the maps: this build's version and the alignment's
+/// options (which pairs a pre-screen chooses aside), as a short id.
+pub fn options_id(options: &super::GlobalOptions) -> String {
+    let options = super::GlobalOptions {
+        prescreen: None,
+        ..*options
+    };
+    let text = format!("{} {options:?}", env!("CARGO_PKG_VERSION"));
+    format!(
+        "{} {:016x}",
+        env!("CARGO_PKG_VERSION"),
+        xxhash_rust::xxh3::xxh3_64(text.as_bytes())
+    )
 }
 
 /// The report of `run` of `maps` (named `names`; `scales` as [`MapEntry::scale`]), each group's
@@ -98,6 +134,7 @@ pub fn poses(
     run: &super::Run,
     frames: &[Frame],
     seconds: f64,
+    options: &super::GlobalOptions,
 ) -> Poses {
     let (pairwise, placement): (&Pairwise, &Placement) = (&run.pairwise, &run.placement);
     let copy_of = |m: usize| run.duplicate_of[m].map(|d| names[d].clone());
@@ -116,6 +153,7 @@ pub fn poses(
                     scale: scales[m],
                     reason: p.reason.clone(),
                     copy_of: copy_of(m),
+                    content: format!("{:032x}", super::content_id(&maps[m])),
                 };
             };
             let first = placement.groups[g][0];
@@ -138,6 +176,7 @@ pub fn poses(
                 scale: scales[m],
                 reason: None,
                 copy_of: copy_of(m),
+                content: format!("{:032x}", super::content_id(&maps[m])),
             }
         })
         .collect();
@@ -170,6 +209,16 @@ pub fn poses(
         pairs_accepted: pairwise.pairs.iter().filter(|p| p.accepted).count(),
         pairs_screened_out: pairwise.screened_out,
         seconds,
+        alignments_of: options_id(options),
+        alignments: run
+            .records
+            .iter()
+            .map(|(a, b, r)| AlignmentEntry {
+                a: names[*a].clone(),
+                b: names[*b].clone(),
+                alignment: r.clone(),
+            })
+            .collect(),
     }
 }
 

@@ -7,9 +7,9 @@ use std::collections::{BTreeMap, BTreeSet};
 
 use serde::Serialize;
 
-use super::{align_pairs, pair_order, CacheUse, GlobalOptions};
+use super::{pair_order, CacheUse, PairRecord};
 use crate::error::Result;
-use crate::merge::align::{Alignment, Prepared};
+use crate::merge::align::Prepared;
 use crate::merge::prescreen::{self, Prescreen, Signature};
 use crate::merge::transform::Rigid;
 
@@ -22,19 +22,24 @@ pub struct Round {
     pub accepted: usize,
 }
 
-/// Each aligned pair's alignment, by pair (`a < b`).
-pub(super) type Aligned = BTreeMap<(usize, usize), Alignment>;
+/// Each aligned pair's record, by pair (`a < b`).
+pub(super) type Aligned = BTreeMap<(usize, usize), PairRecord>;
 
-/// Aligns the pairs of `maps` that `screen` chooses (every pair without one), each taken from `known`
-/// where it has it; returns every aligned pair's alignment by pair (`a < b`) and, when screened, the
-/// rounds. `signatures` holds every map's when screened. `used` counts the pairs reused and aligned.
+/// Aligns a batch of pairs (b onto a): one record each, in order.
+pub(super) type AlignBatch<'a> = dyn FnMut(&[(usize, usize)]) -> Result<Vec<PairRecord>> + 'a;
+
+/// Aligns the pairs of `maps` that `screen` chooses (every pair without one) with `align`, each taken
+/// from `known` where it has it; the pairs of `start` count as aligned from the start (an earlier run's,
+/// carried over: not chosen again). Returns every aligned pair's record by pair (`a < b`) and, when
+/// screened, the rounds (the pairs of `start` aside). `signatures` holds every map's when screened.
+/// `used` counts the pairs reused and aligned.
 pub(super) fn align_rounds(
     maps: &[Prepared],
     signatures: &[Option<Signature>],
     screen: Option<Prescreen>,
-    options: &GlobalOptions,
-    progress: &(dyn Fn(usize, usize) + Sync),
-    known: &dyn Fn(usize, usize) -> Option<Alignment>,
+    known: &dyn Fn(usize, usize) -> Option<PairRecord>,
+    start: Aligned,
+    align: &mut AlignBatch<'_>,
     used: &mut CacheUse,
 ) -> Result<(Aligned, Vec<Round>)> {
     let m = maps.len();
@@ -46,20 +51,45 @@ pub(super) fn align_rounds(
         (Some(p), Some(similar)) => prescreen::pairs(similar, p.partners),
         _ => pair_order(m).collect(),
     };
-    let mut done = Aligned::new();
+    used.pairs_reused += start.len();
+    let mut done = start;
     let mut rounds: Vec<Round> = Vec::new();
     for round in 0.. {
-        let pairs: Vec<(usize, usize, Option<Alignment>)> =
-            chosen.iter().map(|&(a, b)| (a, b, known(a, b))).collect();
-        used.pairs_reused += pairs.iter().filter(|p| p.2.is_some()).count();
-        used.pairs_aligned += pairs.iter().filter(|p| p.2.is_none()).count();
-        let alignments = align_pairs(maps, options, progress, pairs)?;
-        let accepted = alignments.iter().filter(|al| al.accepted).count();
+        chosen.retain(|p| !done.contains_key(p));
+        let mut records: Vec<Option<PairRecord>> =
+            chosen.iter().map(|&(a, b)| known(a, b)).collect();
+        let new: Vec<(usize, usize)> = chosen
+            .iter()
+            .zip(&records)
+            .filter(|(_, r)| r.is_none())
+            .map(|(p, _)| *p)
+            .collect();
+        used.pairs_reused += chosen.len() - new.len();
+        used.pairs_aligned += new.len();
+        let mut aligned = if new.is_empty() {
+            Vec::new()
+        } else {
+            align(&new)?
+        };
+        if aligned.len() != new.len() {
+            return Err(crate::Error::invalid(format!(
+                "the engine aligned {} pairs of {}",
+                aligned.len(),
+                new.len()
+            )));
+        }
+        // Back in the chosen order.
+        aligned.reverse();
+        for r in records.iter_mut().filter(|r| r.is_none()) {
+            *r = aligned.pop();
+        }
+        let records: Vec<PairRecord> = records.into_iter().flatten().collect();
+        let accepted = records.iter().filter(|r| r.accepted).count();
         rounds.push(Round {
             pairs: chosen.len(),
             accepted,
         });
-        done.extend(chosen.iter().copied().zip(alignments));
+        done.extend(chosen.iter().copied().zip(records));
         let (Some(p), Some(similar)) = (screen.filter(|p| round < p.rounds), &similar) else {
             break;
         };
@@ -69,8 +99,8 @@ pub(super) fn align_rounds(
         }
         let accepted: Vec<(usize, usize, Rigid, f64)> = done
             .iter()
-            .filter(|(_, al)| al.accepted)
-            .map(|(&(a, b), al)| (a, b, al.transform, al.score))
+            .filter(|(_, r)| r.accepted)
+            .map(|(&(a, b), r)| (a, b, r.transform, r.score))
             .collect();
         let aligned: BTreeSet<(usize, usize)> = done.keys().copied().collect();
         let forest = prescreen::forest(m, &accepted);
