@@ -71,11 +71,13 @@ fi
 # OpenCV (for the Harris / Shi-Tomasi agreement test).
 python_env target/opencv-venv "import cv2, numpy" opencv-python-headless numpy
 # The Python package's build tool (its metadata check) and test tools (rosbags: the ROS bag example, no ROS
-# install needed; the ROS 2 Jazzy wheels: the map_merge node's tests, its `ros` extra).
+# install needed; the ROS 2 Jazzy wheels: the map_merge node's tests, its `ros` extra; Ray: the distributed
+# engine's test on a local Ray instance, its `ray` extra).
 pyvenv=target/python-venv
-python_env "$pyvenv" "import maturin, numpy, pytest, rosbags, rclpy, nav_msgs.msg, geometry_msgs.msg" \
+python_env "$pyvenv" "import maturin, numpy, pytest, rosbags, rclpy, nav_msgs.msg, geometry_msgs.msg, ray" \
     "maturin>=1.9.4,<2" numpy pytest rosbags \
-    ros-jazzy-rclpy ros-jazzy-nav-msgs ros-jazzy-geometry-msgs ros-jazzy-rmw-fastrtps-cpp
+    ros-jazzy-rclpy ros-jazzy-nav-msgs ros-jazzy-geometry-msgs ros-jazzy-rmw-fastrtps-cpp \
+    "ray>=2.9"
 
 # Unit, integration and doc tests, and the Python extension, in one build: with the same dependency graph
 # (feature unification spans the selected packages) the extension costs only itself. The extension links

@@ -29,7 +29,7 @@ from ._merge import (
     overlay,
     rigid_matrix,
 )
-from . import synthetic
+from . import distributed, synthetic
 
 __version__: str = _core.__version__
 
@@ -50,6 +50,7 @@ __all__ = [
     "WorldTransform",
     "compose",
     "detect",
+    "distributed",
     "load_map",
     "merge",
     "MergeCache",

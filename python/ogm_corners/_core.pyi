@@ -1,7 +1,7 @@
 # Types of the compiled module (python/src/*.rs). The public API is the package around it; these are
 # its building blocks, not meant to be called directly.
 from os import PathLike
-from typing import List, Optional, Tuple, Union
+from typing import Any, List, Optional, Tuple, Union
 
 import numpy as np
 import numpy.typing as npt
@@ -111,6 +111,7 @@ def synthetic_office(
 def synthetic_robot_maps(
     source: Map, n: int, noise: float = 0.0, seed: int = 1
 ) -> List[Tuple[Map, _Transform]]: ...
+def synthetic_fleet(n: int, buildings: int = 4, seed: int = 1) -> List[Tuple[str, Map]]: ...
 def merge(a: Map, b: Map, backend: str = "cpu") -> str: ...
 def compose(a: Map, b: Map, transform: _Transform) -> Map: ...
 def overlay(a: Map, b: Map, transform: _Transform) -> npt.NDArray[np.uint8]: ...
@@ -125,3 +126,18 @@ def merge_many(
     cache: Optional[MergeCache] = None,
     partners: int = 3,
 ) -> ManyMerge: ...
+def merge_many_on(
+    maps: List[Map],
+    names: List[str],
+    executor: Any,
+    backend: str = "cpu",
+    partners: int = 3,
+) -> ManyMerge: ...
+def _prepare_encoded(
+    pixels: npt.NDArray[np.uint8],
+    negate: bool,
+    occupied_thresh: float,
+    free_thresh: float,
+    signature: bool,
+) -> Tuple[bytes, bytes, Optional[bytes]]: ...
+def _align_encoded(a: bytes, b: bytes, options: str) -> str: ...

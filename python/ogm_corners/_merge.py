@@ -261,6 +261,7 @@ def merge_many(
     backend: str = "cpu",
     cache: Optional[MergeCache] = None,
     partners: int = 3,
+    executor: Any = None,
 ) -> ManyMerge:
     """Places every map at once (``Map`` objects or paths): groups of maps of one place, each map's pose
     in its group's merged map, merges no single pair would trust confirmed around cycles and accepted
@@ -268,7 +269,9 @@ def merge_many(
     files, else ``map0``, ``map1``, ...). A ``cache`` (``MergeCache``) given to successive calls redoes
     only what changed between them. In a set of more than 12 maps each map is aligned first with only its
     ``partners`` most similar maps (by the layout of their corners), then with the maps that close cycles
-    and may join groups; ``partners=0`` aligns every pair."""
+    and may join groups; ``partners=0`` aligns every pair. An ``executor``
+    (``ogm_corners.distributed.RayExecutor()``) prepares the maps and aligns the pairs elsewhere, with the
+    same result to the bit; it takes no ``cache``."""
     if isinstance(partners, bool) or not isinstance(partners, int):
         raise TypeError(f"partners must be an int, got {type(partners).__name__}")
     if partners < 0:
@@ -278,6 +281,18 @@ def merge_many(
     ms = [_as_map(m) for m in maps]
     if names is None:
         names = [m.source or f"map{i}" for i, m in enumerate(ms)]
+    if executor is not None:
+        if cache is not None:
+            raise ValueError("an executor takes no cache: each run's work is done by the executor")
+        for method in ("prepare", "align"):
+            if not callable(getattr(executor, method, None)):
+                raise TypeError(
+                    f"executor must have prepare() and align() (see ogm_corners.distributed); "
+                    f"{type(executor).__name__} has no {method}()"
+                )
+        return ManyMerge(
+            _core.merge_many_on([m._m for m in ms], list(names), executor, backend, partners)
+        )
     core_cache = cache._core if cache is not None else None
     return ManyMerge(
         _core.merge_many([m._m for m in ms], list(names), backend, core_cache, partners)

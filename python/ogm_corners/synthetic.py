@@ -26,3 +26,11 @@ def robot_maps(
         (Map._wrap(m), pose)
         for m, pose in _core.synthetic_robot_maps(source._m, n, noise, seed)
     ]
+
+
+def fleet(n: int, buildings: int = 4, seed: int = 1) -> Tuple[List[str], List[Map]]:
+    """The synthetic fleet of ``ogm-corners merge-eval --global --set-size n --buildings b``: ``n`` robot
+    maps cut from ``buildings`` synthetic offices (a share each, mixed), with their names
+    (``oK-part-NN``: office K). For trying large merges (``merge_many``) without data."""
+    pairs = _core.synthetic_fleet(n, buildings, seed)
+    return [name for name, _ in pairs], [Map._wrap(m) for _, m in pairs]

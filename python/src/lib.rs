@@ -3,6 +3,7 @@
 //! releases the interpreter's lock while the library works.
 
 mod detect;
+mod distributed;
 mod errors;
 mod map;
 mod merge;
@@ -19,10 +20,14 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(map::load_map, m)?)?;
     m.add_function(wrap_pyfunction!(map::synthetic_office, m)?)?;
     m.add_function(wrap_pyfunction!(map::synthetic_robot_maps, m)?)?;
+    m.add_function(wrap_pyfunction!(map::synthetic_fleet, m)?)?;
     m.add_function(wrap_pyfunction!(merge::merge, m)?)?;
     m.add_function(wrap_pyfunction!(merge::compose, m)?)?;
     m.add_function(wrap_pyfunction!(merge::overlay, m)?)?;
     m.add_function(wrap_pyfunction!(merge::merge_many, m)?)?;
+    m.add_function(wrap_pyfunction!(distributed::merge_many_on, m)?)?;
+    m.add_function(wrap_pyfunction!(distributed::_prepare_encoded, m)?)?;
+    m.add_function(wrap_pyfunction!(distributed::_align_encoded, m)?)?;
     m.add(
         "BackendUnavailableError",
         m.py().get_type::<errors::BackendUnavailableError>(),

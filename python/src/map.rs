@@ -378,3 +378,27 @@ pub fn synthetic_robot_maps(
         })
         .collect())
 }
+
+/// The synthetic fleet of `merge-eval --global --set-size n --buildings b`: `n` robot maps cut from `b`
+/// synthetic offices (seeds `seed`, `seed + 1`, ...), a share each, as (name, map) (names `oK-part-NN`).
+#[pyfunction]
+#[pyo3(signature = (n, buildings=4, seed=1))]
+pub fn synthetic_fleet(
+    py: Python<'_>,
+    n: usize,
+    buildings: usize,
+    seed: u64,
+) -> PyResult<Vec<(String, Map)>> {
+    if !(1..=2000).contains(&n) || !(1..=64).contains(&buildings) {
+        return Err(PyValueError::new_err(format!(
+            "n must lie in 1..=2000 and buildings in 1..=64; got {n} and {buildings}"
+        )));
+    }
+    let (names, maps, _) = unlocked(py, || {
+        ogm_corners::merge::global::eval::synthetic_mixed(n, buildings, seed)
+    })?;
+    Ok(names
+        .into_iter()
+        .zip(maps.into_iter().map(Map::wrap))
+        .collect())
+}

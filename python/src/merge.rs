@@ -22,7 +22,7 @@ fn rgb_array(py: Python<'_>, picture: image::RgbImage) -> PyResult<Bound<'_, PyA
 }
 
 /// The backend a name gives, opened.
-fn backend(py: Python<'_>, name: &str) -> PyResult<Box<dyn ogm_corners::Backend>> {
+pub(crate) fn backend(py: Python<'_>, name: &str) -> PyResult<Box<dyn ogm_corners::Backend>> {
     let choice = BackendChoice::parse(name).map_err(to_py)?;
     unlocked(py, || choice.open()).map(|(b, _)| b)
 }
@@ -99,7 +99,7 @@ fn rigid((theta_deg, tx, ty): (f64, f64, f64)) -> Rigid {
 /// Many maps placed; see the package's `ogm_corners.ManyMerge`.
 #[pyclass(frozen, module = "ogm_corners._core", name = "ManyMerge")]
 pub struct ManyMerge {
-    inner: global::ManyMerge,
+    pub(crate) inner: global::ManyMerge,
 }
 
 #[pymethods]
@@ -173,7 +173,7 @@ impl MergeCache {
 }
 
 /// The most `partners` a many-map merge takes (as the command line's `--partners`).
-const MAX_PARTNERS: usize = 1000;
+pub(crate) const MAX_PARTNERS: usize = 1000;
 
 /// Places every map at once (groups of maps of one place), each map's pose in its group's merged map.
 #[pyfunction]

@@ -43,12 +43,34 @@ pub fn merge_maps(
 /// [`merge_maps`] keeping each map's preparation and each pair's alignment in `cache` for the next call
 /// ([`super::run_cached`]): a live merge where few maps change between calls redoes only their part.
 pub fn merge_maps_cached(
+    maps: Vec<OccupancyMap>,
+    names: &[String],
+    options: &GlobalOptions,
+    backend: &mut dyn Backend,
+    progress: &(dyn Fn(usize, usize) + Sync),
+    cache: &mut Cache,
+) -> Result<ManyMerge> {
+    merge_maps_with(
+        maps,
+        names,
+        options,
+        backend,
+        progress,
+        cache,
+        &mut super::Local,
+    )
+}
+
+/// [`merge_maps_cached`] with what the cache does not hold prepared and aligned by `engine`
+/// ([`super::run_with`]).
+pub fn merge_maps_with(
     mut maps: Vec<OccupancyMap>,
     names: &[String],
     options: &GlobalOptions,
     backend: &mut dyn Backend,
     progress: &(dyn Fn(usize, usize) + Sync),
     cache: &mut Cache,
+    engine: &mut dyn super::Engine,
 ) -> Result<ManyMerge> {
     let start = Instant::now();
     let mut scales = vec![None; maps.len()];
@@ -61,7 +83,7 @@ pub fn merge_maps_cached(
             }
         }
     }
-    let run = super::run_cached(&maps, options, backend, progress, cache)?;
+    let run = super::run_with(&maps, options, backend, progress, cache, engine)?;
     let frames = (0..run.placement.groups.len())
         .map(|g| {
             let (ms, ps) = group_of(&maps, &run, g);

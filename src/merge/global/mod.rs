@@ -42,7 +42,7 @@ use super::transform::Rigid;
 use crate::error::Result;
 pub use cache::{content_id, Cache, CacheUse, ContentId};
 pub use engine::{Engine, Local};
-pub use merged::{merge_maps, merge_maps_cached, ManyMerge};
+pub use merged::{merge_maps, merge_maps_cached, merge_maps_with, ManyMerge};
 pub use record::{EdgeRecord, PairRecord};
 pub use rounds::Round;
 
