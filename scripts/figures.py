@@ -474,6 +474,31 @@ def fig_global_scale(r):
         f"\n\nWall time from 48 to 200 maps grows as N^{slope:.2f} (screened).")
 
 
+def fig_ray_scale(r):
+    """merge-eval's fleet merged by merge_many locally and on a local Ray instance of 1 and 2 CPUs
+    (python/examples/distributed_scale.py, one process a run: its peak memory is its own)."""
+    ext, py = python_package(r)
+    runs = [(50, "local", 2), (50, "ray", 1), (50, "ray", 2), (200, "local", 2), (200, "ray", 2),
+            (1000, "ray", 2)]
+    rows, digests = [], {}
+    for n, engine, cpus in runs:
+        args = ["python/examples/distributed_scale.py", "--size", str(n), "--engine", engine,
+                "--cpus", str(cpus)]
+        out = r.run([py, *args], env={"PYTHONPATH": ext}, shown_argv=["python", *args])
+        row = json.loads(out.strip().splitlines()[-1])
+        digests.setdefault(n, set()).add(row["digest"])
+        rows.append([n, "this process" if engine == "local" else f"Ray, {cpus} CPU" + ("s" if cpus > 1 else ""),
+                     f"{row['pairs_aligned']} of {n * (n - 1) // 2}", row["placed"], row["groups"],
+                     f"{row['seconds']:.1f}", f"{row['peak_mb']}",
+                     "-" if row["object_store_mb"] is None else f"{row['object_store_mb']}",
+                     row["digest"]])
+    same = all(len(d) == 1 for d in digests.values())
+    return table(["maps (4 offices)", "engine", "pairs aligned", "placed", "groups", "wall s",
+                  "this process's peak MB", "preparations in the object store MB", "report digest"],
+                 rows) + ("\n\nAt each size every engine gave the same report (digest: every pose and pair "
+                          "record)." if same else "\n\nThe engines' reports DIFFER at some size (digests above).")
+
+
 # ---- Performance ----
 
 def fig_bench_ogm(r):
@@ -634,6 +659,8 @@ FIGURES = {
                "many maps at once (merge-eval --global)"),
     "global-scale": ("docs/merging.md", fig_global_scale,
                      "many maps at once as the set grows, screened (merge-eval --global --buildings 4)"),
+    "ray-scale": ("docs/merging.md", fig_ray_scale,
+                  "large merges locally and on Ray with 1 and 2 CPUs (python/examples/distributed_scale.py)"),
     "bench-ogm": ("docs/performance.md", fig_bench_ogm,
                   "the paper's detector, 1024^2 to 16384^2, fast path and reference"),
     "bench-detectors": ("docs/performance.md", fig_bench_detectors,

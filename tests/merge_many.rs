@@ -566,14 +566,15 @@ fn a_screened_set_places_every_map_with_a_fraction_of_the_pairs() {
     assert_eq!(all.placement.groups, r.placement.groups);
 }
 
-/// The 22 real maps of three buildings, screened (22 maps: each aligned first with its 3 most similar):
-/// the three buildings whole and apart and every annotated pair accurate through the placement, as when
-/// every pair is aligned (docs/merging.md), with under half the pairs.
-#[test]
-fn the_real_buildings_screened_are_placed_as_with_every_pair() {
-    let Some(dir) = common::merge_pairs() else {
-        return;
-    };
+/// The real pair set, its 22 maps' names (sorted, then `order`ed) and the maps.
+fn real_set(
+    dir: &std::path::Path,
+    order: impl FnOnce(&mut Vec<String>),
+) -> (
+    ogm_corners::merge::pairs::PairSet,
+    Vec<String>,
+    Vec<OccupancyMap>,
+) {
     let set = ogm_corners::merge::pairs::PairSet::load(&dir.join("pairs.json")).unwrap();
     let mut names: Vec<String> = set
         .pairs
@@ -583,10 +584,23 @@ fn the_real_buildings_screened_are_placed_as_with_every_pair() {
     names.sort();
     names.dedup();
     assert_eq!(names.len(), 22);
-    let maps: Vec<OccupancyMap> = names
+    order(&mut names);
+    let maps = names
         .iter()
         .map(|n| OccupancyMap::load(dir.join("maps").join(format!("{n}.png"))).unwrap())
         .collect();
+    (set, names, maps)
+}
+
+/// The 22 real maps of three buildings, screened (22 maps: each aligned first with its 3 most similar):
+/// the three buildings whole and apart and every annotated pair accurate through the placement, as when
+/// every pair is aligned (docs/merging.md), with under half the pairs.
+#[test]
+fn the_real_buildings_screened_are_placed_as_with_every_pair() {
+    let Some(dir) = common::merge_pairs() else {
+        return;
+    };
+    let (set, names, maps) = real_set(&dir, |_| {});
     let r = run_maps(names.clone(), &maps, &GlobalOptions::default(), &|_, _| {}).unwrap();
     let building = |n: &str| n.split('_').next().unwrap().to_string();
     let row = score("real", &r, &set.pairs, &building);
@@ -680,22 +694,12 @@ fn a_real_map_added_to_an_earlier_merge_is_placed_as_in_a_full_run() {
     let Some(dir) = common::merge_pairs() else {
         return;
     };
-    let set = ogm_corners::merge::pairs::PairSet::load(&dir.join("pairs.json")).unwrap();
-    let mut names: Vec<String> = set
-        .pairs
-        .iter()
-        .flat_map(|p| [p.src.clone(), p.dst.clone()])
-        .collect();
-    names.sort();
-    names.dedup();
     // KPT4A_04 last: added to the merge of the others.
-    let last = names.iter().position(|n| n == "KPT4A_04").unwrap();
-    let n = names.remove(last);
-    names.push(n);
-    let maps: Vec<OccupancyMap> = names
-        .iter()
-        .map(|n| OccupancyMap::load(dir.join("maps").join(format!("{n}.png"))).unwrap())
-        .collect();
+    let (set, names, maps) = real_set(&dir, |names| {
+        let last = names.iter().position(|n| n == "KPT4A_04").unwrap();
+        let n = names.remove(last);
+        names.push(n);
+    });
     let options = GlobalOptions::default();
     let old = run_cached(
         &maps[..21],
@@ -812,4 +816,81 @@ fn merge_from_an_earlier_poses_file_adds_maps_and_says_what_it_took_up() {
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(2), "{err}");
     assert!(err.contains("is not there"), "{err}");
+}
+
+/// An engine elsewhere ([`Engine`]), modelled here as a distributed one works: each map's whole
+/// preparation kept as bytes and decoded for each pair, the placing side given only the placement form,
+/// each pair's record sent as JSON. The run is the local one's, to the bit (screened: signatures too).
+#[test]
+fn an_engine_moving_bytes_places_as_the_local_threads_to_the_bit() {
+    use ogm_corners::merge::codec::{self, Form};
+    use ogm_corners::merge::global::eval::synthetic_mixed;
+    use ogm_corners::merge::global::{run, run_with, Cache, Engine, PairRecord};
+    use ogm_corners::merge::prescreen::Signature;
+
+    #[derive(Default)]
+    struct Bytes {
+        whole: std::collections::HashMap<usize, Vec<u8>>,
+        aligned: usize,
+    }
+    impl Engine for Bytes {
+        fn prepare(
+            &mut self,
+            maps: &[(usize, &OccupancyMap)],
+            signatures: bool,
+        ) -> ogm_corners::Result<Vec<(Prepared, Option<Signature>)>> {
+            maps.iter()
+                .map(|&(k, m)| {
+                    let p = Prepared::new(m);
+                    self.whole.insert(k, codec::encode_prepared(&p, Form::Full));
+                    let (part, form) =
+                        codec::decode_prepared(&codec::encode_prepared(&p, Form::Placement))?;
+                    assert_eq!(form, Form::Placement);
+                    let s = signatures
+                        .then(|| Signature::of(m).map(|s| codec::encode_signature(&s)))
+                        .transpose()?;
+                    Ok((part, s.map(|s| codec::decode_signature(&s)).transpose()?))
+                })
+                .collect()
+        }
+        fn align(
+            &mut self,
+            _maps: &[Prepared],
+            pairs: &[(usize, usize)],
+            options: &GlobalOptions,
+            _progress: &(dyn Fn(usize, usize) + Sync),
+        ) -> ogm_corners::Result<Vec<PairRecord>> {
+            self.aligned += pairs.len();
+            pairs
+                .iter()
+                .map(|&(a, b)| {
+                    let (pa, _) = codec::decode_prepared(&self.whole[&a])?;
+                    let (pb, _) = codec::decode_prepared(&self.whole[&b])?;
+                    let al = ogm_corners::merge::align::align_prepared(&pa, &pb, &options.pair)?;
+                    PairRecord::from_json(&PairRecord::of(&pa, &pb, &al, options).to_json())
+                })
+                .collect()
+        }
+    }
+    let (_, maps, _) = synthetic_mixed(14, 2, 9).unwrap();
+    let options = GlobalOptions::default();
+    let local = run(&maps, &options, &mut CpuBackend, &|_, _| {}).unwrap();
+    let mut engine = Bytes::default();
+    let far = run_with(
+        &maps,
+        &options,
+        &mut CpuBackend,
+        &|_, _| {},
+        &mut Cache::new(),
+        &mut engine,
+    )
+    .unwrap();
+    assert!(local.pairwise.screened_out > 0);
+    assert_eq!(engine.aligned, local.pairwise.pairs.len());
+    assert_eq!(
+        serde_json::to_string(&far.pairwise).unwrap(),
+        serde_json::to_string(&local.pairwise).unwrap()
+    );
+    assert_eq!(far.placement, local.placement);
+    assert_eq!(far.records, local.records);
 }

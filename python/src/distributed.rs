@@ -11,12 +11,12 @@ use ogm_corners::merge::align::Prepared;
 use ogm_corners::merge::codec::{self, Form};
 use ogm_corners::merge::global::{self, report, Engine, GlobalOptions, PairRecord};
 use ogm_corners::merge::prescreen::Signature;
-use ogm_corners::{Error, MapImage, OccupancyMap, Thresholds};
+use ogm_corners::{Error, MapImage, OccupancyMap};
 use pyo3::prelude::*;
 use pyo3::types::PyBytes;
 
 use crate::errors::{interruptible, to_py, unlocked, within_budget};
-use crate::map::{image_of, Map};
+use crate::map::{image_of, thresholds_of, Map};
 use crate::merge::{ManyMerge, MAX_PARTNERS};
 
 /// An engine whose work a Python executor does (its `prepare` and `align` methods). A Python exception
@@ -46,38 +46,34 @@ impl Engine for PyEngine {
         maps: &[(usize, &OccupancyMap)],
         signatures: bool,
     ) -> ogm_corners::Result<Vec<(Prepared, Option<Signature>)>> {
-        let encoded: Vec<(Vec<u8>, Option<Vec<u8>>)> = self.call(|py| {
+        // Each decoded straight from the executor's bytes (no copy of them kept).
+        let decoded: Vec<ogm_corners::Result<(Prepared, Option<Signature>)>> = self.call(|py| {
             let items: Vec<(usize, Map)> = maps
                 .iter()
                 .map(|&(k, m)| (k, Map::wrap(m.clone())))
                 .collect();
-            self.executor
-                .call_method1(py, "prepare", (items, signatures))?
-                .extract(py)
+            let out = self
+                .executor
+                .call_method1(py, "prepare", (items, signatures))?;
+            let mut decoded = Vec::with_capacity(maps.len());
+            for item in out.bind(py).try_iter()? {
+                let (p, s): (Bound<'_, PyBytes>, Option<Bound<'_, PyBytes>>) = item?.extract()?;
+                decoded.push(decode_one(
+                    p.as_bytes(),
+                    s.as_ref().map(|s| s.as_bytes()),
+                    signatures,
+                ));
+            }
+            Ok(decoded)
         })?;
-        if encoded.len() != maps.len() {
+        if decoded.len() != maps.len() {
             return Err(Error::invalid(format!(
                 "the executor prepared {} maps of {}",
-                encoded.len(),
+                decoded.len(),
                 maps.len()
             )));
         }
-        encoded
-            .into_iter()
-            .map(|(p, s)| {
-                let (p, _) = codec::decode_prepared(&p)?;
-                let s = match (s, signatures) {
-                    (Some(s), true) => Some(codec::decode_signature(&s)?),
-                    (None, false) => None,
-                    _ => {
-                        return Err(Error::invalid(
-                            "the executor returned a signature where none was asked for, or none where one was",
-                        ))
-                    }
-                };
-                Ok((p, s))
-            })
-            .collect()
+        decoded.into_iter().collect()
     }
 
     fn align(
@@ -95,6 +91,24 @@ impl Engine for PyEngine {
         progress(pairs.len(), pairs.len());
         records.iter().map(|r| PairRecord::from_json(r)).collect()
     }
+}
+
+/// A map's placement part and signature as the executor returned them, checked.
+fn decode_one(
+    p: &[u8],
+    s: Option<&[u8]>,
+    signatures: bool,
+) -> ogm_corners::Result<(Prepared, Option<Signature>)> {
+    let (p, _) = codec::decode_prepared(p)?;
+    let s =
+        match (s, signatures) {
+            (Some(s), true) => Some(codec::decode_signature(s)?),
+            (None, false) => None,
+            _ => return Err(Error::invalid(
+                "the executor returned a signature where none was asked for, or none where one was",
+            )),
+        };
+    Ok((p, s))
 }
 
 /// [`crate::merge::merge_many`] with the preparations and pair alignments done by `executor`.
@@ -174,14 +188,7 @@ pub fn _prepare_encoded<'py>(
     free_thresh: f64,
     signature: bool,
 ) -> PyResult<Encoded<'py>> {
-    let thresholds = Thresholds {
-        negate,
-        occupied_thresh,
-        free_thresh,
-    };
-    thresholds
-        .validate()
-        .map_err(|m| to_py(Error::invalid(m)))?;
+    let thresholds = thresholds_of(negate, occupied_thresh, free_thresh)?;
     let image: MapImage = image_of(&pixels, true)?;
     let map = OccupancyMap {
         thresholds,

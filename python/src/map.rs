@@ -110,6 +110,19 @@ fn georef_of(
     Ok(Some(g))
 }
 
+/// A map image's thresholds, checked.
+pub fn thresholds_of(negate: bool, occupied_thresh: f64, free_thresh: f64) -> PyResult<Thresholds> {
+    let thresholds = Thresholds {
+        negate,
+        occupied_thresh,
+        free_thresh,
+    };
+    thresholds
+        .validate()
+        .map_err(|m| to_py(Error::invalid(m)))?;
+    Ok(thresholds)
+}
+
 /// An occupancy map: a greyscale image read as ROS `map_server` reads it (occupied, unknown, free), and,
 /// from a yaml or an occupancy grid, where it lies in the world. Immutable: its pixels are shared with
 /// numpy (`pixels`) without a copy.
@@ -140,14 +153,7 @@ impl Map {
         free_thresh: f64,
         copy: bool,
     ) -> PyResult<Self> {
-        let thresholds = Thresholds {
-            negate,
-            occupied_thresh,
-            free_thresh,
-        };
-        thresholds
-            .validate()
-            .map_err(|m| to_py(Error::invalid(m)))?;
+        let thresholds = thresholds_of(negate, occupied_thresh, free_thresh)?;
         let image = image_of(&pixels, copy)?;
         let georef = georef_of(resolution, origin, &image)?;
         Ok(Map::wrap(OccupancyMap {

@@ -28,7 +28,9 @@ pub(super) fn local_fit(from: &Prepared, to: &Prepared, t: &Rigid) -> LocalFit {
     const MIN_POINTS: usize = 24;
     // At most about 8000 wall pixels a map: enough for every tile's share.
     let step = from.walls.len().div_ceil(8000).max(1);
-    let mut tiles: std::collections::BTreeMap<(i64, i64), Vec<(f64, f64)>> = Default::default();
+    // Each wall pixel as the pixel of `to` it lands on (rounded once): a shift by whole pixels is then
+    // integer arithmetic, the same pixel `to.index` gives for the shifted point.
+    let mut tiles: std::collections::BTreeMap<(i64, i64), Vec<(i64, i64)>> = Default::default();
     let apply = t.applier();
     for &p in from.walls.iter().step_by(step) {
         let q = apply.apply(p);
@@ -36,34 +38,33 @@ pub(super) fn local_fit(from: &Prepared, to: &Prepared, t: &Rigid) -> LocalFit {
             tiles
                 .entry(((q.0 / TILE).floor() as i64, (q.1 / TILE).floor() as i64))
                 .or_default()
-                .push(q);
+                .push(((q.0 + 0.5).floor() as i64, (q.1 + 0.5).floor() as i64));
         }
     }
-    let near = |pts: &[(f64, f64)], dx: f64, dy: f64| {
+    let (w, h) = (to.w as i64, to.h as i64);
+    let at = |&(x, y): &(i64, i64), dx: i64, dy: i64| {
+        let (x, y) = (x + dx, y + dy);
+        (x >= 0 && y >= 0 && x < w && y < h).then(|| (y * w + x) as usize)
+    };
+    let near = |pts: &[(i64, i64)], dx: i64, dy: i64| {
         pts.iter()
-            .filter(|q| {
-                to.index(q.0 + dx, q.1 + dy)
-                    .is_some_and(|i| to.dist[i] <= 1.5)
-            })
+            .filter(|q| at(q, dx, dy).is_some_and(|i| to.dist[i] <= 1.5))
             .count()
     };
-    let deep = |pts: &[(f64, f64)], dx: f64, dy: f64| {
+    let deep = |pts: &[(i64, i64)], dx: i64, dy: i64| {
         pts.iter()
-            .filter(|q| {
-                to.index(q.0 + dx, q.1 + dy)
-                    .is_some_and(|i| to.flags_fine.flags[i] & FLAG_DEEP != 0)
-            })
+            .filter(|q| at(q, dx, dy).is_some_and(|i| to.flags_fine.flags[i] & FLAG_DEEP != 0))
             .count()
     };
     let (mut hit, mut total, mut conflicts) = (0usize, 0usize, 0usize);
     for pts in tiles.values().filter(|p| p.len() >= MIN_POINTS) {
         // Shifts of up to 6 px in steps of 2, then the best one's neighbours.
-        let mut best = (0usize, 0.0, 0.0);
+        let mut best = (0usize, 0i64, 0i64);
         for dy in (-6..=6).step_by(2) {
             for dx in (-6..=6).step_by(2) {
-                let c = near(pts, f64::from(dx), f64::from(dy));
+                let c = near(pts, dx, dy);
                 if c > best.0 {
-                    best = (c, f64::from(dx), f64::from(dy));
+                    best = (c, dx, dy);
                 }
             }
         }
@@ -71,7 +72,7 @@ pub(super) fn local_fit(from: &Prepared, to: &Prepared, t: &Rigid) -> LocalFit {
         let mut at = (bx, by);
         for dy in -1..=1 {
             for dx in -1..=1 {
-                let (x, y) = (bx + f64::from(dx), by + f64::from(dy));
+                let (x, y) = (bx + dx, by + dy);
                 let c = near(pts, x, y);
                 if c > best.0 {
                     (best.0, at) = (c, (x, y));
