@@ -9,8 +9,8 @@
 //! foreign bytes are a clear error, never a panic or an unbounded allocation.
 //!
 //! Two forms: the whole preparation, and the part a placement reads ([`Form::Placement`]: without the
-//! distance maps, the nearest-wall indices, the screening flags and the coarse masks, about 3 bytes a
-//! pixel instead of 16), for the process that places the maps while workers align them.
+//! nearest-wall indices, the screening flags and the coarse masks, about 3 bytes a pixel instead
+//! of 12), for the process that places the maps while workers align them.
 
 use super::prepare::{Coarse, Prepared, CELLS};
 use super::prescreen::Signature;
@@ -20,7 +20,7 @@ use crate::error::{Error, Result};
 const PREPARED_MAGIC: &[u8; 8] = b"OGMPREP\0";
 const SIGNATURE_MAGIC: &[u8; 8] = b"OGMSIGN\0";
 /// Bumped whenever the layout or the preparation's content changes.
-const VERSION: u32 = 1;
+const VERSION: u32 = 2;
 
 /// What [`encode_prepared`] writes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -35,7 +35,7 @@ pub enum Form {
 pub fn encode_prepared(p: &Prepared, form: Form) -> Vec<u8> {
     let full = form == Form::Full;
     let px = p.w * p.h;
-    let mut w = Writer::with_capacity(64 + px * if full { 17 } else { 3 });
+    let mut w = Writer::with_capacity(64 + px * if full { 13 } else { 3 });
     w.bytes(PREPARED_MAGIC);
     w.u32(VERSION);
     w.u8(u8::from(!full));
@@ -64,7 +64,6 @@ pub fn encode_prepared(p: &Prepared, form: Form) -> Vec<u8> {
     }
     if full {
         w.target(&p.flags_screen);
-        w.f32s(&p.dist);
         w.u32s(&p.nearest);
         w.u64(p.levels.len() as u64);
         for level in &p.levels {
@@ -125,7 +124,7 @@ pub fn decode_prepared(bytes: &[u8]) -> Result<(Prepared, Form)> {
     {
         return Err(r.bad("a coordinate that is not finite"));
     }
-    let (flags_screen, dist, nearest, levels) = match form {
+    let (flags_screen, nearest, levels) = match form {
         Form::Placement => (
             ScoreTarget {
                 width: flags.width,
@@ -134,14 +133,12 @@ pub fn decode_prepared(bytes: &[u8]) -> Result<(Prepared, Form)> {
             },
             Vec::new(),
             Vec::new(),
-            Vec::new(),
         ),
         Form::Full => {
             let flags_screen = r.target(w, h)?;
-            let dist = r.f32s()?;
             let nearest = r.u32s()?;
-            if dist.len() != px || nearest.len() != px {
-                return Err(r.bad("distance maps of another size than the crop"));
+            if nearest.len() != px {
+                return Err(r.bad("nearest-wall indices of another size than the crop"));
             }
             if nearest.iter().any(|&i| i != u32::MAX && i as usize >= px) {
                 return Err(r.bad("a nearest-wall index outside the crop"));
@@ -183,7 +180,7 @@ pub fn decode_prepared(bytes: &[u8]) -> Result<(Prepared, Form)> {
                     k => return Err(r.bad(format!("a level flag of {k}"))),
                 });
             }
-            (flags_screen, dist, nearest, levels)
+            (flags_screen, nearest, levels)
         }
     };
     r.end()?;
@@ -200,7 +197,6 @@ pub fn decode_prepared(bytes: &[u8]) -> Result<(Prepared, Form)> {
             flags_screen,
             free_points,
             flags_free,
-            dist,
             nearest,
             reference,
             angle,
@@ -454,8 +450,9 @@ mod tests {
         let (a, b, _) = two();
         let full = encode_prepared(&a, Form::Full);
         let light = encode_prepared(&a, Form::Placement);
+        // Three flag bytes a pixel against the whole preparation's twelve or so.
         assert!(
-            light.len() * 3 < full.len(),
+            light.len() * 2 < full.len(),
             "{} {}",
             light.len(),
             full.len()

@@ -2,7 +2,7 @@
 //! by a few pixels, how many walls agree and how many still lie deep in the other map's free space.
 //! Bending (SLAM drift) is explained by a few px of local shift; a wrong placement is not.
 
-use super::prepare::Prepared;
+use super::prepare::{Prepared, FLAG_TOUCH};
 use super::transform::Rigid;
 use crate::cpu::merge_score::FLAG_DEEP;
 
@@ -48,7 +48,7 @@ pub(super) fn local_fit(from: &Prepared, to: &Prepared, t: &Rigid) -> LocalFit {
     };
     let near = |pts: &[(i64, i64)], dx: i64, dy: i64| {
         pts.iter()
-            .filter(|q| at(q, dx, dy).is_some_and(|i| to.dist[i] <= 1.5))
+            .filter(|q| at(q, dx, dy).is_some_and(|i| to.flags_fine.flags[i] & FLAG_TOUCH != 0))
             .count()
     };
     let deep = |pts: &[(i64, i64)], dx: i64, dy: i64| {

@@ -33,13 +33,18 @@ pub fn prepared_bytes(width: u32, height: u32) -> u64 {
         .saturating_add((3 * tasks + 3) * n * n * 8)
 }
 
-/// Bytes a [`Prepared`] keeps for a `width` x `height` crop once made, about 16 a pixel: its distance map
-/// and nearest wall pixels (8), four flag targets (4), its walls and coarse masks. The rest of
+/// Bytes a [`Prepared`] keeps for a `width` x `height` crop once made, about 12 a pixel: its nearest
+/// wall pixels (4), four flag targets (4), its walls and coarse masks. The rest of
 /// [`prepared_bytes`] is working memory, held only while it is prepared or aligned. (Measured: 200 maps
 /// of about 1476^2 px prepared and aligned together peaked at 6.4 GB with their images.)
 pub fn kept_bytes(width: u32, height: u32) -> u64 {
-    (u64::from(width) * u64::from(height)).saturating_mul(16)
+    (u64::from(width) * u64::from(height)).saturating_mul(12)
 }
+
+/// Flag bit of [`Prepared::flags_fine`]: within 1.5 px of an occupied pixel (the local fit's test of a wall
+/// landing on a wall). The scoring kernel reads only the three lower bits, so it rides along in a byte
+/// the preparation keeps anyway, instead of a distance map of 4 bytes a pixel.
+pub(super) const FLAG_TOUCH: u8 = 8;
 
 /// The part of `map` a preparation holds: its known area's bounding box plus [`PAD`] px, within the map
 /// (the whole map when nothing is known), as (x0, y0, x1, y1), ends exclusive.
@@ -86,7 +91,7 @@ pub struct Prepared {
     /// (known, or within 5 px of a wall), near a wall (within 5 px), deep in free space (over 20 px).
     pub(super) flags: ScoreTarget,
     /// The same at a finer tolerance: near = on an occupied pixel (the sub-pixel polish), deep over 3 px
-    /// (the contradiction veto).
+    /// (the contradiction veto); and [`FLAG_TOUCH`], which the scoring kernel does not read.
     pub(super) flags_fine: ScoreTarget,
     /// The screening's target: near within 5 px, deep over 20 px, and (the inside bit) over 8 px deep (a
     /// wall landing in a room's free space away from its walls: what tells a wrong placement in a building
@@ -96,8 +101,6 @@ pub struct Prepared {
     pub(super) free_points: Vec<[u32; 2]>,
     /// What another map's free pixels landing on each pixel count as: known, free, occupied.
     pub(super) flags_free: ScoreTarget,
-    /// Distance to the nearest occupied pixel.
-    pub(super) dist: Vec<f32>,
     /// The nearest wall pixel (crop index; `u32::MAX` without walls), ICP's target.
     pub(super) nearest: Vec<u32>,
     /// Wall bounding box corners and centroid.
@@ -242,7 +245,10 @@ impl Prepared {
         };
         // The polish and the veto: inside, on an occupied pixel, over 3 px deep.
         let fine = |i: usize| {
-            inside(i) + u8::from(occ[i]) * FLAG_NEAR + u8::from(free_depth[i] > 3.0) * FLAG_DEEP
+            inside(i)
+                + u8::from(occ[i]) * FLAG_NEAR
+                + u8::from(free_depth[i] > 3.0) * FLAG_DEEP
+                + u8::from(dist[i] <= 1.5) * FLAG_TOUCH
         };
         // The screening's own bits: near (within 5 px), deep (over 20 px), and in the place of inside,
         // over 8 px deep.
@@ -296,7 +302,6 @@ impl Prepared {
             flags_screen,
             free_points,
             flags_free,
-            dist,
             nearest,
             reference,
             angle,
@@ -339,7 +344,7 @@ impl Prepared {
     /// Whether it holds what aligning reads (a preparation read in its placement form does not:
     /// [`super::codec::Form::Placement`]).
     pub(super) fn can_align(&self) -> bool {
-        self.dist.len() == self.w * self.h && !self.levels.is_empty()
+        self.nearest.len() == self.w * self.h && !self.levels.is_empty()
     }
 
     /// Whether it has enough walls next to free space to be aligned at all.
