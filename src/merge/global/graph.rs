@@ -80,6 +80,19 @@ pub fn evidence(
         list.retain(|&i| !excluded(&edges[i]));
     }
     let of = |u: usize, v: usize| pairs.get(&(u.min(v), u.max(v))).map_or(&[][..], |v| v);
+    // Each map's partners (ascending): a third map adds to an edge's evidence only through edges
+    // with both its maps, so only their common partners are visited (ascending, as every third map
+    // would be: the same sums).
+    let mut partners: Vec<Vec<usize>> = vec![Vec::new(); pairwise.n];
+    for (&(u, v), list) in &pairs {
+        if !list.is_empty() {
+            partners[u].push(v);
+            partners[v].push(u);
+        }
+    }
+    for p in &mut partners {
+        p.sort_unstable();
+    }
     edges
         .par_iter()
         .map(|e| {
@@ -95,7 +108,10 @@ pub fn evidence(
                 own: weight(e),
                 ..EdgeEvidence::default()
             };
-            for k in (0..pairwise.n).filter(|&k| k != i && k != j) {
+            let common = partners[i]
+                .iter()
+                .filter(|k| partners[j].binary_search(k).is_ok());
+            for &k in common.filter(|&&k| k != i && k != j) {
                 let (ik, jk) = (of(i, k), of(j, k));
                 let mut best: f64 = 0.0;
                 let mut against: f64 = 0.0;
@@ -240,30 +256,32 @@ pub fn place(
         // first; then those only cycles or several pairs stand behind (the groups' mosaics must pass the
         // pair test).
         let mut options_now: Vec<(usize, usize, Cluster, bool)> = Vec::new();
-        let group_ids: BTreeSet<usize> = groups.of.iter().copied().collect();
-        for &g in &group_ids {
-            for &h in group_ids.range(g + 1..) {
-                let clusters = clusters(g, h, &groups, edges, ev, options);
-                // Two single maps: their pair test has spoken.
-                let mosaic_worth = groups.members(g).len() + groups.members(h).len() > 2;
-                let valid =
-                    |c: &Cluster| c.trusted || (mosaic_worth && (c.pairs >= 2 || c.confirmed));
-                // The strongest placement that may join: a stronger one the cycles distrust (a
-                // contradicted accept) neither joins nor hides the one they agree with.
-                let mut usable = clusters.iter().filter(|c| valid(c));
-                let Some(best) = usable.next() else {
-                    continue;
-                };
-                let runner_up = usable.map(|c| c.support).fold(0.0, f64::max);
-                if runner_up >= AMBIGUITY * best.support {
-                    for m in groups.members(h).into_iter().chain(groups.members(g)) {
-                        ambiguous[m] = true;
-                    }
-                    continue;
+        let mut sizes = vec![0usize; n];
+        for &g in &groups.of {
+            sizes[g] += 1;
+        }
+        // Only groups that some voting edge links have a placement to offer: one pass over the
+        // edges, not one per pair of groups (which made a set of hundreds of maps cubic).
+        for ((g, h), between) in links(&groups, edges, ev) {
+            let clusters = clusters(g, h, &between, &groups, edges, ev, options);
+            // Two single maps: their pair test has spoken.
+            let mosaic_worth = sizes[g] + sizes[h] > 2;
+            let valid = |c: &Cluster| c.trusted || (mosaic_worth && (c.pairs >= 2 || c.confirmed));
+            // The strongest placement that may join: a stronger one the cycles distrust (a
+            // contradicted accept) neither joins nor hides the one they agree with.
+            let mut usable = clusters.iter().filter(|c| valid(c));
+            let Some(best) = usable.next() else {
+                continue;
+            };
+            let runner_up = usable.map(|c| c.support).fold(0.0, f64::max);
+            if runner_up >= AMBIGUITY * best.support {
+                for m in groups.members(h).into_iter().chain(groups.members(g)) {
+                    ambiguous[m] = true;
                 }
-                if !rejected.contains(&key(g, h, best.first, &groups)) {
-                    options_now.push((g, h, best.clone(), best.trusted));
-                }
+                continue;
+            }
+            if !rejected.contains(&key(g, h, best.first, &groups)) {
+                options_now.push((g, h, best.clone(), best.trusted));
             }
         }
         options_now.sort_by(|x, y| {
@@ -391,11 +409,28 @@ pub fn place(
     })
 }
 
-/// The votes of all edges between groups `g` and `h` for placements of H into G, clustered, the best
-/// supported first.
+/// The edges with a vote between two groups, by the two groups (`g < h`), each list ascending.
+fn links(
+    groups: &Groups,
+    edges: &[Edge],
+    ev: &[EdgeEvidence],
+) -> BTreeMap<(usize, usize), Vec<usize>> {
+    let mut out: BTreeMap<(usize, usize), Vec<usize>> = BTreeMap::new();
+    for (i, e) in edges.iter().enumerate() {
+        let (x, y) = (groups.of[e.a], groups.of[e.b]);
+        if x != y && ev[i].vote() > 0.0 {
+            out.entry((x.min(y), x.max(y))).or_default().push(i);
+        }
+    }
+    out
+}
+
+/// The votes of the edges `between` groups `g` and `h` ([`links`]) for placements of H into G,
+/// clustered, the best supported first.
 fn clusters(
     g: usize,
     h: usize,
+    between: &[usize],
     groups: &Groups,
     edges: &[Edge],
     ev: &[EdgeEvidence],
@@ -403,16 +438,14 @@ fn clusters(
 ) -> Vec<Cluster> {
     // Proposals: (edge, map of G, map of H, placement H -> G, vote).
     let mut proposals: Vec<(usize, usize, usize, Rigid, f64)> = Vec::new();
-    for (i, e) in edges.iter().enumerate() {
+    for &i in between {
+        let e = &edges[i];
         let (u, v) = match (groups.of[e.a], groups.of[e.b]) {
             (x, y) if x == g && y == h => (e.a, e.b),
             (x, y) if x == h && y == g => (e.b, e.a),
             _ => continue,
         };
         let vote = ev[i].vote();
-        if vote <= 0.0 {
-            continue;
-        }
         // H -> v's pixels -> u's pixels -> G.
         let y = groups.pose[u]
             .after(&e.toward(u))
