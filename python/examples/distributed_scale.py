@@ -53,7 +53,7 @@ class CountingRay(distributed.RayExecutor):
             sigs.append(sig)
             sizes.append(size)
         self.stored += sum(ray.get(sizes))
-        return list(zip(ray.get(parts), ray.get(sigs)))
+        return self._fetched(parts, sigs)
 
 
 def main() -> int:

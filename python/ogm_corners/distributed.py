@@ -20,7 +20,7 @@ process): another engine (Dask, a process pool) fits the same way.
 
 from __future__ import annotations
 
-from typing import Any, List, Optional, Sequence, Tuple
+from typing import Any, Iterable, List, Optional, Sequence, Tuple
 
 from . import _core
 
@@ -42,9 +42,12 @@ def align_pair(a: bytes, b: bytes, options: str) -> str:
 class Executor:
     """What ``merge_many`` asks of an executor (the protocol; see :class:`SerialExecutor`)."""
 
-    def prepare(self, maps: List[Tuple[int, Any]], signatures: bool) -> List[Tuple[bytes, Optional[bytes]]]:
+    def prepare(
+        self, maps: List[Tuple[int, Any]], signatures: bool
+    ) -> Iterable[Tuple[bytes, Optional[bytes]]]:
         """Prepares each ``(index, Map)``: keeps its whole preparation for :meth:`align` under
-        ``index``, and returns (its placement part, its signature when ``signatures``), in order."""
+        ``index``, and returns (its placement part, its signature when ``signatures``), in order: a list,
+        or an iterator that hands them over as they come (each is decoded and let go before the next)."""
         raise NotImplementedError
 
     def align(self, pairs: List[Tuple[int, int]], options: str) -> List[str]:
@@ -98,7 +101,18 @@ class RayExecutor(Executor):
             self._whole[index] = whole
             parts.append(part)
             sigs.append(sig)
-        return list(zip(ray.get(parts), ray.get(sigs)))
+        return self._fetched(parts, sigs)
+
+    def _fetched(self, parts, sigs):
+        # A few at a time, each reference let go once fetched: the caller decodes each part as it comes,
+        # so neither this process nor the object store holds every map's part at once (at 1,000 maps of
+        # 1500 px the parts are about 7 GB).
+        step = 16
+        for i in range(0, len(parts), step):
+            got = zip(self._ray.get(parts[i : i + step]), self._ray.get(sigs[i : i + step]))
+            parts[i : i + step] = [None] * len(parts[i : i + step])
+            sigs[i : i + step] = [None] * len(sigs[i : i + step])
+            yield from got
 
     def align(self, pairs, options):
         refs = [self._align.remote(self._whole[a], self._whole[b], options) for a, b in pairs]

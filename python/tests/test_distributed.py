@@ -90,7 +90,7 @@ def test_an_executors_failures_are_clear_errors():
 def test_foreign_or_damaged_bytes_and_other_versions_are_refused():
     m = _fleet()[0]
     whole, part, sig = dist.prepare_map(m.pixels, m.thresholds, True)
-    assert sig is not None and len(part) * 3 < len(whole)
+    assert sig is not None and len(part) * 2 < len(whole)  # 3 flag bytes a pixel of about 12
     with pytest.raises(ValueError, match="install the same ogm-corners version"):
         dist.align_pair(whole, whole, "0.0.0 0000000000000000")
     # The run's options id, as a run hands it to the executor.
