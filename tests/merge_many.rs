@@ -592,6 +592,23 @@ fn real_set(
     (set, names, maps)
 }
 
+/// The real buildings' placement scored against every annotated pair: all 22 maps placed, none wrongly,
+/// the three buildings as three groups, and every annotated pair accurate. Returns the row.
+fn assert_real_placed_right(
+    r: &ogm_corners::merge::global::eval::SetResult,
+    set: &ogm_corners::merge::pairs::PairSet,
+) -> ogm_corners::merge::global::eval::SetRow {
+    let building = |n: &str| n.split('_').next().unwrap().to_string();
+    let row = score("real", r, &set.pairs, &building);
+    assert_eq!(
+        (row.placed, row.wrong, row.groups, row.foreign),
+        (22, 0, 3, 0),
+        "{row:?}"
+    );
+    assert_eq!(row.derived_accurate, set.pairs.len(), "{row:?}");
+    row
+}
+
 /// The 22 real maps of three buildings, screened (22 maps: each aligned first with its 3 most similar):
 /// the three buildings whole and apart and every annotated pair accurate through the placement, as when
 /// every pair is aligned (docs/merging.md), with under half the pairs.
@@ -602,14 +619,7 @@ fn the_real_buildings_screened_are_placed_as_with_every_pair() {
     };
     let (set, names, maps) = real_set(&dir, |_| {});
     let r = run_maps(names.clone(), &maps, &GlobalOptions::default(), &|_, _| {}).unwrap();
-    let building = |n: &str| n.split('_').next().unwrap().to_string();
-    let row = score("real", &r, &set.pairs, &building);
-    assert_eq!(
-        (row.placed, row.wrong, row.groups, row.foreign),
-        (22, 0, 3, 0),
-        "{row:?}"
-    );
-    assert_eq!(row.derived_accurate, set.pairs.len(), "{row:?}");
+    let row = assert_real_placed_right(&r, &set);
     assert!(row.aligned < 231 / 2 + 1, "{} pairs aligned", row.aligned);
 }
 
@@ -728,14 +738,7 @@ fn a_real_map_added_to_an_earlier_merge_is_placed_as_in_a_full_run() {
         placement: added.placement,
         timing: added.timing,
     };
-    let building = |n: &str| n.split('_').next().unwrap().to_string();
-    let row = score("real", &r, &set.pairs, &building);
-    assert_eq!(
-        (row.placed, row.wrong, row.groups, row.foreign),
-        (22, 0, 3, 0),
-        "{row:?}"
-    );
-    assert_eq!(row.derived_accurate, set.pairs.len(), "{row:?}");
+    assert_real_placed_right(&r, &set);
 }
 
 /// `merge --from FILE NEW...`: the earlier merge's maps read from the paths it recorded, its pairs taken

@@ -20,7 +20,7 @@ process): another engine (Dask, a process pool) fits the same way.
 
 from __future__ import annotations
 
-from typing import Any, Iterable, List, Optional, Sequence, Tuple
+from typing import Any, Iterable, List, Optional, Tuple
 
 from . import _core
 

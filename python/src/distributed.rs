@@ -17,7 +17,7 @@ use pyo3::types::PyBytes;
 
 use crate::errors::{interruptible, to_py, unlocked, within_budget};
 use crate::map::{image_of, thresholds_of, Map};
-use crate::merge::{ManyMerge, MAX_PARTNERS};
+use crate::merge::ManyMerge;
 
 /// An engine whose work a Python executor does (its `prepare` and `align` methods). A Python exception
 /// the executor raises is kept and raised again once the run has ended.
@@ -123,18 +123,7 @@ pub fn merge_many_on(
     partners: usize,
 ) -> PyResult<ManyMerge> {
     let backend_name = backend;
-    if partners > MAX_PARTNERS {
-        return Err(to_py(Error::invalid(format!(
-            "partners must be at most {MAX_PARTNERS} (0 aligns every pair); got {partners}"
-        ))));
-    }
-    if maps.len() < 2 || names.len() != maps.len() {
-        return Err(to_py(Error::invalid(format!(
-            "merge needs at least two maps and a name for each; found {} maps, {} names",
-            maps.len(),
-            names.len()
-        ))));
-    }
+    crate::merge::check_many(maps.len(), names.len(), partners)?;
     // Here: the maps and what a placement reads of each preparation (about 3 bytes a pixel).
     let px: u64 = maps
         .iter()

@@ -175,6 +175,27 @@ impl MergeCache {
 /// The most `partners` a many-map merge takes (as the command line's `--partners`).
 pub(crate) const MAX_PARTNERS: usize = 1000;
 
+/// The arguments every many-map merge checks first: `partners` within [`MAX_PARTNERS`], two maps or
+/// more, a name for each.
+pub(crate) fn check_many(maps: usize, names: usize, partners: usize) -> PyResult<()> {
+    if partners > MAX_PARTNERS {
+        return Err(to_py(Error::invalid(format!(
+            "partners must be at most {MAX_PARTNERS} (0 aligns every pair); got {partners}"
+        ))));
+    }
+    if maps < 2 {
+        return Err(to_py(Error::invalid(format!(
+            "merge needs at least two maps; found {maps}"
+        ))));
+    }
+    if names != maps {
+        return Err(to_py(Error::invalid(format!(
+            "{names} names for {maps} maps"
+        ))));
+    }
+    Ok(())
+}
+
 /// Places every map at once (groups of maps of one place), each map's pose in its group's merged map.
 #[pyfunction]
 #[pyo3(signature = (maps, names, backend="cpu", cache=None, partners=3))]
@@ -186,24 +207,7 @@ pub fn merge_many(
     cache: Option<PyRef<'_, MergeCache>>,
     partners: usize,
 ) -> PyResult<ManyMerge> {
-    if partners > MAX_PARTNERS {
-        return Err(to_py(Error::invalid(format!(
-            "partners must be at most {MAX_PARTNERS} (0 aligns every pair); got {partners}"
-        ))));
-    }
-    if maps.len() < 2 {
-        return Err(to_py(Error::invalid(format!(
-            "merge needs at least two maps; found {}",
-            maps.len()
-        ))));
-    }
-    if names.len() != maps.len() {
-        return Err(to_py(Error::invalid(format!(
-            "{} names for {} maps",
-            names.len(),
-            maps.len()
-        ))));
-    }
+    check_many(maps.len(), names.len(), partners)?;
     // Every map at the first georeferenced map's cells and its preparation, held at once.
     // A cache holds the last run's preparations while this run's are made: counted as a second run.
     let run_bytes = footprint::many_bytes(maps.iter().map(|m| &m.inner)).map_err(to_py)?;

@@ -46,16 +46,14 @@ pub(super) fn local_fit(from: &Prepared, to: &Prepared, t: &Rigid) -> LocalFit {
         let (x, y) = (x + dx, y + dy);
         (x >= 0 && y >= 0 && x < w && y < h).then(|| (y * w + x) as usize)
     };
-    let near = |pts: &[(i64, i64)], dx: i64, dy: i64| {
+    // How many of `pts`, shifted, land on a pixel of `to` with the flag `bit`.
+    let landing = |pts: &[(i64, i64)], dx: i64, dy: i64, bit: u8| {
         pts.iter()
-            .filter(|q| at(q, dx, dy).is_some_and(|i| to.flags_fine.flags[i] & FLAG_TOUCH != 0))
+            .filter(|q| at(q, dx, dy).is_some_and(|i| to.flags_fine.flags[i] & bit != 0))
             .count()
     };
-    let deep = |pts: &[(i64, i64)], dx: i64, dy: i64| {
-        pts.iter()
-            .filter(|q| at(q, dx, dy).is_some_and(|i| to.flags_fine.flags[i] & FLAG_DEEP != 0))
-            .count()
-    };
+    let near = |pts: &[(i64, i64)], dx: i64, dy: i64| landing(pts, dx, dy, FLAG_TOUCH);
+    let deep = |pts: &[(i64, i64)], dx: i64, dy: i64| landing(pts, dx, dy, FLAG_DEEP);
     let (mut hit, mut total, mut conflicts) = (0usize, 0usize, 0usize);
     for pts in tiles.values().filter(|p| p.len() >= MIN_POINTS) {
         // Shifts of up to 6 px in steps of 2, then the best one's neighbours.

@@ -82,7 +82,7 @@ pub fn evidence(
     let of = |u: usize, v: usize| pairs.get(&(u.min(v), u.max(v))).map_or(&[][..], |v| v);
     // Each map's partners (ascending): a third map adds to an edge's evidence only through edges
     // with both its maps, so only their common partners are visited (ascending, as every third map
-    // would be: the same sums).
+    // would be: the same sums). No map is its own partner, so neither of the edge's maps is among them.
     let mut partners: Vec<Vec<usize>> = vec![Vec::new(); pairwise.n];
     for (&(u, v), list) in &pairs {
         if !list.is_empty() {
@@ -111,7 +111,7 @@ pub fn evidence(
             let common = partners[i]
                 .iter()
                 .filter(|k| partners[j].binary_search(k).is_ok());
-            for &k in common.filter(|&&k| k != i && k != j) {
+            for &k in common {
                 let (ik, jk) = (of(i, k), of(j, k));
                 let mut best: f64 = 0.0;
                 let mut against: f64 = 0.0;
@@ -263,7 +263,7 @@ pub fn place(
         // Only groups that some voting edge links have a placement to offer: one pass over the
         // edges, not one per pair of groups (which made a set of hundreds of maps cubic).
         for ((g, h), between) in links(&groups, edges, ev) {
-            let clusters = clusters(g, h, &between, &groups, edges, ev, options);
+            let clusters = clusters(g, &between, &groups, edges, ev, options);
             // Two single maps: their pair test has spoken.
             let mosaic_worth = sizes[g] + sizes[h] > 2;
             let valid = |c: &Cluster| c.trusted || (mosaic_worth && (c.pairs >= 2 || c.confirmed));
@@ -425,11 +425,10 @@ fn links(
     out
 }
 
-/// The votes of the edges `between` groups `g` and `h` ([`links`]) for placements of H into G,
-/// clustered, the best supported first.
+/// The votes of the edges `between` group `g` and another group H ([`links`]) for placements of H into
+/// G, clustered, the best supported first.
 fn clusters(
     g: usize,
-    h: usize,
     between: &[usize],
     groups: &Groups,
     edges: &[Edge],
@@ -440,10 +439,11 @@ fn clusters(
     let mut proposals: Vec<(usize, usize, usize, Rigid, f64)> = Vec::new();
     for &i in between {
         let e = &edges[i];
-        let (u, v) = match (groups.of[e.a], groups.of[e.b]) {
-            (x, y) if x == g && y == h => (e.a, e.b),
-            (x, y) if x == h && y == g => (e.b, e.a),
-            _ => continue,
+        // One map in each group ([`links`]): u in G, v in H.
+        let (u, v) = if groups.of[e.a] == g {
+            (e.a, e.b)
+        } else {
+            (e.b, e.a)
         };
         let vote = ev[i].vote();
         // H -> v's pixels -> u's pixels -> G.
