@@ -96,6 +96,9 @@ pub struct BenchRecord {
     pub peak_percent: Option<f64>,
     /// GPU `end_to_end` over `upload_ref`: how far end to end is from the transfer floor.
     pub vs_upload_ref: Option<f64>,
+    /// With `--bandwidth`, CPU backends: the map's pixels a second (one byte each) as a percentage of the
+    /// `read` record's GB/s, the plain read of the same bytes on the same threads in the same run.
+    pub read_percent: Option<f64>,
     pub keypoints: usize,
     /// Peak resident memory of the process while this stage ran (CPU backends, Linux), map included.
     pub peak_rss_mb: Option<f64>,
@@ -247,6 +250,10 @@ pub struct Runner {
     progress: bool,
 }
 
+/// The times of plain reads of a map's bytes ([`Runner::read_times`]), ms.
+#[derive(Clone, Debug, Default)]
+pub struct ReadTimes(Vec<f64>);
+
 impl Runner {
     /// A runner for `backends`; opens the GPU once to check it is there (`gpu` named: an error without
     /// one; through `all`: a note on standard error, and no GPU rows). `cmd` names the subcommand in notes.
@@ -308,6 +315,63 @@ impl Runner {
     pub fn set_peak_bandwidth(&mut self, gbs: Option<f64>) {
         if gbs.is_some() {
             self.peak_gbs = gbs;
+        }
+    }
+
+    /// Times `repeat` plain reads of the map's bytes on all threads ([`crate::fast::read::read_all`]), after
+    /// one to warm up: the read bandwidth the CPU records are reported against. Taken before and after a
+    /// map's detectors, so that a drift in the machine's speed over the run shows in both.
+    pub fn read_times(&self, m: &BenchMap) -> ReadTimes {
+        let px = m.map.image.pixels();
+        std::hint::black_box(crate::fast::read::read_all(px));
+        ReadTimes(
+            (0..self.repeat)
+                .map(|_| {
+                    let t = Instant::now();
+                    std::hint::black_box(crate::fast::read::read_all(std::hint::black_box(px)));
+                    t.elapsed().as_secs_f64() * 1e3
+                })
+                .collect(),
+        )
+    }
+
+    /// The `read` record of a map from its read times (every one taken), and each CPU record's share of it
+    /// (`read_percent`).
+    pub fn read_record(
+        &self,
+        m: &BenchMap,
+        times: &[ReadTimes],
+        records: &mut [BenchRecord],
+    ) -> BenchRecord {
+        let (w, h) = (m.map.image.width(), m.map.image.height());
+        let mpx = f64::from(w) * f64::from(h) / 1e6;
+        let ms = median(times.iter().flat_map(|t| t.0.iter().copied()).collect());
+        let gbs = mpx / 1e3 / (ms / 1e3);
+        for r in records.iter_mut() {
+            if r.backend != Engine::Gpu.name() {
+                r.read_percent = Some(100.0 * r.mpx_per_s / 1e3 / gbs);
+            }
+        }
+        BenchRecord {
+            map: m.label.clone(),
+            source: m.source.as_ref().map(|p| p.display().to_string()),
+            image: m.image_path.as_ref().map(|p| p.display().to_string()),
+            detector: "read",
+            backend: Engine::Cpu.name(),
+            adapter: cpu_model(),
+            width: w,
+            height: h,
+            stage: "read",
+            median_ms: ms,
+            mpx_per_s: mpx / (ms / 1e3),
+            gb_per_s: Some(gbs),
+            peak_percent: None,
+            vs_upload_ref: None,
+            read_percent: Some(100.0),
+            keypoints: 0,
+            peak_rss_mb: None,
+            peak_rss_ratio: None,
+            rss_before_mb: None,
         }
     }
 
@@ -461,6 +525,7 @@ impl Runner {
             gb_per_s: (engine == Engine::Gpu).then(|| mpx / 1e3 / (ms / 1e3)),
             peak_percent: None,
             vs_upload_ref: None,
+            read_percent: None,
             keypoints: n,
             peak_rss_mb: mem.map(|m| m.peak_mb),
             peak_rss_ratio: mem.map(|m| m.peak_mb * 1e6 / (f64::from(w) * f64::from(h))),
@@ -559,10 +624,11 @@ impl Runner {
     /// Header lines naming the machine, the build and the backends.
     pub fn header(&self, seed: Option<u64>) -> Vec<String> {
         let mut lines = vec![format!(
-            "# ogm-corners {} (git {GIT_COMMIT}); {} ({} threads), {} {}; median of {} timed runs after a warm-up",
+            "# ogm-corners {} (git {GIT_COMMIT}); {} ({} threads, {}), {} {}; median of {} timed runs after a warm-up",
             env!("CARGO_PKG_VERSION"),
             cpu_model(),
             threads(),
+            crate::fast::simd::Isa::active().name(),
             std::env::consts::OS,
             std::env::consts::ARCH,
             self.repeat

@@ -4,7 +4,11 @@
 mod common;
 
 use ogm_corners::cpu::CpuBackend;
-use ogm_corners::fast::bitplanes::{interval_scalar, plane_row, plane_rows2, words, ValueSet};
+use ogm_corners::fast::bitplanes::{
+    interval_scalar, plane_row, plane_rows2, plane_rows2_on, words, ValueSet,
+};
+use ogm_corners::fast::ogm::ogm_corners_on;
+use ogm_corners::fast::simd::Isa;
 use ogm_corners::fast::FastCpuBackend;
 use ogm_corners::synth::{office_map, Rng, FREE, OCCUPIED, UNKNOWN};
 use ogm_corners::{Backend, ClassTable, MapImage, OccupancyMap, RuleSet, RuleTable, Thresholds};
@@ -17,7 +21,26 @@ const VARIANTS: [(RuleSet, bool); 4] = [
     (RuleSet::PaperMod2, true),
 ];
 
-/// Asserts fast == reference on `img` for every rule reading and unknown option; returns the count.
+/// The instruction sets this CPU runs, each of whose kernels is compared with the reference. A CPU without
+/// AVX-512 (or AVX2) cannot run those kernels: said loudly, once, so that a run there is not mistaken for
+/// one that covered them.
+fn isas() -> Vec<Isa> {
+    static NOTE: std::sync::Once = std::sync::Once::new();
+    let (run, not): (Vec<Isa>, Vec<Isa>) = Isa::ALL.into_iter().partition(|i| i.supported());
+    if !not.is_empty() {
+        NOTE.call_once(|| {
+            eprintln!(
+                "NOTE: this CPU does not run the {:?} kernels: they are not tested on this machine \
+                 (only {:?})",
+                not, run
+            )
+        });
+    }
+    run
+}
+
+/// Asserts fast == reference on `img` for every rule reading and unknown option, on the backend and on
+/// every instruction set's kernels; returns the count.
 fn assert_same(img: &MapImage, thresholds: &Thresholds, what: &str) -> usize {
     let classes = ClassTable::new(thresholds);
     let mut n = 0;
@@ -25,6 +48,18 @@ fn assert_same(img: &MapImage, thresholds: &Thresholds, what: &str) -> usize {
         let rules = RuleTable::new(set);
         let want = CpuBackend.detect(img, &classes, &rules, uao).unwrap();
         let got = FastCpuBackend.detect(img, &classes, &rules, uao).unwrap();
+        for isa in isas() {
+            let on = ogm_corners_on(isa, img, &classes, &rules, uao);
+            assert!(
+                on == want,
+                "{what} ({}x{}, {set}, unknown_as_occupied={uao}): the {isa:?} kernels found {} \
+                 keypoints, the reference {}",
+                img.width(),
+                img.height(),
+                on.len(),
+                want.len()
+            );
+        }
         if got != want {
             let first = got.iter().zip(&want).position(|(a, b)| a != b);
             panic!(
@@ -212,7 +247,12 @@ proptest! {
         let (mut ga, mut gb) = (vec![0u64; n], vec![0u64; n]);
         plane_row(&a, &bytes, &mut ga);
         plane_row(&b, &bytes, &mut gb);
-        prop_assert_eq!((fa, fb), (ga, gb));
+        prop_assert_eq!((&fa, &fb), (&ga, &gb));
+        for isa in isas() {
+            let (mut ha, mut hb) = (vec![0u64; n], vec![0u64; n]);
+            plane_rows2_on(isa, &a, &b, &bytes, &mut ha, &mut hb);
+            prop_assert_eq!((&ha, &hb), (&ga, &gb), "{:?}", isa);
+        }
     }
 
     #[test]

@@ -65,6 +65,11 @@ pub(super) struct BenchArgs {
     /// such as the H200's 4800, need none).
     #[arg(long, value_name = "GB/s", value_parser = parse_bandwidth)]
     peak_bandwidth: Option<f64>,
+    /// Also time a plain read of each map's bytes on all threads (the widest vector loads, before and
+    /// after its detectors), and report every CPU record as a share of that read bandwidth (`% read`):
+    /// how close a detector comes to the speed of memory.
+    #[arg(long)]
+    bandwidth: bool,
     #[command(flatten)]
     baseline: BaselineArgs,
     /// Output format.
@@ -292,8 +297,15 @@ pub(super) fn bench(a: BenchArgs, budget: &Budget) -> Result<()> {
     let text = a.format == TextOrJson::Text;
     if text {
         let mut lines = runner.header((!sizes.is_empty()).then_some(a.seed));
+        if a.bandwidth {
+            lines.push(format!(
+                "# read: a plain read of the map's bytes on all threads ({} loads), timed before and after its \
+                 detectors; % read: a CPU record's pixels a second (one byte each) over the read's bytes a second",
+                ogm_corners::fast::simd::Isa::active().name()
+            ));
+        }
         lines.push(format!(
-            "{:<label_w$}  {:<11}  {:<10}  {:<9}  {:<15}  {:>10}  {:>9}  {:>9}  {:>9}  {:>6}  {:>8}  {:>8}  {:>6}  {:>6}",
+            "{:<label_w$}  {:<11}  {:<10}  {:<9}  {:<15}  {:>10}  {:>9}  {:>9}  {:>9}  {:>6}  {:>8}  {:>8}  {:>6}  {:>6}  {:>6}",
             "map",
             "size",
             "detector",
@@ -307,7 +319,8 @@ pub(super) fn bench(a: BenchArgs, budget: &Budget) -> Result<()> {
             "start MB",
             "GB/s",
             "% peak",
-            "x ref"
+            "x ref",
+            "% read"
         ));
         write_stdout(|out| {
             for l in &lines {
@@ -355,11 +368,17 @@ pub(super) fn bench(a: BenchArgs, budget: &Budget) -> Result<()> {
                 }
             }
         };
-        let records: Vec<BenchRecord> = runner
+        let before = a.bandwidth.then(|| runner.read_times(&bm));
+        let mut records: Vec<BenchRecord> = runner
             .measure_map(&bm, &kinds)?
             .into_iter()
             .flat_map(|m| m.records)
             .collect();
+        if let Some(before) = before {
+            let after = runner.read_times(&bm);
+            let read = runner.read_record(&bm, &[before, after], &mut records);
+            records.insert(0, read);
+        }
         drop(bm); // only one map in memory at a time
         if text {
             write_stdout(|out| {
@@ -369,7 +388,7 @@ pub(super) fn bench(a: BenchArgs, budget: &Budget) -> Result<()> {
                     };
                     writeln!(
                         out,
-                        "{:<label_w$}  {:<11}  {:<10}  {:<9}  {:<15}  {:>10.3}  {:>9.1}  {:>9}  {:>9}  {:>6}  {:>8}  {:>8}  {:>6}  {:>6}",
+                        "{:<label_w$}  {:<11}  {:<10}  {:<9}  {:<15}  {:>10.3}  {:>9.1}  {:>9}  {:>9}  {:>6}  {:>8}  {:>8}  {:>6}  {:>6}  {:>6}",
                         r.map,
                         format!("{}x{}", r.width, r.height),
                         r.detector,
@@ -383,7 +402,8 @@ pub(super) fn bench(a: BenchArgs, budget: &Budget) -> Result<()> {
                         f(r.rss_before_mb, 1),
                         f(r.gb_per_s, 2),
                         f(r.peak_percent, 1),
-                        f(r.vs_upload_ref, 2)
+                        f(r.vs_upload_ref, 2),
+                        f(r.read_percent, 1)
                     )?;
                 }
                 out.flush()

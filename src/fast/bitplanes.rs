@@ -5,6 +5,7 @@
 //! monotonic in the value), so a plane is two SIMD compares per 16 pixels; any other set falls back to the
 //! 256-entry table, pixel by pixel.
 
+use super::simd::Isa;
 use crate::states::{CellState, ClassTable};
 
 /// Which pixel values set a plane's bit, derived once from a [`ClassTable`].
@@ -102,26 +103,58 @@ pub fn plane_row(set: &ValueSet, row: &[u8], out: &mut [u64]) {
     }
 }
 
-/// [`plane_row`] of two sets over one row: with AVX2 and two intervals, both planes from one pass over the
-/// row (each 32 bytes loaded once), which halves the reads of a streamed map's pixels.
+/// [`plane_row`] of two sets over one row, on the active instruction set ([`plane_rows2_on`]).
 pub fn plane_rows2(a: &ValueSet, b: &ValueSet, row: &[u8], out_a: &mut [u64], out_b: &mut [u64]) {
+    plane_rows2_on(Isa::active(), a, b, row, out_a, out_b)
+}
+
+/// [`plane_row`] of two sets over one row with the instruction set `isa` (which the CPU must run: the
+/// caller checked [`Isa::supported`]): with two intervals, both planes from one pass over the row's bytes.
+pub fn plane_rows2_on(
+    isa: Isa,
+    a: &ValueSet,
+    b: &ValueSet,
+    row: &[u8],
+    out_a: &mut [u64],
+    out_b: &mut [u64],
+) {
     #[cfg(target_arch = "x86_64")]
     if let (ValueSet::Interval { lo: la, span: sa }, ValueSet::Interval { lo: lb, span: sb }) =
         (a, b)
     {
-        if std::arch::is_x86_feature_detected!("avx2") {
-            let n = words(row.len());
-            let full = row.len() / 64;
-            // SAFETY: the CPU has AVX2, checked just above.
-            unsafe {
-                avx2::interval_words2(
-                    (*la, *sa),
-                    (*lb, *sb),
-                    row,
-                    &mut out_a[..full],
-                    &mut out_b[..full],
-                )
-            };
+        let (n, full) = (words(row.len()), row.len() / 64);
+        let done = match isa {
+            Isa::Avx512 => {
+                debug_assert!(isa.supported());
+                // SAFETY: the caller checked that the CPU runs AVX-512 (F, BW).
+                unsafe {
+                    avx512::interval_words2(
+                        (*la, *sa),
+                        (*lb, *sb),
+                        row,
+                        &mut out_a[..full],
+                        &mut out_b[..full],
+                    )
+                };
+                true
+            }
+            Isa::Avx2 => {
+                debug_assert!(isa.supported());
+                // SAFETY: the caller checked that the CPU runs AVX2.
+                unsafe {
+                    avx2::interval_words2(
+                        (*la, *sa),
+                        (*lb, *sb),
+                        row,
+                        &mut out_a[..full],
+                        &mut out_b[..full],
+                    )
+                };
+                true
+            }
+            Isa::Scalar => false,
+        };
+        if done {
             if full < n {
                 out_a[full] = interval_scalar(*la, *sa, &row[full * 64..]);
                 out_b[full] = interval_scalar(*lb, *sb, &row[full * 64..]);
@@ -129,8 +162,32 @@ pub fn plane_rows2(a: &ValueSet, b: &ValueSet, row: &[u8], out_a: &mut [u64], ou
             return;
         }
     }
-    plane_row(a, row, out_a);
-    plane_row(b, row, out_b);
+    let _ = isa;
+    plane_row_portable(a, row, out_a);
+    plane_row_portable(b, row, out_b);
+}
+
+/// [`plane_row`] without AVX2: SSE2 compares on x86-64 (every x86-64 CPU has them), plain Rust elsewhere.
+pub fn plane_row_portable(set: &ValueSet, row: &[u8], out: &mut [u64]) {
+    let n = words(row.len());
+    let out = &mut out[..n];
+    let ValueSet::Interval { lo, span } = *set else {
+        return plane_row(set, row, out);
+    };
+    let full = row.len() / 64;
+    for (word, chunk) in out[..full].iter_mut().zip(row.chunks_exact(64)) {
+        #[cfg(target_arch = "x86_64")]
+        {
+            *word = sse2::interval64(lo, span, chunk.try_into().expect("64 bytes"));
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        {
+            *word = interval_scalar(lo, span, chunk);
+        }
+    }
+    if full < n {
+        out[full] = interval_scalar(lo, span, &row[full * 64..]);
+    }
 }
 
 /// The plane of `lo..=lo+span` over a row: SIMD on x86-64, portable elsewhere and for the tail.
@@ -225,6 +282,38 @@ mod avx2 {
                 *wa = bits32(p, la, sa) | (bits32(p.add(32), la, sa) << 32);
                 *wb = bits32(p, lb, sb) | (bits32(p.add(32), lb, sb) << 32);
             }
+        }
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+mod avx512 {
+    use std::arch::x86_64::*;
+
+    /// Two intervals' planes over the whole 64-pixel words of `row`: one 64-byte load a word, each
+    /// interval a subtract and an unsigned compare straight into a 64-bit mask (the word itself).
+    ///
+    /// # Safety
+    /// The CPU must have AVX-512 F and BW.
+    #[target_feature(enable = "avx512f,avx512bw")]
+    pub unsafe fn interval_words2(
+        (la, sa): (u8, u8),
+        (lb, sb): (u8, u8),
+        row: &[u8],
+        out_a: &mut [u64],
+        out_b: &mut [u64],
+    ) {
+        let (la, sa) = (_mm512_set1_epi8(la as i8), _mm512_set1_epi8(sa as i8));
+        let (lb, sb) = (_mm512_set1_epi8(lb as i8), _mm512_set1_epi8(sb as i8));
+        for ((wa, wb), chunk) in out_a
+            .iter_mut()
+            .zip(out_b.iter_mut())
+            .zip(row.chunks_exact(64))
+        {
+            // SAFETY: AVX-512 F and BW (this function's requirement); 64 readable bytes in `chunk`.
+            let v = unsafe { _mm512_loadu_si512(chunk.as_ptr() as *const _) };
+            *wa = _mm512_cmple_epu8_mask(_mm512_sub_epi8(v, la), sa);
+            *wb = _mm512_cmple_epu8_mask(_mm512_sub_epi8(v, lb), sb);
         }
     }
 }

@@ -11,6 +11,8 @@ pub mod baselines;
 pub mod bitplanes;
 pub mod coarsen;
 pub mod ogm;
+pub mod read;
+pub mod simd;
 
 use crate::backend::{
     maxima_of_window_scores, reference_working_bytes, Backend, DetectOptions, DetectorKind,

@@ -10,7 +10,8 @@
 
 use rayon::prelude::*;
 
-use super::bitplanes::{ogm_sets, plane_rows2, words, ValueSet};
+use super::bitplanes::{ogm_sets, plane_rows2_on, words, ValueSet};
+use super::simd::{Isa, Lanes};
 use crate::backend::Keypoint;
 use crate::map::MapImage;
 use crate::rules::RuleTable;
@@ -27,6 +28,27 @@ struct Plan<'a> {
     table: &'a [u8; 256],
     /// Fewest set bits among the accepted codes: words with no candidate reaching it are skipped.
     min_bits: u32,
+    /// Pairs of neighbour planes of which every accepted code sets at least one ([`blocking_pairs`]).
+    pairs: Vec<(usize, usize)>,
+}
+
+/// The pairs of neighbours (bit i, bit j of the code, i < j) of which every code the table accepts has at
+/// least one blocking: clauses the table implies, so a pixel failing any cannot be a corner. Tested in
+/// whole vectors before the table is looked at, they leave about a fifth of the candidates that the count
+/// alone leaves on office maps (the paper's rules: of two diagonal neighbours on one side, one blocks).
+/// At most eight, the first found: each costs two instructions a vector.
+fn blocking_pairs(rules: &RuleTable) -> Vec<(usize, usize)> {
+    let accepted: Vec<u8> = rules.accepted().map(|(c, _)| c).collect();
+    let mut pairs = Vec::new();
+    for i in 0..8 {
+        for j in i + 1..8 {
+            if accepted.iter().all(|&c| c & (1 << i | 1 << j) != 0) {
+                pairs.push((i, j));
+            }
+        }
+    }
+    pairs.truncate(8);
+    pairs
 }
 
 /// Every free pixel whose neighbour code `rules` accepts, sorted by (y, x); identical to the reference
@@ -50,6 +72,45 @@ pub fn ogm_corners_rows(
     rules: &RuleTable,
     unknown_as_occupied: bool,
 ) -> Vec<Keypoint> {
+    ogm_corners_rows_on(
+        Isa::active(),
+        rows,
+        core,
+        classes,
+        rules,
+        unknown_as_occupied,
+    )
+}
+
+/// [`ogm_corners`] with the kernels of `isa` (or the widest set below it that the CPU runs): for tests
+/// and benchmarks of each kernel; the results are the same on every set.
+pub fn ogm_corners_on(
+    isa: Isa,
+    image: &MapImage,
+    classes: &ClassTable,
+    rules: &RuleTable,
+    unknown_as_occupied: bool,
+) -> Vec<Keypoint> {
+    let core = (0, image.height() as usize);
+    ogm_corners_rows_on(
+        isa,
+        Rows::of(image),
+        core,
+        classes,
+        rules,
+        unknown_as_occupied,
+    )
+}
+
+/// [`ogm_corners_rows`] on `isa` (see [`ogm_corners_on`]).
+pub fn ogm_corners_rows_on(
+    isa: Isa,
+    rows: Rows,
+    core: (usize, usize),
+    classes: &ClassTable,
+    rules: &RuleTable,
+    unknown_as_occupied: bool,
+) -> Vec<Keypoint> {
     let Some(min_bits) = rules.min_accepted_bits() else {
         return Vec::new();
     };
@@ -59,6 +120,7 @@ pub fn ogm_corners_rows(
         blocking,
         table: rules.as_bytes(),
         min_bits,
+        pairs: blocking_pairs(rules),
     };
     let n = core.1.saturating_sub(core.0);
     if n == 0 {
@@ -73,7 +135,7 @@ pub fn ogm_corners_rows(
         .into_par_iter()
         .map(|b| {
             let y0 = core.0 + b * band;
-            corners_in_band(rows, y0, (y0 + band).min(core.1), &plan)
+            corners_in_band_on(isa, rows, y0, (y0 + band).min(core.1), &plan)
         })
         .collect();
     let mut out = Vec::with_capacity(bands.iter().map(Vec::len).sum());
@@ -83,161 +145,405 @@ pub fn ogm_corners_rows(
     out
 }
 
-/// The keypoints of rows `y0..y1`, in (y, x) order.
-fn corners_in_band(px: Rows, y0: usize, y1: usize, plan: &Plan) -> Vec<Keypoint> {
-    #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("bmi1") {
-        // SAFETY: the CPU has AVX2 and BMI1, checked just above; that is the only requirement.
-        return unsafe { corners_in_band_avx2(px, y0, y1, plan) };
-    }
-    corners_in_band_impl(px, y0, y1, plan)
+/// Calls `$f::<$V, M>` with the const `M` equal to the runtime `min_bits` (0..=8): the candidate test
+/// compiles to the few instructions its threshold needs.
+macro_rules! with_min_bits {
+    ($m:expr, $f:ident, $V:ty, $($arg:expr),*) => {
+        match $m {
+            0 => $f::<$V, 0>($($arg),*),
+            1 => $f::<$V, 1>($($arg),*),
+            2 => $f::<$V, 2>($($arg),*),
+            3 => $f::<$V, 3>($($arg),*),
+            4 => $f::<$V, 4>($($arg),*),
+            5 => $f::<$V, 5>($($arg),*),
+            6 => $f::<$V, 6>($($arg),*),
+            7 => $f::<$V, 7>($($arg),*),
+            _ => $f::<$V, 8>($($arg),*),
+        }
+    };
 }
 
-/// [`corners_in_band_impl`] compiled for AVX2 and BMI1 (wider compares, one-instruction bit scans).
+/// The keypoints of rows `y0..y1`, in (y, x) order, on `isa`, which falls back to the widest set below it that the CPU runs.
+fn corners_in_band_on(isa: Isa, px: Rows, y0: usize, y1: usize, plan: &Plan) -> Vec<Keypoint> {
+    let isa = Isa::ALL
+        .into_iter()
+        .rev()
+        .find(|i| *i <= isa && i.supported())
+        .unwrap_or(Isa::Scalar);
+    #[cfg(target_arch = "x86_64")]
+    match isa {
+        // SAFETY: the CPU runs the set, checked just above; that is the only requirement.
+        Isa::Avx512 => return unsafe { band_avx512(px, y0, y1, plan) },
+        // SAFETY: as above.
+        Isa::Avx2 => return unsafe { band_avx2(px, y0, y1, plan) },
+        Isa::Scalar => {}
+    }
+    with_min_bits!(plan.min_bits, band, u64, Isa::Scalar, px, y0, y1, plan)
+}
+
+/// [`band`] compiled for AVX-512: eight words (512 pixels) a step.
 ///
 /// # Safety
-/// The CPU must have AVX2 and BMI1.
+/// The CPU must run [`Isa::Avx512`].
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,bmi1")]
-unsafe fn corners_in_band_avx2(px: Rows, y0: usize, y1: usize, plan: &Plan) -> Vec<Keypoint> {
-    corners_in_band_impl(px, y0, y1, plan)
+#[target_feature(enable = "avx512f,avx512bw,avx512vl,avx512vbmi,avx2,bmi1,popcnt")]
+unsafe fn band_avx512(px: Rows, y0: usize, y1: usize, plan: &Plan) -> Vec<Keypoint> {
+    use super::simd::V512;
+    with_min_bits!(plan.min_bits, band, V512, Isa::Avx512, px, y0, y1, plan)
 }
 
-/// See [`corners_in_band`]; inlined into each instruction-set variant.
+/// [`band`] compiled for AVX2: four words (256 pixels) a step.
+///
+/// # Safety
+/// The CPU must run [`Isa::Avx2`].
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,bmi1,popcnt")]
+unsafe fn band_avx2(px: Rows, y0: usize, y1: usize, plan: &Plan) -> Vec<Keypoint> {
+    use super::simd::V256;
+    with_min_bits!(plan.min_bits, band, V256, Isa::Avx2, px, y0, y1, plan)
+}
+
+/// Rows of bit-planes padded for vector loads: a zero word before each row's words (what lies left of
+/// pixel 0) and zero words after them (right of the last pixel, and up to a whole vector past the end),
+/// so that the loads of a vector and of its neighbours one word left and right stay inside the buffer.
+struct PlaneRows {
+    words: Vec<u64>,
+    stride: usize,
+    n: usize,
+}
+
+impl PlaneRows {
+    fn new(rows: usize, n: usize) -> Self {
+        let stride = n.next_multiple_of(8) + 2;
+        PlaneRows {
+            words: vec![0; rows * stride],
+            stride,
+            n,
+        }
+    }
+
+    /// Row `r`'s words (the padding excluded).
+    fn row_mut(&mut self, r: usize) -> &mut [u64] {
+        let s = r * self.stride + 1;
+        &mut self.words[s..s + self.n]
+    }
+
+    /// A pointer at row `r`'s word 0 (one padding word lies before it, `stride - n - 1` after), valid
+    /// over the whole buffer.
+    fn at(&self, r: usize) -> *const u64 {
+        assert!(r * self.stride + 1 < self.words.len());
+        // SAFETY: inside the buffer, checked just above.
+        unsafe { self.words.as_ptr().add(r * self.stride + 1) }
+    }
+}
+
+/// The keypoints of rows `y0..y1`: each row's two planes made once (row y + 1 ahead of row y), then the
+/// candidate test `V::WORDS` words at a time, with the planes of three rows kept in a small ring (a few
+/// kilobytes that stay in the first-level cache, never the map's size).
 #[inline(always)]
-fn corners_in_band_impl(px: Rows, y0: usize, y1: usize, plan: &Plan) -> Vec<Keypoint> {
+fn band<V: Candidates, const M: u32>(
+    isa: Isa,
+    px: Rows,
+    y0: usize,
+    y1: usize,
+    plan: &Plan,
+) -> Vec<Keypoint> {
     let (w, h) = (px.width(), px.height());
     let n = words(w);
-    // Three rows of planes, indexed by row mod 3; rows outside the map stay all zero (nothing blocks).
-    let mut free = vec![vec![0u64; n]; 3];
-    let mut block = vec![vec![0u64; n]; 3];
-    let row = |y: usize| px.row(y);
-    let load = |y: usize, free: &mut [Vec<u64>], block: &mut [Vec<u64>]| {
+    // The blocking planes by row mod 3, and a fourth row of zeros (above the map); the free planes by row
+    // mod 2. Rows past the map's bottom are zeros: nothing blocks there.
+    let mut block = PlaneRows::new(4, n);
+    let mut free = PlaneRows::new(2, n);
+    let load = |y: usize, block: &mut PlaneRows, free: &mut PlaneRows| {
+        let (b, f) = (block.row_mut(y % 3), free.row_mut(y % 2));
         if y < h {
-            let (f, b) = (&mut free[y % 3], &mut block[y % 3]);
-            plane_rows2(&plan.free, &plan.blocking, row(y), f, b);
+            plane_rows2_on(isa, &plan.free, &plan.blocking, px.row(y), f, b);
         } else {
-            free[y % 3].fill(0);
-            block[y % 3].fill(0);
+            b.fill(0);
+            f.fill(0);
         }
     };
     if y0 > 0 {
-        load(y0 - 1, &mut free, &mut block);
+        load(y0 - 1, &mut block, &mut free);
     }
-    load(y0, &mut free, &mut block);
+    load(y0, &mut block, &mut free);
     let mut out = Vec::new();
     for y in y0..y1 {
-        load(y + 1, &mut free, &mut block);
-        let zero;
-        let up: &[u64] = if y > 0 {
-            &block[(y + 2) % 3]
-        } else {
-            zero = vec![0u64; n];
-            &zero
-        };
-        corners_in_row(
-            &free[y % 3],
-            up,
-            &block[y % 3],
-            &block[(y + 1) % 3],
-            y as u32,
-            plan,
-            &mut out,
-        );
+        load(y + 1, &mut block, &mut free);
+        let up = if y > 0 { (y + 2) % 3 } else { 3 };
+        let rows = [
+            free.at(y % 2),
+            block.at(up),
+            block.at(y % 3),
+            block.at((y + 1) % 3),
+        ];
+        let ahead = px.pixels().get((y + AHEAD - px.first()) * w..);
+        let ahead = ahead.map_or(&[][..], |a| &a[..w.min(a.len())]);
+        // SAFETY: every row pointer is at word 0 of a padded row of `block` or `free`, which has a
+        // readable word before it and `n.next_multiple_of(8) + 1` after it; the CPU runs V's set (the
+        // caller's promise).
+        unsafe { row_corners::<V, M>(rows, n, y as u32, plan, ahead, &mut out) };
     }
     out
 }
 
-/// Plane `r` moved so that bit x holds pixel x - 1 (the left neighbour); nothing left of the map.
+/// Appends the keypoints of one row, given pointers at word 0 of its free plane and of the blocking
+/// planes of the rows above, at and below it.
+///
+/// # Safety
+/// Each pointer must have a readable word before it and `n.next_multiple_of(8) + 1` after it, zero past
+/// word `n - 1`; the CPU must run V's instruction set.
 #[inline(always)]
-fn from_left(r: &[u64], k: usize) -> u64 {
-    (r[k] << 1) | if k > 0 { r[k - 1] >> 63 } else { 0 }
+unsafe fn row_corners<V: Candidates, const M: u32>(
+    [free, up, mid, down]: [*const u64; 4],
+    n: usize,
+    y: u32,
+    plan: &Plan,
+    ahead: &[u8],
+    out: &mut Vec<Keypoint>,
+) {
+    let mut k = 0;
+    while k < n {
+        prefetch(ahead, k * 64, V::WORDS);
+        // SAFETY (every load): k < n, so k - 1 .. k + 1 + WORDS lies in the padding the caller promises.
+        let f = unsafe { V::load(free.add(k)) };
+        if f.is_zero() {
+            k += V::WORDS;
+            continue;
+        }
+        let at = |p: *const u64, d: isize| unsafe { V::load(p.offset(k as isize + d)) };
+        let (u, m, d) = (at(up, 0), at(mid, 0), at(down, 0));
+        // Bit order of the code (see crate::rules): Q, B, P, A, Q', B', P', A' clockwise from top-left.
+        let nb = [
+            u.left_neighbour(at(up, -1)),
+            u,
+            u.right_neighbour(at(up, 1)),
+            m.right_neighbour(at(mid, 1)),
+            d.right_neighbour(at(down, 1)),
+            d,
+            d.left_neighbour(at(down, -1)),
+            m.left_neighbour(at(mid, -1)),
+        ];
+        let cand = plan
+            .pairs
+            .iter()
+            .fold(f.and(at_least::<V, M>(&nb)), |c, &(i, j)| {
+                c.and(nb[i].or(nb[j]))
+            });
+        if !cand.is_zero() {
+            // SAFETY: the CPU runs V's set (the caller's promise).
+            unsafe { V::keypoints(&nb, cand, k, y, plan.table, out) };
+        }
+        k += V::WORDS;
+    }
 }
 
-/// Plane `r` moved so that bit x holds pixel x + 1 (the right neighbour); nothing right of the map.
+/// Rows ahead of the row being tested whose bytes are prefetched, a vector's width at a time: they are
+/// classified in two rows' time, and asking for them while the current row's arithmetic runs keeps the
+/// memory busy instead of leaving it idle until the classification stalls on them.
+const AHEAD: usize = 2;
+
+/// Asks for the cache lines of `words` 64-byte words of `row` from byte `at` (those that exist).
 #[inline(always)]
-fn from_right(r: &[u64], k: usize) -> u64 {
-    (r[k] >> 1) | if k + 1 < r.len() { r[k + 1] << 63 } else { 0 }
+fn prefetch(row: &[u8], at: usize, words: usize) {
+    #[cfg(target_arch = "x86_64")]
+    for i in 0..words {
+        if let Some(b) = row.get(at + 64 * i) {
+            // SAFETY: a prefetch is a hint; it never faults, and `b` is a valid address besides.
+            unsafe {
+                std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>(
+                    b as *const u8 as *const i8,
+                )
+            };
+        }
+    }
+    let _ = (row, at, words);
 }
 
-/// Bit-sliced sum of eight planes: four words holding bits 0..3 of each pixel's count.
-#[inline(always)]
-fn count8(n: &[u64; 8]) -> [u64; 4] {
+/// How a vector of candidate words becomes keypoints: the codes of the candidates and their rules.
+trait Candidates: Lanes {
+    /// Appends the keypoints among the candidates `cand` (bit set: a free pixel with enough blocking
+    /// neighbours) of the vector at word `k` of row `y`, whose neighbour planes are `nb`, in x order.
+    ///
+    /// # Safety
+    /// The CPU must run the vector's instruction set.
     #[inline(always)]
-    fn full_add(a: u64, b: u64, c: u64) -> (u64, u64) {
-        let t = a ^ b;
-        (t ^ c, (a & b) | (c & t))
+    unsafe fn keypoints(
+        nb: &[Self; 8],
+        cand: Self,
+        k: usize,
+        y: u32,
+        table: &[u8; 256],
+        out: &mut Vec<Keypoint>,
+    ) {
+        let mut planes = [[0u64; 8]; 8];
+        let mut c = [0u64; 8];
+        // SAFETY: each array holds 8 >= WORDS words; the CPU runs the set (the caller's promise).
+        unsafe {
+            cand.store(c.as_mut_ptr());
+            for (p, v) in planes.iter_mut().zip(nb) {
+                v.store(p.as_mut_ptr());
+            }
+        }
+        let mut lanes = cand.nonzero_words();
+        while lanes != 0 {
+            let lane = lanes.trailing_zeros() as usize;
+            lanes &= lanes - 1;
+            let p: [u64; 8] = std::array::from_fn(|i| planes[i][lane]);
+            let x0 = ((k + lane) * 64) as u32;
+            let mut cw = c[lane];
+            // Room for every candidate of the word, so that each is written and kept or not without a
+            // branch (one in five or so is a corner: a branch would be mispredicted often).
+            out.reserve(cw.count_ones() as usize);
+            while cw != 0 {
+                let j = cw.trailing_zeros();
+                cw &= cw - 1;
+                let code = (0..8).fold(0u8, |acc, i| acc | ((((p[i] >> j) & 1) as u8) << i));
+                let rule = table[code as usize];
+                push_if(out, Keypoint::ogm(x0 + j, y, rule, code), rule != 0);
+            }
+        }
+    }
+}
+
+impl Candidates for u64 {}
+
+#[cfg(target_arch = "x86_64")]
+impl Candidates for super::simd::V256 {}
+
+/// AVX-512: the codes of all 64 pixels of a candidate word at once (a masked byte add per neighbour
+/// plane), their rules by four-register byte permutes (VBMI), and only the keypoints visited.
+#[cfg(target_arch = "x86_64")]
+impl Candidates for super::simd::V512 {
+    #[inline(always)]
+    unsafe fn keypoints(
+        nb: &[Self; 8],
+        cand: Self,
+        k: usize,
+        y: u32,
+        table: &[u8; 256],
+        out: &mut Vec<Keypoint>,
+    ) {
+        use std::arch::x86_64::*;
+        let mut planes = [[0u64; 8]; 8];
+        let mut c = [0u64; 8];
+        // SAFETY (the whole body): the CPU runs AVX-512 F, BW, VL and VBMI (the caller's promise); every
+        // load and store is inside a local array or `table`.
+        unsafe {
+            cand.store(c.as_mut_ptr());
+            for (p, v) in planes.iter_mut().zip(nb) {
+                v.store(p.as_mut_ptr());
+            }
+            let t = table.as_ptr() as *const __m512i;
+            let (t0, t1, t2, t3) = (
+                _mm512_loadu_si512(t as *const _),
+                _mm512_loadu_si512(t.add(1) as *const _),
+                _mm512_loadu_si512(t.add(2) as *const _),
+                _mm512_loadu_si512(t.add(3) as *const _),
+            );
+            let mut lanes = cand.nonzero_words();
+            while lanes != 0 {
+                let lane = lanes.trailing_zeros() as usize;
+                lanes &= lanes - 1;
+                let mut codes = _mm512_setzero_si512();
+                for (i, p) in planes.iter().enumerate() {
+                    codes = _mm512_mask_add_epi8(codes, p[lane], codes, _mm512_set1_epi8(1 << i));
+                }
+                // Codes below 128 index t0:t1, the others t2:t3 (bit 6 picks the register of a pair).
+                let low = _mm512_permutex2var_epi8(t0, codes, t1);
+                let high = _mm512_permutex2var_epi8(t2, codes, t3);
+                let rules = _mm512_mask_blend_epi8(_mm512_movepi8_mask(codes), low, high);
+                let mut keep = _mm512_test_epi8_mask(rules, rules) & c[lane];
+                if keep == 0 {
+                    continue;
+                }
+                let (mut cb, mut rb) = ([0u8; 64], [0u8; 64]);
+                _mm512_storeu_si512(cb.as_mut_ptr() as *mut _, codes);
+                _mm512_storeu_si512(rb.as_mut_ptr() as *mut _, rules);
+                let x0 = ((k + lane) * 64) as u32;
+                out.reserve(keep.count_ones() as usize);
+                while keep != 0 {
+                    let j = keep.trailing_zeros();
+                    keep &= keep - 1;
+                    let kp = Keypoint::ogm(x0 + j, y, rb[j as usize], cb[j as usize]);
+                    push_if(out, kp, true);
+                }
+            }
+        }
+    }
+}
+
+/// Writes `k` after the end of `out` (which has room for it) and keeps it when `keep`: no branch.
+#[inline(always)]
+fn push_if(out: &mut Vec<Keypoint>, k: Keypoint, keep: bool) {
+    let len = out.len();
+    debug_assert!(len < out.capacity());
+    out.spare_capacity_mut()[0].write(k);
+    // SAFETY: element `len` was just written; the length grows over it only when it is kept.
+    unsafe { out.set_len(len + usize::from(keep)) };
+}
+
+/// Per pixel, whether at least `M` of the eight neighbour planes are set: a bit-sliced count (full adders
+/// of whole vectors) compared with the constant, which the compiler folds to a few instructions.
+#[inline(always)]
+fn at_least<V: Lanes, const M: u32>(n: &[V; 8]) -> V {
+    #[inline(always)]
+    fn full_add<V: Lanes>(a: V, b: V, c: V) -> (V, V) {
+        let t = a.xor(b);
+        (t.xor(c), a.and(b).or(c.and(t)))
+    }
+    if M == 0 {
+        return V::ones();
+    }
+    if M > 8 {
+        return n[0].and_not(n[0]);
     }
     let (s_a, c_a) = full_add(n[0], n[1], n[2]);
     let (s_b, c_b) = full_add(n[3], n[4], n[5]);
-    let (s_c, c_c) = (n[6] ^ n[7], n[6] & n[7]);
+    let (s_c, c_c) = (n[6].xor(n[7]), n[6].and(n[7]));
     let (bit0, c_d) = full_add(s_a, s_b, s_c);
     let (t_s, t_c) = full_add(c_a, c_b, c_c);
-    let (bit1, t_c2) = (t_s ^ c_d, t_s & c_d);
-    [bit0, bit1, t_c ^ t_c2, t_c & t_c2]
-}
-
-/// Per pixel, whether the bit-sliced count is at least `m`.
-#[inline(always)]
-fn at_least(count: [u64; 4], m: u32) -> u64 {
-    if m > 8 {
-        return 0;
-    }
-    let (mut gt, mut eq) = (0u64, !0u64);
+    let (bit1, t_c2) = (t_s.xor(c_d), t_s.and(c_d));
+    let count = [bit0, bit1, t_c.xor(t_c2), t_c.and(t_c2)];
+    // count >= M, from the top bit down: greater where count has a 1 above equal bits and M a 0.
+    let mut gt: Option<V> = None;
+    let mut eq: Option<V> = None;
     for i in (0..4).rev() {
-        if (m >> i) & 1 == 1 {
-            eq &= count[i];
+        let c = count[i];
+        if (M >> i) & 1 == 1 {
+            eq = Some(eq.map_or(c, |e| e.and(c)));
         } else {
-            gt |= eq & count[i];
-            eq &= !count[i];
+            let g = eq.map_or(c, |e| e.and(c));
+            gt = Some(gt.map_or(g, |x| x.or(g)));
+            eq = Some(eq.map_or(V::ones().and_not(c), |e| e.and_not(c)));
         }
     }
-    gt | eq
+    let eq = eq.expect("four bits");
+    gt.map_or(eq, |g| g.or(eq))
 }
 
-/// Appends the keypoints of one row, given its free plane and the blocking planes around it.
-#[inline]
-fn corners_in_row(
-    free: &[u64],
-    up: &[u64],
-    mid: &[u64],
-    down: &[u64],
-    y: u32,
-    plan: &Plan,
-    out: &mut Vec<Keypoint>,
-) {
-    for k in 0..free.len() {
-        let f = free[k];
-        if f == 0 {
-            continue;
-        }
-        // Bit order of the code (see crate::rules): Q, B, P, A, Q', B', P', A' clockwise from top-left.
-        let n = [
-            from_left(up, k),
-            up[k],
-            from_right(up, k),
-            from_right(mid, k),
-            from_right(down, k),
-            down[k],
-            from_left(down, k),
-            from_left(mid, k),
-        ];
-        let any = n.iter().fold(0, |a, &b| a | b);
-        if f & any == 0 {
-            continue;
-        }
-        let mut cand = f & at_least(count8(&n), plan.min_bits);
-        while cand != 0 {
-            let j = cand.trailing_zeros();
-            cand &= cand - 1;
-            let code = n
-                .iter()
-                .enumerate()
-                .fold(0u8, |c, (i, &p)| c | ((((p >> j) & 1) as u8) << i));
-            let rule = plan.table[code as usize];
-            if rule != 0 {
-                out.push(Keypoint::ogm((k * 64) as u32 + j, y, rule, code));
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::rules::RuleSet;
+
+    /// The pairs are clauses of the table: every accepted code sets a bit of each; and for the paper's
+    /// reading they are the four pairs of diagonal neighbours that share a side.
+    #[test]
+    fn blocking_pairs_hold_for_every_accepted_code() {
+        for set in [RuleSet::Paper, RuleSet::PaperMod2] {
+            let rules = RuleTable::new(set);
+            let pairs = blocking_pairs(&rules);
+            for (code, _) in rules.accepted() {
+                for &(i, j) in &pairs {
+                    assert!(
+                        code & (1 << i | 1 << j) != 0,
+                        "{set}: code {code} pair {i},{j}"
+                    );
+                }
             }
         }
+        let paper = blocking_pairs(&RuleTable::new(RuleSet::Paper));
+        assert_eq!(paper, vec![(0, 2), (0, 6), (2, 4), (4, 6)]);
     }
 }

@@ -38,7 +38,7 @@ impl<'a> Rows<'a> {
     /// Rows `first..first + px.len() / width` of a `width` x `height` map. Panics when `px` is not whole
     /// rows or runs past the map (a caller's bug, not input).
     pub fn new(px: &'a [u8], width: usize, height: usize, first: usize) -> Self {
-        assert!(width > 0 && px.len() % width == 0, "whole rows");
+        assert!(width > 0 && px.len().is_multiple_of(width), "whole rows");
         assert!(first + px.len() / width <= height, "rows inside the map");
         Rows {
             px,

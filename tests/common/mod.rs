@@ -14,7 +14,7 @@ pub fn some_cell_rule(
     seed: u64,
     rng: &mut ogm_corners::synth::Rng,
 ) -> ogm_corners::cpu::coarsen::CellRule {
-    if seed % 2 == 0 {
+    if seed.is_multiple_of(2) {
         ogm_corners::cpu::coarsen::CellRule::default()
     } else {
         ogm_corners::cpu::coarsen::CellRule {
