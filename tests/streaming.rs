@@ -574,3 +574,45 @@ fn the_generator_counts_the_offices_it_draws() {
     assert_eq!(bytes(16), bytes(1));
     assert_eq!(bytes(1), 2 * 8192 * 8192);
 }
+
+/// A binary PGM is read straight from the file into the windows (around the page cache where it can, in
+/// aligned pieces): many small windows, an odd width (rows straddle every alignment), trailing bytes after
+/// the raster, direct reads on and off: the in-memory keypoints and the trailing-bytes warning each time.
+#[test]
+fn raw_pgm_windows_read_from_the_file_are_the_in_memory_keypoints() {
+    let dir = tempfile::tempdir().unwrap();
+    let image = office_map(2999, 1601, 4).unwrap();
+    let pgm = dir.path().join("map.pgm");
+    image.write_pgm(&pgm).unwrap();
+    let mut bytes = std::fs::read(&pgm).unwrap();
+    bytes.extend_from_slice(&[7u8; 5000]);
+    std::fs::write(&pgm, &bytes).unwrap();
+    let o = DetectOptions::default();
+    let want = in_memory_file(&pgm, &o, Format::Csv).replace(&pgm.display().to_string(), "map.pgm");
+    for direct in ["1", "0"] {
+        // Out of the page cache (where the system lets us), so that direct reads are what runs.
+        #[cfg(unix)]
+        {
+            let f = std::fs::File::open(&pgm).unwrap();
+            f.sync_all().unwrap();
+            let _ = rustix::fs::fadvise(&f, 0, None, rustix::fs::Advice::DontNeed);
+        }
+        // 8 MB makes windows of about a megabyte: five of them over this 4.8 MB map.
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_ogm-corners"))
+            .args(["detect", "map.pgm", "--max-memory", "8M"])
+            .env("OGM_CORNERS_DIRECT_IO", direct)
+            .current_dir(dir.path())
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "direct {direct}: {err}");
+        assert!(
+            String::from_utf8_lossy(&out.stdout) == want,
+            "direct {direct}"
+        );
+        assert!(
+            err.contains("5000 bytes after the image data ignored"),
+            "direct {direct}: {err}"
+        );
+    }
+}

@@ -196,6 +196,26 @@ impl<R: BufRead> Decoder<R> {
         Ok(())
     }
 
+    /// The byte offset in the input where the raster starts, when its bytes are the image's rows as they
+    /// are (a binary PGM with maxval 255, the ROS maps) and no row has been read: a caller may then read
+    /// them straight from the file ([`crate::stream`] does, into its windows) and call
+    /// [`Decoder::raster_read_elsewhere`].
+    pub fn raw_raster(&self) -> Option<u64> {
+        match &self.inner {
+            Inner::Pnm(d) if self.rows_done == 0 => d.raw_raster(),
+            _ => None,
+        }
+    }
+
+    /// Every row was read from the file by the caller ([`Decoder::raw_raster`]): [`Decoder::finish`]
+    /// then checks what follows the raster as if this decoder had read it.
+    pub fn raster_read_elsewhere(&mut self) {
+        if let Inner::Pnm(d) = &mut self.inner {
+            d.raster_read_elsewhere();
+            self.rows_done = self.header.height;
+        }
+    }
+
     /// Call after the last row: warnings (e.g. trailing bytes ignored).
     ///
     /// Fails when rows are left unread, or when the end of the PNG image data is damaged (the old

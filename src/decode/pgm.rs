@@ -76,6 +76,8 @@ pub(crate) struct PnmDecoder<R> {
     /// PGM only: sample to final grey.
     grey: Vec<u8>,
     len: Option<u64>,
+    /// Raster bytes read by someone else ([`PnmDecoder::raster_read_elsewhere`]).
+    raw_elsewhere: u64,
 }
 
 impl<R: BufRead> PnmDecoder<R> {
@@ -170,6 +172,7 @@ impl<R: BufRead> PnmDecoder<R> {
             scaled,
             grey,
             len,
+            raw_elsewhere: 0,
         })
     }
 
@@ -214,14 +217,29 @@ impl<R: BufRead> PnmDecoder<R> {
         }
     }
 
+    /// Where the raster starts in the input, when its bytes are the rows as they are (binary PGM, maxval
+    /// 255) and none has been read: for a reader that reads them itself ([`super::Decoder::raw_raster`]).
+    pub(crate) fn raw_raster(&self) -> Option<u64> {
+        (self.family == Family::Pgm && self.binary && self.maxval == 255 && self.raw_elsewhere == 0)
+            .then(|| self.src.pos())
+    }
+
+    /// The raster was read by someone else ([`PnmDecoder::raw_raster`]): `finish` counts what follows
+    /// it as if this decoder had read it.
+    pub(crate) fn raster_read_elsewhere(&mut self) {
+        self.raw_elsewhere = u64::from(self.width) * u64::from(self.height);
+    }
+
     /// Warnings: trailing bytes after a binary raster, when the length is known.
     pub(crate) fn finish(self) -> Result<Vec<String>, String> {
         if !self.binary {
             return Ok(Vec::new());
         }
-        Ok(trailing_warning(self.len, self.src.pos())
-            .into_iter()
-            .collect())
+        Ok(
+            trailing_warning(self.len, self.src.pos() + self.raw_elsewhere)
+                .into_iter()
+                .collect(),
+        )
     }
 
     fn truncated(&self, y: u32, x: usize) -> String {

@@ -123,6 +123,20 @@ impl DecoderRows {
         dec.read_rows(out).map_err(|m| Error::input(&self.path, m))
     }
 
+    /// The image file and the byte offset of its raster, when the raster is the rows as they are (see
+    /// [`Decoder::raw_raster`]).
+    pub fn raw_file(&self) -> Option<(PathBuf, u64)> {
+        let at = self.decoder.as_ref()?.raw_raster()?;
+        Some((self.path.clone(), at))
+    }
+
+    /// The rows were read from [`DecoderRows::raw_file`] by the caller.
+    pub fn raw_read(&mut self) {
+        if let Some(d) = self.decoder.as_mut() {
+            d.raster_read_elsewhere();
+        }
+    }
+
     /// After the last row: the decoder's warnings, naming the file.
     pub fn finish(&mut self) -> Result<Vec<String>> {
         let Some(dec) = self.decoder.take() else {

@@ -11,10 +11,13 @@
 //!
 //! A map in memory is one window (no copy): the in-memory detection is the streamed one over a slice.
 
+pub mod direct;
+
 use std::sync::mpsc;
 
 use crate::error::{Error, Result};
 use crate::map::MapImage;
+use direct::{AlignedBuf, RawFile, ALIGN};
 
 /// Rows above and below a window's core that every detector's neighbourhood fits in: OGM reads 1, Harris
 /// and Shi-Tomasi 3 for the score and 1 more for the local maximum, Trajkovic up to 4 for its
@@ -114,6 +117,14 @@ pub trait RowSource: Send {
     fn finish(&mut self) -> Result<Vec<String>> {
         Ok(Vec::new())
     }
+    /// The file that holds the rows as they are (one byte a pixel, row after row) and the byte offset
+    /// of row 0, when it does and no row has been read: [`for_each_window`] then reads the windows
+    /// straight from it ([`direct`]) and calls [`RowSource::raw_read`] instead of `read_rows`.
+    fn raw_file(&self) -> Option<(std::path::PathBuf, u64)> {
+        None
+    }
+    /// Every row was read from [`RowSource::raw_file`].
+    fn raw_read(&mut self) {}
 }
 
 /// A map's rows in memory as a source.
@@ -164,6 +175,12 @@ impl RowSource for crate::map::DecoderRows {
     }
     fn finish(&mut self) -> Result<Vec<String>> {
         crate::map::DecoderRows::finish(self)
+    }
+    fn raw_file(&self) -> Option<(std::path::PathBuf, u64)> {
+        crate::map::DecoderRows::raw_file(self)
+    }
+    fn raw_read(&mut self) {
+        crate::map::DecoderRows::raw_read(self)
     }
 }
 
@@ -249,9 +266,64 @@ impl WindowPlan {
     }
 }
 
+/// Whether [`for_each_window`] reads raw rasters with `O_DIRECT` where it can: on, unless
+/// `OGM_CORNERS_DIRECT_IO=0` (to compare, or for a file system that misbehaves with it).
+fn direct_io_wanted() -> bool {
+    std::env::var_os("OGM_CORNERS_DIRECT_IO").is_none_or(|v| v != "0")
+}
+
+/// Where a window's rows come from: the source's `read_rows`, or its raw file read straight into the
+/// window ([`direct`]).
+enum Fill<'a> {
+    Rows(&'a mut dyn RowSource),
+    Raw(RawFile, u64),
+}
+
+impl Fill<'_> {
+    /// Fills `buf` with map rows `first..end` of a map `w` wide, whose first `kept.len()` bytes are
+    /// `kept` (rows the last window held); returns where in `buf` the rows start.
+    fn window(
+        &mut self,
+        buf: &mut AlignedBuf,
+        kept: &[u8],
+        (first, end): (usize, usize),
+        w: usize,
+    ) -> Result<usize> {
+        let len = (end - first) * w;
+        match self {
+            Fill::Rows(source) => {
+                buf.reserve(len)?;
+                let out = &mut buf.bytes_mut()[..len];
+                out[..kept.len()].copy_from_slice(kept);
+                source.read_rows(&mut out[kept.len()..])?;
+                Ok(0)
+            }
+            Fill::Raw(file, offset) => {
+                // The rows start where their file offset's alignment puts them, so that the aligned
+                // stretches of the file land on aligned memory; the kept rows are copied in before them.
+                let start = *offset + (first * w) as u64;
+                // One aligned block ahead of the rows' alignment: room for a direct read to start at the
+                // aligned offset below the first byte it needs.
+                let at = (start % ALIGN as u64) as usize + ALIGN;
+                buf.reserve((at + len).next_multiple_of(ALIGN))?;
+                buf.bytes_mut()[at..at + kept.len()].copy_from_slice(kept);
+                let from = start + kept.len() as u64;
+                if kept.len() < len {
+                    file.read(buf, at + kept.len(), from, start + len as u64)?;
+                }
+                Ok(at)
+            }
+        }
+    }
+}
+
 /// Calls `f` on every window of `source`, top to bottom, each core following the last. A reader thread
 /// reads the next window while `f` runs; the first error (the source's or `f`'s) stops both and is
 /// returned. Returns the source's warnings.
+///
+/// A source whose file holds the rows as they are ([`RowSource::raw_file`]: a binary 8-bit PGM) is read
+/// straight into the windows' aligned buffers ([`direct`]: around the page cache where it does not hold
+/// them, no decoder in between).
 pub fn for_each_window(
     source: &mut dyn RowSource,
     plan: WindowPlan,
@@ -261,11 +333,20 @@ pub fn for_each_window(
     if w == 0 || h == 0 {
         return source.finish();
     }
-    type Filled = Result<(Vec<u8>, usize, (usize, usize))>;
+    let raw = match source.raw_file() {
+        Some((path, offset)) => Some((RawFile::open(&path, direct_io_wanted())?, offset)),
+        None => None,
+    };
+    type Filled = Result<(AlignedBuf, usize, usize, (usize, usize))>;
     let (tx, rx) = mpsc::sync_channel::<Filled>(1);
-    let (back_tx, back_rx) = mpsc::channel::<Vec<u8>>();
+    let (back_tx, back_rx) = mpsc::channel::<AlignedBuf>();
     std::thread::scope(|s| {
         let reader = s.spawn(move || -> Result<Vec<String>> {
+            let raw_read = raw.is_some();
+            let mut fill = match raw {
+                Some((file, offset)) => Fill::Raw(file, offset),
+                None => Fill::Rows(&mut *source),
+            };
             // Rows already read that the next window starts with: [carry_first, carry_first + carry / w).
             let mut carry: Vec<u8> = Vec::new();
             let mut carry_first = 0usize;
@@ -273,35 +354,40 @@ pub fn for_each_window(
             while core0 < h {
                 let core1 = (core0 + plan.core_rows).min(h);
                 let (first, end) = (core0.saturating_sub(plan.halo), (core1 + plan.halo).min(h));
-                // A returned buffer is reused as it is: every byte up to the window's length is written
-                // below, so it is not cleared first.
+                // A returned buffer is reused as it is: every byte of the window is written below.
                 let mut buf = back_rx.try_recv().unwrap_or_default();
-                buf.resize((end - first) * w, 0);
-                buf.truncate((end - first) * w);
                 let kept = &carry[(first - carry_first) * w..];
-                buf[..kept.len()].copy_from_slice(kept);
-                let have = kept.len();
-                if let Err(e) = source.read_rows(&mut buf[have..]) {
-                    let _ = tx.send(Err(e));
-                    return Ok(Vec::new());
-                }
+                let at = match fill.window(&mut buf, kept, (first, end), w) {
+                    Ok(at) => at,
+                    Err(e) => {
+                        let _ = tx.send(Err(e));
+                        return Ok(Vec::new());
+                    }
+                };
                 let next_first = core1.saturating_sub(plan.halo);
                 carry.clear();
-                carry.extend_from_slice(&buf[(next_first - first) * w..]);
+                carry.extend_from_slice(
+                    &buf.bytes()[at + (next_first - first) * w..at + (end - first) * w],
+                );
                 carry_first = next_first;
-                if tx.send(Ok((buf, first, (core0, core1)))).is_err() {
+                if tx.send(Ok((buf, at, first, (core0, core1)))).is_err() {
                     // The caller stopped (its own error): nothing more to read.
                     return Ok(Vec::new());
                 }
                 core0 = core1;
             }
             drop(tx);
+            drop(fill);
+            if raw_read {
+                source.raw_read();
+            }
             source.finish()
         });
         let mut outcome = Ok(());
         while let Ok(filled) = rx.recv() {
-            let step = filled.and_then(|(buf, first, core)| {
-                let rows = Rows::new(&buf, w, h, first);
+            let step = filled.and_then(|(buf, at, first, core)| {
+                let end = (core.1 + plan.halo).min(h);
+                let rows = Rows::new(&buf.bytes()[at..at + (end - first) * w], w, h, first);
                 f(Window { rows, core })?;
                 let _ = back_tx.send(buf);
                 Ok(())
