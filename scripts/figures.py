@@ -108,7 +108,7 @@ class Runner:
         self.log = []  # (command as shown, seconds) of the current figure
 
     def run(self, argv, env=None, shown_argv=None):
-        key = tuple(argv)
+        key = (tuple(argv), tuple(sorted((env or {}).items())))
         text = " ".join(shlex.quote(shown(a).replace(self.work, "OUT")) for a in (shown_argv or argv))
         # The 26 shared maps are named MAPS in the stamp, not one by one.
         maps = " ".join(shlex.quote(shown(m)) for m in shared_map_files())
@@ -531,6 +531,34 @@ def fig_bench_detectors(r):
             + table(["detector", "median ms", "Mpx/s", "keypoints", "peak resident MB (map 17 MB)"], rows))
 
 
+def fig_bandwidth(r):
+    sizes = ["--size", "4096x4096", "--size", "16384x16384"]
+    b = r.json("bench", *sizes, "--detector", "all", "--backend", "cpu", "--bandwidth", "--repeat", "10")
+    rows = []
+    for x in b["records"]:
+        if x["stage"] not in ("read", "end_to_end"):
+            continue
+        name = "plain read of the map (the yardstick)" if x["detector"] == "read" else x["detector"]
+        rows.append([f"{x['width']}^2", name, f"{x['median_ms']:.2f}", f"{x['mpx_per_s'] / 1000:.2f}",
+                     f"{x['read_percent']:.1f}%"])
+    out = (f"All five detectors, fast CPU path ({b['isa']} kernels), end to end, median of 10; the plain read "
+           "timed before and after each map's detectors:\n\n"
+           + table(["size", "detector", "median ms", "Gpx/s", "share of the read bandwidth"], rows))
+    rows = []
+    for isa in ("avx512", "avx2", "scalar"):
+        argv = [r.bin, "bench", *sizes, "--detector", "ogm", "--backend", "cpu", "--bandwidth", "--repeat", "20",
+                "--format", "json"]
+        j = json.loads(r.run(argv, env={"OGM_CORNERS_ISA": isa},
+                             shown_argv=[f"OGM_CORNERS_ISA={isa}", "ogm-corners", *argv[1:]]))
+        ran = j["isa"] + ("" if j["isa"] == isa else f" (asked {isa}: not on this CPU)")
+        for x in j["records"]:
+            if x["stage"] == "end_to_end":
+                rows.append([f"{x['width']}^2", ran, f"{x['median_ms']:.2f}", f"{x['mpx_per_s'] / 1000:.2f}",
+                             f"{x['read_percent']:.1f}%"])
+    return (out + "\n\nThe paper's detector on each instruction set's kernels (`OGM_CORNERS_ISA`), median of 20:"
+            "\n\n" + table(["size", "kernels", "median ms", "Gpx/s", "share of the read bandwidth"], rows))
+
+
 def fig_gpu_lavapipe(r):
     ogm = r.json("bench", "--size", "1024x1024", "--size", "4096x4096", "--size", "16384x16384",
                  "--detector", "ogm", "--backend", "gpu", "--repeat", "5")
@@ -670,6 +698,8 @@ FIGURES = {
                   "the paper's detector, 1024^2 to 16384^2, fast path and reference"),
     "bench-detectors": ("docs/performance.md", fig_bench_detectors,
                         "all five detectors at 4096^2, fast path"),
+    "bandwidth": ("docs/performance.md", fig_bandwidth,
+                  "every detector as a share of the machine's read bandwidth (bench --bandwidth)"),
     "gpu-lavapipe": ("docs/performance.md", fig_gpu_lavapipe,
                      "the GPU path on the software adapter (lavapipe)"),
     "opencv": ("docs/performance.md", fig_opencv,

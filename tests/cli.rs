@@ -1215,3 +1215,82 @@ fn html_reports_hold_their_tables_and_pictures() {
     );
     fs::remove_dir_all(&d).unwrap();
 }
+
+/// The instruction-set cap: each valid value gives the same keypoints (the kernels are identical), and a
+/// value that names no instruction set is a one-line error, exit 2, not a silent default.
+#[test]
+fn instruction_set_cap_is_checked_and_changes_nothing_but_speed() {
+    let dir = tmpdir("isa");
+    let map = room_pgm(&dir);
+    let map = map.to_str().unwrap();
+    let want = stdout(&run(&["detect", map, "--backend", "cpu"]));
+    for isa in ["scalar", "avx2", "avx512"] {
+        let o = bin()
+            .args(["detect", map, "--backend", "cpu"])
+            .env("OGM_CORNERS_ISA", isa)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{isa}: {}", stderr(&o));
+        assert_eq!(stdout(&o), want, "{isa}");
+    }
+    let o = bin()
+        .args(["detect", map])
+        .env("OGM_CORNERS_ISA", "sse9")
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2));
+    let err = stderr(&o);
+    assert!(
+        err.contains("OGM_CORNERS_ISA=sse9") && err.trim().lines().count() == 1,
+        "{err}"
+    );
+}
+
+/// `bench --bandwidth`: one `read` record per map (its GB/s), and every CPU record's share of it, which is
+/// its own pixels a second over the read's bytes a second; the reference's share is far below the fast
+/// path's. Without the option, neither.
+#[test]
+fn bench_bandwidth_reports_each_cpu_record_as_a_share_of_a_plain_read() {
+    let args = [
+        "bench",
+        "--size",
+        "512x512",
+        "--detector",
+        "ogm,harris",
+        "--backend",
+        "cpu,reference",
+        "--repeat",
+        "3",
+        "--format",
+        "json",
+    ];
+    let o = run(&[&args[..], &["--bandwidth"]].concat());
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    let records = v["records"].as_array().unwrap();
+    let read: Vec<_> = records.iter().filter(|r| r["detector"] == "read").collect();
+    assert_eq!(read.len(), 1);
+    let gbs = read[0]["gb_per_s"].as_f64().unwrap();
+    assert!(gbs > 0.0 && read[0]["stage"] == "read");
+    let share = |det: &str, backend: &str| {
+        let r = records
+            .iter()
+            .find(|r| r["detector"] == det && r["backend"] == backend && r["stage"] == "end_to_end")
+            .unwrap();
+        let pct = r["read_percent"].as_f64().unwrap();
+        let want = 100.0 * r["mpx_per_s"].as_f64().unwrap() / 1e3 / gbs;
+        assert!(
+            (pct - want).abs() < 1e-6 * want.max(1.0),
+            "{det} {backend}: {pct} vs {want}"
+        );
+        pct
+    };
+    assert!(share("ogm", "cpu") > share("ogm", "reference"));
+    share("harris", "cpu");
+    assert!(!v["isa"].as_str().unwrap().is_empty());
+    let plain = run(&args);
+    let v: serde_json::Value = serde_json::from_str(&stdout(&plain)).unwrap();
+    for r in v["records"].as_array().unwrap() {
+        assert!(r["detector"] != "read" && r["read_percent"].is_null());
+    }
+}

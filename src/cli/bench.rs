@@ -157,6 +157,8 @@ struct BenchReport<'a> {
     threads: usize,
     os: &'static str,
     arch: &'static str,
+    /// The instruction set the fast CPU kernels ran on (`OGM_CORNERS_ISA` caps it).
+    isa: &'static str,
     gpu: Option<&'a str>,
     repeat: u32,
     records: &'a [BenchRecord],
@@ -301,7 +303,7 @@ pub(super) fn bench(a: BenchArgs, budget: &Budget) -> Result<()> {
             lines.push(format!(
                 "# read: a plain read of the map's bytes on all threads ({} loads), timed before and after its \
                  detectors; % read: a CPU record's pixels a second (one byte each) over the read's bytes a second",
-                ogm_corners::fast::simd::Isa::active().name()
+                ogm_corners::fast::simd::Isa::best().name()
             ));
         }
         lines.push(format!(
@@ -420,6 +422,7 @@ pub(super) fn bench(a: BenchArgs, budget: &Budget) -> Result<()> {
             threads: threads(),
             os: std::env::consts::OS,
             arch: std::env::consts::ARCH,
+            isa: ogm_corners::fast::simd::Isa::active().name(),
             gpu: runner.gpu_label(),
             repeat: a.repeat,
             records: &all,

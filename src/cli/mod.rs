@@ -386,6 +386,8 @@ fn parse_size(s: &str) -> std::result::Result<(u32, u32), String> {
 /// Runs a parsed command line.
 pub fn run(cli: Cli) -> Result<()> {
     let budget = Budget::from_option(cli.max_memory)?;
+    // A misspelt instruction-set cap would otherwise be ignored: the user asked for something specific.
+    ogm_corners::fast::simd::Isa::from_env().map_err(Error::invalid)?;
     match cli.command {
         Command::Detect(a) => detect::run(a, &budget),
         Command::Demo(a) if a.detect_only => demo::run(a, &budget),

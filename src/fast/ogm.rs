@@ -376,15 +376,8 @@ trait Candidates: Lanes {
         table: &[u8; 256],
         out: &mut Vec<Keypoint>,
     ) {
-        let mut planes = [[0u64; 8]; 8];
-        let mut c = [0u64; 8];
-        // SAFETY: each array holds 8 >= WORDS words; the CPU runs the set (the caller's promise).
-        unsafe {
-            cand.store(c.as_mut_ptr());
-            for (p, v) in planes.iter_mut().zip(nb) {
-                v.store(p.as_mut_ptr());
-            }
-        }
+        // SAFETY: the CPU runs the set (the caller's promise).
+        let (planes, c) = unsafe { spill(nb, cand) };
         let mut lanes = cand.nonzero_words();
         while lanes != 0 {
             let lane = lanes.trailing_zeros() as usize;
@@ -406,6 +399,24 @@ trait Candidates: Lanes {
     }
 }
 
+/// The neighbour planes and the candidates of a vector as words in memory, lane by lane.
+///
+/// # Safety
+/// The CPU must run the vector's instruction set.
+#[inline(always)]
+unsafe fn spill<V: Lanes>(nb: &[V; 8], cand: V) -> ([[u64; 8]; 8], [u64; 8]) {
+    let mut planes = [[0u64; 8]; 8];
+    let mut c = [0u64; 8];
+    // SAFETY: each array holds 8 >= WORDS words; the CPU runs the set (the caller's promise).
+    unsafe {
+        cand.store(c.as_mut_ptr());
+        for (p, v) in planes.iter_mut().zip(nb) {
+            v.store(p.as_mut_ptr());
+        }
+    }
+    (planes, c)
+}
+
 impl Candidates for u64 {}
 
 #[cfg(target_arch = "x86_64")]
@@ -425,15 +436,10 @@ impl Candidates for super::simd::V512 {
         out: &mut Vec<Keypoint>,
     ) {
         use std::arch::x86_64::*;
-        let mut planes = [[0u64; 8]; 8];
-        let mut c = [0u64; 8];
         // SAFETY (the whole body): the CPU runs AVX-512 F, BW, VL and VBMI (the caller's promise); every
         // load and store is inside a local array or `table`.
         unsafe {
-            cand.store(c.as_mut_ptr());
-            for (p, v) in planes.iter_mut().zip(nb) {
-                v.store(p.as_mut_ptr());
-            }
+            let (planes, c) = spill(nb, cand);
             let t = table.as_ptr() as *const __m512i;
             let (t0, t1, t2, t3) = (
                 _mm512_loadu_si512(t as *const _),
