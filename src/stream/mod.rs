@@ -347,6 +347,7 @@ pub fn for_each_window(
                 Some((file, offset)) => Fill::Raw(file, offset),
                 None => Fill::Rows(&mut *source),
             };
+            let largest = (plan.core_rows + 2 * plan.halo).min(h) * w + 2 * ALIGN;
             // Rows already read that the next window starts with: [carry_first, carry_first + carry / w).
             let mut carry: Vec<u8> = Vec::new();
             let mut carry_first = 0usize;
@@ -356,6 +357,12 @@ pub fn for_each_window(
                 let (first, end) = (core0.saturating_sub(plan.halo), (core1 + plan.halo).min(h));
                 // A returned buffer is reused as it is: every byte of the window is written below.
                 let mut buf = back_rx.try_recv().unwrap_or_default();
+                // Every window's size up front (the largest a window of the plan takes, with room for
+                // its alignment): a recycled buffer never grows, so none is reallocated and zeroed again.
+                if let Err(e) = buf.reserve(largest) {
+                    let _ = tx.send(Err(e));
+                    return Ok(Vec::new());
+                }
                 let kept = &carry[(first - carry_first) * w..];
                 let at = match fill.window(&mut buf, kept, (first, end), w) {
                     Ok(at) => at,
