@@ -123,37 +123,26 @@ pub fn plane_rows2_on(
         (a, b)
     {
         let (n, full) = (words(row.len()), row.len() / 64);
-        let done = match isa {
-            Isa::Avx512 => {
-                debug_assert!(isa.supported());
-                // SAFETY: the caller checked that the CPU runs AVX-512 (F, BW).
-                unsafe {
-                    avx512::interval_words2(
-                        (*la, *sa),
-                        (*lb, *sb),
-                        row,
-                        &mut out_a[..full],
-                        &mut out_b[..full],
-                    )
-                };
-                true
-            }
-            Isa::Avx2 => {
-                debug_assert!(isa.supported());
-                // SAFETY: the caller checked that the CPU runs AVX2.
-                unsafe {
-                    avx2::interval_words2(
-                        (*la, *sa),
-                        (*lb, *sb),
-                        row,
-                        &mut out_a[..full],
-                        &mut out_b[..full],
-                    )
-                };
-                true
-            }
-            Isa::Scalar => false,
+        type Words2 = unsafe fn((u8, u8), (u8, u8), &[u8], &mut [u64], &mut [u64]);
+        let kernel: Option<Words2> = match isa {
+            Isa::Avx512 => Some(avx512::interval_words2),
+            Isa::Avx2 => Some(avx2::interval_words2),
+            Isa::Scalar => None,
         };
+        let done = kernel.is_some();
+        if let Some(kernel) = kernel {
+            debug_assert!(isa.supported());
+            // SAFETY: the caller checked that the CPU runs `isa`, all the kernel needs.
+            unsafe {
+                kernel(
+                    (*la, *sa),
+                    (*lb, *sb),
+                    row,
+                    &mut out_a[..full],
+                    &mut out_b[..full],
+                )
+            };
+        }
         if done {
             if full < n {
                 out_a[full] = interval_scalar(*la, *sa, &row[full * 64..]);
@@ -170,10 +159,30 @@ pub fn plane_rows2_on(
 /// [`plane_row`] without AVX2: SSE2 compares on x86-64 (every x86-64 CPU has them), plain Rust elsewhere.
 pub fn plane_row_portable(set: &ValueSet, row: &[u8], out: &mut [u64]) {
     let n = words(row.len());
-    let out = &mut out[..n];
-    let ValueSet::Interval { lo, span } = *set else {
-        return plane_row(set, row, out);
-    };
+    match *set {
+        ValueSet::Interval { lo, span } => interval_row_portable(lo, span, row, &mut out[..n]),
+        _ => plane_row(set, row, out),
+    }
+}
+
+/// The plane of `lo..=lo+span` over a row: AVX2 where the CPU has it, else [`interval_row_portable`].
+fn interval_row(lo: u8, span: u8, row: &[u8], out: &mut [u64]) {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        let full = row.len() / 64;
+        // SAFETY: the CPU has AVX2, checked just above.
+        unsafe { avx2::interval_words(lo, span, row, &mut out[..full]) };
+        if full < out.len() {
+            out[full] = interval_scalar(lo, span, &row[full * 64..]);
+        }
+        return;
+    }
+    interval_row_portable(lo, span, row, out)
+}
+
+/// The plane of `lo..=lo+span` over a row (`out` one word per 64 pixels): SSE2 on x86-64, plain Rust
+/// elsewhere and for the tail.
+fn interval_row_portable(lo: u8, span: u8, row: &[u8], out: &mut [u64]) {
     let full = row.len() / 64;
     for (word, chunk) in out[..full].iter_mut().zip(row.chunks_exact(64)) {
         #[cfg(target_arch = "x86_64")]
@@ -182,31 +191,6 @@ pub fn plane_row_portable(set: &ValueSet, row: &[u8], out: &mut [u64]) {
         }
         #[cfg(not(target_arch = "x86_64"))]
         {
-            *word = interval_scalar(lo, span, chunk);
-        }
-    }
-    if full < n {
-        out[full] = interval_scalar(lo, span, &row[full * 64..]);
-    }
-}
-
-/// The plane of `lo..=lo+span` over a row: SIMD on x86-64, portable elsewhere and for the tail.
-fn interval_row(lo: u8, span: u8, row: &[u8], out: &mut [u64]) {
-    let full = row.len() / 64;
-    #[cfg(target_arch = "x86_64")]
-    {
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU has AVX2, checked just above.
-            unsafe { avx2::interval_words(lo, span, row, &mut out[..full]) };
-        } else {
-            for (word, chunk) in out[..full].iter_mut().zip(row.chunks_exact(64)) {
-                *word = sse2::interval64(lo, span, chunk.try_into().expect("64 bytes"));
-            }
-        }
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        for (word, chunk) in out[..full].iter_mut().zip(row.chunks_exact(64)) {
             *word = interval_scalar(lo, span, chunk);
         }
     }

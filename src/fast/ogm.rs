@@ -11,7 +11,7 @@
 use rayon::prelude::*;
 
 use super::bitplanes::{ogm_sets, plane_rows2_on, words, ValueSet};
-use super::simd::{Isa, Lanes};
+use super::simd::{set_bits, Isa, Lanes};
 use crate::backend::Keypoint;
 use crate::map::MapImage;
 use crate::rules::RuleTable;
@@ -165,11 +165,7 @@ macro_rules! with_min_bits {
 
 /// The keypoints of rows `y0..y1`, in (y, x) order, on `isa`, which falls back to the widest set below it that the CPU runs.
 fn corners_in_band_on(isa: Isa, px: Rows, y0: usize, y1: usize, plan: &Plan) -> Vec<Keypoint> {
-    let isa = Isa::ALL
-        .into_iter()
-        .rev()
-        .find(|i| *i <= isa && i.supported())
-        .unwrap_or(Isa::Scalar);
+    let isa = isa.capped();
     #[cfg(target_arch = "x86_64")]
     match isa {
         // SAFETY: the CPU runs the set, checked just above; that is the only requirement.
@@ -378,19 +374,14 @@ trait Candidates: Lanes {
     ) {
         // SAFETY: the CPU runs the set (the caller's promise).
         let (planes, c) = unsafe { spill(nb, cand) };
-        let mut lanes = cand.nonzero_words();
-        while lanes != 0 {
-            let lane = lanes.trailing_zeros() as usize;
-            lanes &= lanes - 1;
+        for lane in set_bits(u64::from(cand.nonzero_words())) {
+            let lane = lane as usize;
             let p: [u64; 8] = std::array::from_fn(|i| planes[i][lane]);
             let x0 = ((k + lane) * 64) as u32;
-            let mut cw = c[lane];
             // Room for every candidate of the word, so that each is written and kept or not without a
             // branch (one in five or so is a corner: a branch would be mispredicted often).
-            out.reserve(cw.count_ones() as usize);
-            while cw != 0 {
-                let j = cw.trailing_zeros();
-                cw &= cw - 1;
+            out.reserve(c[lane].count_ones() as usize);
+            for j in set_bits(c[lane]) {
                 let code = (0..8).fold(0u8, |acc, i| acc | ((((p[i] >> j) & 1) as u8) << i));
                 let rule = table[code as usize];
                 push_if(out, Keypoint::ogm(x0 + j, y, rule, code), rule != 0);
@@ -447,10 +438,8 @@ impl Candidates for super::simd::V512 {
                 _mm512_loadu_si512(t.add(2) as *const _),
                 _mm512_loadu_si512(t.add(3) as *const _),
             );
-            let mut lanes = cand.nonzero_words();
-            while lanes != 0 {
-                let lane = lanes.trailing_zeros() as usize;
-                lanes &= lanes - 1;
+            for lane in set_bits(u64::from(cand.nonzero_words())) {
+                let lane = lane as usize;
                 let mut codes = _mm512_setzero_si512();
                 for (i, p) in planes.iter().enumerate() {
                     codes = _mm512_mask_add_epi8(codes, p[lane], codes, _mm512_set1_epi8(1 << i));
@@ -459,7 +448,7 @@ impl Candidates for super::simd::V512 {
                 let low = _mm512_permutex2var_epi8(t0, codes, t1);
                 let high = _mm512_permutex2var_epi8(t2, codes, t3);
                 let rules = _mm512_mask_blend_epi8(_mm512_movepi8_mask(codes), low, high);
-                let mut keep = _mm512_test_epi8_mask(rules, rules) & c[lane];
+                let keep = _mm512_test_epi8_mask(rules, rules) & c[lane];
                 if keep == 0 {
                     continue;
                 }
@@ -468,11 +457,8 @@ impl Candidates for super::simd::V512 {
                 _mm512_storeu_si512(rb.as_mut_ptr() as *mut _, rules);
                 let x0 = ((k + lane) * 64) as u32;
                 out.reserve(keep.count_ones() as usize);
-                while keep != 0 {
-                    let j = keep.trailing_zeros();
-                    keep &= keep - 1;
-                    let kp = Keypoint::ogm(x0 + j, y, rb[j as usize], cb[j as usize]);
-                    push_if(out, kp, true);
+                for j in set_bits(keep) {
+                    out.push(Keypoint::ogm(x0 + j, y, rb[j as usize], cb[j as usize]));
                 }
             }
         }

@@ -21,10 +21,10 @@ pub fn read_all(bytes: &[u8]) -> u64 {
 
 /// One thread's read of `bytes` with `isa` (falling back to what the CPU runs).
 pub fn read_chunk(isa: Isa, bytes: &[u8]) -> u64 {
-    let isa = isa.min(Isa::best());
+    let isa = isa.capped();
     #[cfg(target_arch = "x86_64")]
     match isa {
-        // SAFETY: the CPU runs AVX-512 (F), checked by `Isa::best` above.
+        // SAFETY: the CPU runs AVX-512 (F), checked by `Isa::capped` above.
         Isa::Avx512 => return unsafe { x86::read_avx512(bytes) },
         // SAFETY: the CPU runs AVX2, as above.
         Isa::Avx2 => return unsafe { x86::read_avx2(bytes) },

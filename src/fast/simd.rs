@@ -73,6 +73,12 @@ impl Isa {
             .unwrap_or(&Isa::Scalar)
     }
 
+    /// This set, or the widest below it that the CPU runs (the sets are nested: each runs where the wider
+    /// one does).
+    pub fn capped(self) -> Isa {
+        self.min(Isa::best())
+    }
+
     /// The cap `OGM_CORNERS_ISA` sets: `Ok(None)` when unset, an error message for a value that names no
     /// instruction set.
     pub fn from_env() -> std::result::Result<Option<Isa>, String> {
@@ -90,14 +96,21 @@ impl Isa {
     /// invalid value caps nothing here; the command line reports it). Read once per process.
     pub fn active() -> Isa {
         static ACTIVE: OnceLock<Isa> = OnceLock::new();
-        *ACTIVE.get_or_init(|| {
-            let best = Isa::best();
-            match Isa::from_env() {
-                Ok(Some(cap)) => cap.min(best),
-                _ => best,
-            }
+        *ACTIVE.get_or_init(|| match Isa::from_env() {
+            Ok(Some(cap)) => cap.capped(),
+            _ => Isa::best(),
         })
     }
+}
+
+/// The positions of the set bits of `m`, lowest first.
+#[inline(always)]
+pub fn set_bits(mut m: u64) -> impl Iterator<Item = u32> {
+    std::iter::from_fn(move || {
+        let j = m.trailing_zeros();
+        m &= m.wrapping_sub(1);
+        (j < 64).then_some(j)
+    })
 }
 
 /// A vector of [`Lanes::WORDS`] 64-bit words, each 64 pixels' bits. Methods are `#[inline(always)]`
@@ -418,5 +431,10 @@ mod tests {
         }
         assert_eq!(Isa::parse("sse"), None);
         assert!(Isa::active().supported() && Isa::active() <= Isa::best());
+        for isa in Isa::ALL {
+            assert!(isa.capped().supported() && isa.capped() <= isa);
+        }
+        assert_eq!(set_bits(0).count(), 0);
+        assert_eq!(set_bits(1 << 63 | 5).collect::<Vec<_>>(), [0, 2, 63]);
     }
 }

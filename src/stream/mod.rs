@@ -347,7 +347,9 @@ pub fn for_each_window(
                 Some((file, offset)) => Fill::Raw(file, offset),
                 None => Fill::Rows(&mut *source),
             };
-            let largest = (plan.core_rows + 2 * plan.halo).min(h) * w + 2 * ALIGN;
+            // The rows start under two blocks in (their alignment, and one block for a direct read's
+            // aligned start), and a direct read ends at the next block: three blocks of room.
+            let largest = (plan.core_rows + 2 * plan.halo).min(h) * w + 3 * ALIGN;
             // Rows already read that the next window starts with: [carry_first, carry_first + carry / w).
             let mut carry: Vec<u8> = Vec::new();
             let mut carry_first = 0usize;
