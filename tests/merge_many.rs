@@ -492,6 +492,7 @@ fn a_cached_run_redoes_only_the_changed_maps_and_pairs_and_equals_a_fresh_run() 
         maps_prepared: p,
         pairs_reused: rr,
         pairs_aligned: a,
+        pairs_refused: 0,
     };
     assert_eq!(cache.last_use(), use_of(0, 5, 0, 10));
     let again = run_cached(&maps, &options, &mut CpuBackend, &|_, _| {}, &mut cache).unwrap();

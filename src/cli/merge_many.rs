@@ -31,14 +31,35 @@ fn group_path(base: &Path, g: usize) -> PathBuf {
     base.with_file_name(name)
 }
 
-/// The earlier merge of `--from FILE`: its record, read within the budget.
+/// The earlier merge of `--from FILE`: its record, read within the budget. Only a regular file is read
+/// (a fifo would block, a device never end), and what is read is bounded as it is read (its size as
+/// the file system gives it may be wrong): reading it and its parse take about four times its bytes.
 fn previous(file: &Path, budget: &Budget) -> Result<Previous> {
+    use std::io::Read;
     let what = format!("--from {}", file.display());
-    let size = std::fs::metadata(file)
-        .map_err(|e| Error::invalid(format!("{what}: {e}")))?
-        .len();
-    budget.check(format_args!("{what}"), size.saturating_mul(4))?;
-    let text = std::fs::read_to_string(file).map_err(|e| Error::invalid(format!("{what}: {e}")))?;
+    let bad = |why: String| Error::invalid(format!("{what}: {why}"));
+    let meta = std::fs::metadata(file).map_err(|e| bad(e.to_string()))?;
+    if !meta.is_file() {
+        return Err(bad(format!(
+            "not a regular file ({})",
+            files::kind_of(&meta)
+        )));
+    }
+    let most = budget.limit() / 4;
+    let mut bytes = Vec::new();
+    std::fs::File::open(file)
+        .and_then(|f| f.take(most.saturating_add(1)).read_to_end(&mut bytes))
+        .map_err(|e| bad(e.to_string()))?;
+    budget.check(
+        format_args!("{what} (read so far)"),
+        (bytes.len() as u64).saturating_mul(4),
+    )?;
+    let text = String::from_utf8(bytes).map_err(|e| {
+        bad(format!(
+            "not UTF-8 text (invalid byte at offset {})",
+            e.utf8_error().valid_up_to()
+        ))
+    })?;
     Previous::parse(&text, &what)
 }
 
@@ -166,11 +187,22 @@ pub(super) fn run(a: MergeArgs, budget: &Budget) -> Result<()> {
         },
         &mut cache,
     )?;
-    let reused = cache.last_use().pairs_reused;
+    let used = cache.last_use();
     if a.from.is_some() {
+        if let Some((i, j, why)) = cache.refused().first() {
+            ogm_corners::say!(
+                "ogm-corners: note: --from: {} of its pairs' alignments do not hold on the maps and were \
+                 not taken up (the first, {} onto {}: {})",
+                used.pairs_refused,
+                ogm_corners::error::one_line(&names[*j]),
+                ogm_corners::error::one_line(&names[*i]),
+                why
+            );
+        }
         ogm_corners::say!(
-            "ogm-corners: --from: {reused} pairs taken up, {} aligned",
-            cache.last_use().pairs_aligned
+            "ogm-corners: --from: {} pairs taken up, {} aligned",
+            used.pairs_reused,
+            used.pairs_aligned
         );
     }
     bar.finish_and_clear();

@@ -52,11 +52,13 @@ const POLISH_ROUNDS: usize = 4;
 /// Candidates refined: the best distinct ones of the tolerant screening, then more of the strict one.
 const REFINED: usize = 8;
 const STRICT: usize = 4;
+/// The most candidates an alignment refines (so the most a pair's record may carry).
+pub const MAX_CANDIDATES: usize = REFINED + STRICT;
 /// Two candidates are distinct when they move B's reference points (wall bounding box corners and
 /// centroid) by more than this RMS, pixels.
 const DISTINCT_PX: f64 = 40.0;
 /// The coarse ratio's cap: no distinct alternative at all counts as this.
-const MAX_RATIO: f64 = 10.0;
+pub const MAX_RATIO: f64 = 10.0;
 /// How to align.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct MergeOptions {
@@ -245,19 +247,7 @@ pub fn align_prepared_with(
     let mut refined: Vec<(f64, Rigid, Features)> = order.iter().map(|&i| refined[i]).collect();
     let keys: Vec<f64> = order.iter().map(|&i| unordered[i]).collect();
     // The chosen one polished to a fraction of a pixel, and verified again.
-    let mut polished = crops[order[0]];
-    // Hill-climbing from 2 px and 0.4 degree steps down to the finest: ICP stops short of the best fit
-    // of a small overlap's few walls, by up to a degree.
-    for scale in POLISH_SCALES {
-        for _ in 0..POLISH_ROUNDS {
-            let next = polish(src, dst, &polished, scale, backend)?;
-            let stayed = next == polished;
-            polished = next;
-            if stayed {
-                break;
-            }
-        }
-    }
+    let polished = polish_fully(src, dst, &crops[order[0]], backend)?;
     let again = verify(src, dst, &[polished], backend)?[0];
     crate::stop::check()?;
     refined[0].1 = to_full(&polished);
@@ -453,8 +443,31 @@ pub(crate) fn declined(why: &str) -> Alignment {
     }
 }
 
+/// `t` (src crop to dst crop) polished to a fraction of a pixel: hill-climbing from 2 px and 0.4 degree
+/// steps down to the finest. ICP stops short of the best fit of a small overlap's few walls, by up to a
+/// degree.
+pub(super) fn polish_fully(
+    src: &Prepared,
+    dst: &Prepared,
+    t: &Rigid,
+    backend: &mut dyn Backend,
+) -> Result<Rigid> {
+    let mut polished = *t;
+    for scale in POLISH_SCALES {
+        for _ in 0..POLISH_ROUNDS {
+            let next = polish(src, dst, &polished, scale, backend)?;
+            let stayed = next == polished;
+            polished = next;
+            if stayed {
+                break;
+            }
+        }
+    }
+    Ok(polished)
+}
+
 /// RMS distance between where two transforms put src's reference points.
-fn reference_rms(src: &Prepared, x: &Rigid, y: &Rigid) -> f64 {
+pub(super) fn reference_rms(src: &Prepared, x: &Rigid, y: &Rigid) -> f64 {
     let sum: f64 = src
         .reference
         .iter()
@@ -512,7 +525,10 @@ pub fn self_symmetry(p: &Prepared) -> Result<f64> {
 
 /// [`self_symmetry`] with the self-alignment's scoring on `backend` (the same counts on every backend),
 /// with the self-transforms that offer alternative poses ([`ALIAS_SELF_MATCH`]); cached in the map.
-fn self_symmetry_with<'p>(p: &'p Prepared, backend: &mut dyn Backend) -> Result<&'p Symmetry> {
+pub(super) fn self_symmetry_with<'p>(
+    p: &'p Prepared,
+    backend: &mut dyn Backend,
+) -> Result<&'p Symmetry> {
     if let Some(v) = p.symmetry.get() {
         return Ok(v);
     }
@@ -542,7 +558,7 @@ fn self_symmetry_with<'p>(p: &'p Prepared, backend: &mut dyn Backend) -> Result<
 /// them (and its inverse) applied on A's side or on B's; among those whose residual conflict is hardly
 /// above `best`'s ([`ALIAS_EXTRA_CONFLICT`]), the one with most wall pixels agreeing locally (both
 /// ways): its count over `best`'s ([`Features::alias`], 0 without one) and the pose.
-fn alias(
+pub(super) fn alias(
     src: &Prepared,
     dst: &Prepared,
     best: &Rigid,

@@ -56,21 +56,18 @@ impl Footprint {
     }
 }
 
-/// Bytes a set holds at once: what every map keeps, and the working memory of as many of the largest as
-/// run at once (one a core).
+/// Bytes a set holds at once: what every map keeps, and the working memory of as many pairs as run at
+/// once (one a core), each as large as the largest map's: every pair with the largest map needs its
+/// working memory (a pair's correlation is sized by its larger map), and several of them may run
+/// together.
 pub fn set_bytes(kept: impl IntoIterator<Item = (u64, u64)>) -> u64 {
-    let mut held = 0u64;
-    let mut working: Vec<u64> = Vec::new();
+    let (mut held, mut most) = (0u64, 0u64);
     for (k, w) in kept {
         held = held.saturating_add(k);
-        working.push(w);
+        most = most.max(w);
     }
-    working.sort_unstable_by(|a, b| b.cmp(a));
-    let at_once = rayon::current_num_threads().max(1);
-    working
-        .iter()
-        .take(at_once)
-        .fold(held, |t, &w| t.saturating_add(w))
+    let at_once = rayon::current_num_threads().max(1) as u64;
+    held.saturating_add(most.saturating_mul(at_once))
 }
 
 /// `map`'s footprint once brought to `resolution` (metres a pixel; `None`: kept as it is), as

@@ -250,21 +250,57 @@ fn dot(x: &[(u32, f64)], y: &[(u32, f64)]) -> f64 {
     s
 }
 
-/// The pairs (a < b) to align: each map with its `k` most similar maps (ties to the lower index); a map
-/// whose signature shares nothing with any other (a corridor of one corner, a map with no walls) with
-/// every map, since nothing tells its partners apart.
-pub fn pairs(similar: &[Vec<f64>], k: usize) -> Vec<(usize, usize)> {
+/// The pairs (a < b) to align: each map with its `k` most similar maps (ties to the lower index). Maps
+/// whose signature shares nothing with a map tell nothing about it: where a map has fewer than `k` maps
+/// it shares terms with, the rest of its `k` are the maps nearest it in the set's order (robots' maps are
+/// often listed as they were made) and nearest in size (`sizes`: its wall pixels), taken in turn. So
+/// every map has at most `k` partners of its own, and the pairs are at most `k` a map whatever the set.
+pub fn pairs(similar: &[Vec<f64>], sizes: &[f64], k: usize) -> Vec<(usize, usize)> {
     let n = similar.len();
     let mut keep = BTreeSet::new();
     for (a, row) in similar.iter().enumerate() {
-        let k = if row.iter().all(|&s| s <= 0.0) { n } else { k };
-        let mut order: Vec<usize> = (0..n).filter(|&b| b != a).collect();
-        order.sort_by(|&x, &y| row[y].total_cmp(&row[x]).then(x.cmp(&y)));
-        for &b in order.iter().take(k) {
+        let mut alike: Vec<usize> = (0..n).filter(|&b| b != a && row[b] > 0.0).collect();
+        alike.sort_by(|&x, &y| row[y].total_cmp(&row[x]).then(x.cmp(&y)));
+        let rest = k.saturating_sub(alike.len());
+        let fallback = if rest > 0 {
+            nearest_in_turn(a, n, sizes, &alike)
+        } else {
+            Vec::new()
+        };
+        for &b in alike.iter().take(k).chain(fallback.iter().take(rest)) {
             keep.insert((a.min(b), a.max(b)));
         }
     }
     keep.into_iter().collect()
+}
+
+/// The maps other than `a` and those of `taken`, nearest `a` in the set's order and nearest in size
+/// (`sizes`, compared by their ratio), in turn: the first of each order, then the second, and so on.
+fn nearest_in_turn(a: usize, n: usize, sizes: &[f64], taken: &[usize]) -> Vec<usize> {
+    let others: Vec<usize> = (0..n).filter(|&b| b != a && !taken.contains(&b)).collect();
+    let by_order = {
+        let mut o = others.clone();
+        o.sort_by_key(|&b| (b.abs_diff(a), b));
+        o
+    };
+    let by_size = {
+        let size = |b: usize| sizes.get(b).copied().unwrap_or(1.0).max(1.0).ln();
+        let mut o = others;
+        o.sort_by(|&x, &y| {
+            let (dx, dy) = ((size(x) - size(a)).abs(), (size(y) - size(a)).abs());
+            dx.total_cmp(&dy).then(x.cmp(&y))
+        });
+        o
+    };
+    let mut out: Vec<usize> = Vec::with_capacity(by_order.len());
+    for (x, y) in by_order.into_iter().zip(by_size) {
+        for b in [x, y] {
+            if !out.contains(&b) {
+                out.push(b);
+            }
+        }
+    }
+    out
 }
 
 /// The accepted pairs' forest: each map's component (by its lowest map) and its pose there (its pixels to
@@ -527,17 +563,71 @@ mod tests {
             vec![0.1, 0.3, 0.0, 0.8],
             vec![0.2, 0.1, 0.8, 0.0],
         ];
-        assert_eq!(pairs(&s, 1), vec![(0, 1), (2, 3)]);
-        assert_eq!(pairs(&s, 2), vec![(0, 1), (0, 3), (1, 2), (2, 3)]);
-        assert_eq!(pairs(&s, 9).len(), 6);
-        // Map 3 shares nothing with any map: it is aligned with all of them.
-        let s = vec![
-            vec![0.0, 0.9, 0.1, 0.0],
-            vec![0.9, 0.0, 0.3, 0.0],
-            vec![0.1, 0.3, 0.0, 0.0],
-            vec![0.0, 0.0, 0.0, 0.0],
-        ];
-        assert_eq!(pairs(&s, 1), vec![(0, 1), (0, 3), (1, 2), (1, 3), (2, 3)]);
+        let sizes = [1.0; 4];
+        assert_eq!(pairs(&s, &sizes, 1), vec![(0, 1), (2, 3)]);
+        assert_eq!(pairs(&s, &sizes, 2), vec![(0, 1), (0, 3), (1, 2), (2, 3)]);
+        assert_eq!(pairs(&s, &sizes, 9).len(), 6);
+    }
+
+    #[test]
+    fn a_map_that_shares_nothing_gets_its_neighbours_in_order_and_in_size_not_every_map() {
+        // Map 3 shares nothing with any of 8 maps: not all of them, but its neighbour in the set's order
+        // (2 or 4) and the map nearest its size (7), in turn.
+        let n = 8;
+        let mut s = vec![vec![0.0; n]; n];
+        for a in 0..n {
+            for b in 0..n {
+                if a != b && a != 3 && b != 3 {
+                    s[a][b] = 1.0 / (1.0 + a.abs_diff(b) as f64);
+                }
+            }
+        }
+        let sizes = [500.0, 600.0, 700.0, 5000.0, 800.0, 900.0, 1000.0, 4000.0];
+        let of3: Vec<(usize, usize)> = pairs(&s, &sizes, 3)
+            .into_iter()
+            .filter(|p| p.0 == 3 || p.1 == 3)
+            .collect();
+        assert_eq!(of3, vec![(2, 3), (3, 4), (3, 7)]);
+        // A map sharing terms with only one map: that one first, then the nearest in turn.
+        s[3][6] = 0.5;
+        s[6][3] = 0.5;
+        let of3: Vec<(usize, usize)> = pairs(&s, &sizes, 3)
+            .into_iter()
+            .filter(|p| p.0 == 3 || p.1 == 3)
+            .collect();
+        assert_eq!(of3, vec![(2, 3), (3, 6), (3, 7)]);
+    }
+
+    proptest::proptest! {
+        /// Whatever the similarities (maps that share nothing, ties, a few alike) and sizes, at most
+        /// `k` pairs a map are chosen, each of two distinct maps, and every map has one when it can.
+        #[test]
+        fn the_first_round_is_at_most_k_pairs_a_map(
+            n in 2usize..40,
+            k in 1usize..6,
+            seed in 0u64..1000,
+            zero_share in 0.0f64..1.0,
+        ) {
+            let mut state = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            let mut next = || {
+                state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                (state >> 11) as f64 / (1u64 << 53) as f64
+            };
+            let mut s = vec![vec![0.0; n]; n];
+            for a in 0..n {
+                for b in a + 1..n {
+                    let v = if next() < zero_share { 0.0 } else { next() };
+                    (s[a][b], s[b][a]) = (v, v);
+                }
+            }
+            let sizes: Vec<f64> = (0..n).map(|_| 1.0 + 1e4 * next()).collect();
+            let chosen = pairs(&s, &sizes, k);
+            proptest::prop_assert!(chosen.len() <= k * n, "{} pairs for {n} maps", chosen.len());
+            proptest::prop_assert!(chosen.iter().all(|&(a, b)| a < b && b < n));
+            for m in 0..n {
+                proptest::prop_assert!(chosen.iter().any(|&(a, b)| a == m || b == m));
+            }
+        }
     }
 
     fn shift(tx: f64, ty: f64) -> Rigid {

@@ -74,6 +74,9 @@ pub struct CacheUse {
     pub pairs_reused: usize,
     /// Pairs aligned.
     pub pairs_aligned: usize,
+    /// Pairs carried in from an earlier run whose records did not hold on the maps (aligned again when
+    /// chosen).
+    pub pairs_refused: usize,
 }
 
 /// Preparations and alignments kept between runs of [`super::run_cached`].
@@ -86,6 +89,9 @@ pub struct Cache {
     /// An earlier run's, by the two maps' content ids (reference, moved).
     carried: HashMap<(ContentId, ContentId), PairRecord>,
     used: CacheUse,
+    /// The last run's carried pairs that did not hold on the maps (the maps' indices as given to it, and
+    /// why).
+    pub(super) refused: Vec<(usize, usize, String)>,
 }
 
 impl Cache {
@@ -97,6 +103,12 @@ impl Cache {
     /// How much of the last run came from the cache.
     pub fn last_use(&self) -> CacheUse {
         self.used
+    }
+
+    /// The pairs carried into the last run whose records did not hold on the maps ([`Cache::carry`]):
+    /// the two maps' indices as given to it (reference, moved) and why.
+    pub fn refused(&self) -> &[(usize, usize, String)] {
+        &self.refused
     }
 
     /// Forgets everything kept under other options than `options` (which pairs a pre-screen chooses
@@ -112,6 +124,7 @@ impl Cache {
             self.options = Some(options);
         }
         self.used = CacheUse::default();
+        self.refused.clear();
     }
 
     /// The preparation (and signature) kept for `key`, taken out of the cache ([`Cache::keep`] puts it

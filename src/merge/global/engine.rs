@@ -32,6 +32,13 @@ pub trait Engine {
         options: &GlobalOptions,
         progress: &(dyn Fn(usize, usize) + Sync),
     ) -> Result<Vec<PairRecord>>;
+
+    /// Whether its records are this process's own alignments of the maps handed to it, so need no
+    /// checking. Otherwise (the default: an engine elsewhere) each record is checked against the maps
+    /// before it is used, and a run with one that does not hold is refused.
+    fn checked(&self) -> bool {
+        false
+    }
 }
 
 /// This process's threads (rayon's pool): the maps prepared and the pairs aligned in parallel.
@@ -64,5 +71,9 @@ impl Engine for Local {
         progress: &(dyn Fn(usize, usize) + Sync),
     ) -> Result<Vec<PairRecord>> {
         align_pairs(maps, options, progress, pairs)
+    }
+
+    fn checked(&self) -> bool {
+        true
     }
 }

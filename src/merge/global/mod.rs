@@ -33,6 +33,7 @@ pub mod previous;
 mod record;
 pub mod report;
 mod rounds;
+mod verify;
 
 use serde::Serialize;
 
@@ -216,7 +217,13 @@ pub(crate) fn align_pairs(
         .map(|&(a, b)| {
             crate::stop::with(stop.clone(), || {
                 crate::stop::check()?;
-                let al = align_prepared(&maps[a], &maps[b], &options.pair)?;
+                // A pair too large to correlate is declined, not the whole set refused.
+                let al =
+                    match super::coarse::check_size((maps[b].w, maps[b].h), (maps[a].w, maps[a].h))
+                    {
+                        Err(e) => super::align::declined(&e.to_string()),
+                        Ok(()) => align_prepared(&maps[a], &maps[b], &options.pair)?,
+                    };
                 let k = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
                 progress(k, total);
                 Ok(PairRecord::of(&maps[a], &maps[b], &al, options))
@@ -314,6 +321,76 @@ pub fn place(
         }
     }
     Ok(placement)
+}
+
+/// The carried records (`start`) that hold on the maps ([`verify`]), checked in parallel, and the pairs
+/// whose records do not, with why.
+fn vouched(
+    maps: &[Prepared],
+    start: rounds::Aligned,
+    options: &GlobalOptions,
+) -> Result<(rounds::Aligned, Vec<(usize, usize, String)>)> {
+    use rayon::prelude::*;
+    let stop = crate::stop::current();
+    let verdicts: Vec<Option<String>> = start
+        .par_iter()
+        .map(|(&(a, b), r)| {
+            crate::stop::with(stop.clone(), || {
+                crate::stop::check()?;
+                verify::why_not(&maps[a], &maps[b], r, options)
+            })
+        })
+        .collect::<Result<_>>()?;
+    let mut refused = Vec::new();
+    let mut kept = rounds::Aligned::new();
+    for (((a, b), r), why) in start.into_iter().zip(verdicts) {
+        match why {
+            Some(why) => refused.push((a, b, why)),
+            None => {
+                kept.insert((a, b), r);
+            }
+        }
+    }
+    Ok((kept, refused))
+}
+
+/// Refuses an engine's answer for `pairs` unless it is one record a pair and each holds on the maps
+/// ([`verify`]): an executor elsewhere may be wrong, and a wrong record would place maps wrongly.
+fn refuse_unfounded(
+    maps: &[Prepared],
+    pairs: &[(usize, usize)],
+    records: &[PairRecord],
+    options: &GlobalOptions,
+) -> Result<()> {
+    use rayon::prelude::*;
+    if records.len() != pairs.len() {
+        return Err(crate::Error::invalid(format!(
+            "the engine aligned {} pairs of {}",
+            records.len(),
+            pairs.len()
+        )));
+    }
+    let stop = crate::stop::current();
+    let verdicts: Vec<Option<String>> = pairs
+        .par_iter()
+        .zip(records)
+        .map(|(&(a, b), r)| {
+            crate::stop::with(stop.clone(), || {
+                crate::stop::check()?;
+                verify::why_not(&maps[a], &maps[b], r, options)
+            })
+        })
+        .collect::<Result<_>>()?;
+    match pairs
+        .iter()
+        .zip(verdicts)
+        .find_map(|(p, why)| Some((p, why?)))
+    {
+        Some(((a, b), why)) => Err(crate::Error::invalid(format!(
+            "the engine's alignment of map {b} onto map {a} does not hold on the maps: {why}"
+        ))),
+        None => Ok(()),
+    }
 }
 
 /// Seconds spent on each stage of [`run`].
@@ -448,14 +525,23 @@ pub fn run_with(
     let prepare = t.elapsed().as_secs_f64();
     crate::stop::check()?;
     let t = Instant::now();
-    let start = cache.carried(&keys);
+    // An earlier run's records are claims: those the maps do not bear out are aligned again.
+    let (start, refused) = vouched(&prepared, cache.carried(&keys), options)?;
+    used.pairs_refused = refused.len();
+    let checked = engine.checked();
     let (done, rounds) = rounds::align_rounds(
         &prepared,
         &signatures,
         screen,
         &|a, b| cache.pair(&keys[a], &keys[b]),
         start,
-        &mut |pairs| engine.align(&prepared, pairs, options, progress),
+        &mut |pairs| {
+            let records = engine.align(&prepared, pairs, options, progress)?;
+            if !checked {
+                refuse_unfounded(&prepared, pairs, &records, options)?;
+            }
+            Ok(records)
+        },
         &mut used,
     )?;
     let pairs: Vec<(usize, usize, PairRecord)> =
@@ -477,6 +563,10 @@ pub fn run_with(
         .collect();
     let kept = prepared.into_iter().zip(signatures);
     cache.keep(keys.into_iter().zip(kept).collect(), pairs, used);
+    cache.refused = refused
+        .into_iter()
+        .map(|(a, b, why)| (unique[a], unique[b], why))
+        .collect();
     // Back to the maps' own indices.
     pairwise.n = maps.len();
     for e in &mut pairwise.edges {

@@ -48,7 +48,10 @@ pub(super) fn align_rounds(
         prescreen::similarities(&s)
     });
     let mut chosen: Vec<(usize, usize)> = match (screen, &similar) {
-        (Some(p), Some(similar)) => prescreen::pairs(similar, p.partners),
+        (Some(p), Some(similar)) => {
+            let sizes: Vec<f64> = maps.iter().map(|m| m.walls.len() as f64).collect();
+            prescreen::pairs(similar, &sizes, p.partners)
+        }
         _ => pair_order(m).collect(),
     };
     used.pairs_reused += start.len();
