@@ -151,9 +151,10 @@ pub(super) fn run(a: MergeArgs, budget: &Budget) -> Result<()> {
         ogm_corners::say!("ogm-corners: warning: {}", ogm_corners::error::one_line(w));
     }
     // Each map at the first georeferenced map's cells, and its preparation over its explored part.
+    let held = footprint::many_bytes(&maps)?;
     budget.check(
         format_args!("{} maps and their preparation", maps.len()),
-        footprint::many_bytes(&maps)?,
+        held,
     )?;
     let bar = indicatif::ProgressBar::new(0);
     bar.set_style(
@@ -206,6 +207,20 @@ pub(super) fn run(a: MergeArgs, budget: &Budget) -> Result<()> {
         );
     }
     bar.finish_and_clear();
+    // Each group's merged map and picture are made one at a time, once the maps are placed: the
+    // largest group's, beside what the set holds.
+    let per_px =
+        u64::from(pgm_out.is_some()) + 6 * u64::from(a.overlay.is_some() || html.is_some());
+    let largest = many
+        .frames
+        .iter()
+        .map(|f| u64::from(f.width) * u64::from(f.height))
+        .max()
+        .unwrap_or(0);
+    budget.check(
+        format_args!("the merged maps and pictures (the largest {largest} pixels)"),
+        held.saturating_add(largest.saturating_mul(per_px)),
+    )?;
     let mut doc = many.report.clone();
     // Every output staged, then all renamed into place together: a failure leaves none of them.
     let mut staged = files::Staged::default();

@@ -4,7 +4,7 @@
 //! holding one small room is not refused for the canvas.
 
 use super::compose::Canvas;
-use super::prepare::{crop_box, kept_bytes, prepared_bytes, CROP_PAD};
+use super::prepare::{crop_box, kept_bytes, prepared_bytes, spectrum_bytes, CROP_PAD};
 use super::resample::resampled_size;
 use super::transform::Rigid;
 use crate::error::Result;
@@ -49,10 +49,19 @@ impl Footprint {
         self.bytes() - prepared_bytes(c0, c1) + kept_bytes(c0, c1).min(prepared_bytes(c0, c1))
     }
 
-    /// Working memory while this map is prepared or aligned: [`Footprint::bytes`] beyond
-    /// [`Footprint::kept`].
+    /// Working memory while this map is prepared, or a pair with it aligned, in a set that runs one a
+    /// core: its preparation's temporaries, or the pair's coarse correlation: its own four spectra and
+    /// three for each rotation task it may have running (up to one a core: a core waiting on its own
+    /// pair's tasks takes up another pair's).
     pub fn working(&self) -> u64 {
-        self.bytes() - self.kept()
+        let side = |v: u64| u32::try_from(v).unwrap_or(u32::MAX);
+        let (c0, c1) = (side(self.crop.0), side(self.crop.1));
+        let spectra = spectrum_bytes(c0, c1);
+        let tasks = rayon::current_num_threads().clamp(1, 10) as u64;
+        let correlation = (4 + 3 * tasks) * spectra;
+        let prepare = prepared_bytes(c0, c1).saturating_sub(kept_bytes(c0, c1));
+        let temporaries = prepare.saturating_sub((3 * tasks + 3) * spectra);
+        temporaries.max(correlation)
     }
 }
 
@@ -125,7 +134,13 @@ pub fn many_bytes<'m>(maps: impl IntoIterator<Item = &'m OccupancyMap> + Clone) 
         .into_iter()
         .map(|m| footprint(m, resolution))
         .collect::<Result<Vec<_>>>()?;
-    Ok(set_bytes(prints.iter().map(|f| (f.kept(), f.working()))))
+    // A run keeps a copy of each map's pixels at that resolution to recognise it again (its cache).
+    Ok(set_bytes(prints.iter().map(|f| {
+        (
+            f.kept().saturating_add(f.width.saturating_mul(f.height)),
+            f.working(),
+        )
+    })))
 }
 
 /// The merged canvas of `a` and B (`b`: B's footprint at A's cells, from [`pair`]) placed by `t`,

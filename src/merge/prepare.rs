@@ -24,13 +24,19 @@ const PAD: usize = 8;
 /// map's diagonal, at most the correlation's limit).
 pub fn prepared_bytes(width: u32, height: u32) -> u64 {
     let px = u64::from(width) * u64::from(height);
+    let tasks = rayon::current_num_threads().clamp(1, 10) as u64;
+    px.saturating_mul(42)
+        .saturating_add((3 * tasks + 3) * spectrum_bytes(width, height))
+}
+
+/// Bytes of one n x n complex spectrum of the coarse correlation of a `width` x `height` map with
+/// another (n of its coarsest cells and another map's diagonal, at most the correlation's limit).
+pub fn spectrum_bytes(width: u32, height: u32) -> u64 {
     let side = u64::from(width.max(height)).div_ceil(CELLS[CELLS.len() - 1] as u64);
     let n = (side * 5 / 2 + 2)
         .next_power_of_two()
         .min(super::fft::MAX_FFT as u64);
-    let tasks = rayon::current_num_threads().clamp(1, 10) as u64;
-    px.saturating_mul(42)
-        .saturating_add((3 * tasks + 3) * n * n * 8)
+    n * n * 8
 }
 
 /// Bytes a [`Prepared`] keeps for a `width` x `height` crop once made, about 12 a pixel: its nearest

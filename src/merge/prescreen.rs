@@ -574,14 +574,19 @@ mod tests {
         // Map 3 shares nothing with any of 8 maps: not all of them, but its neighbour in the set's order
         // (2 or 4) and the map nearest its size (7), in turn.
         let n = 8;
-        let mut s = vec![vec![0.0; n]; n];
-        for a in 0..n {
-            for b in 0..n {
-                if a != b && a != 3 && b != 3 {
-                    s[a][b] = 1.0 / (1.0 + a.abs_diff(b) as f64);
-                }
-            }
-        }
+        let mut s: Vec<Vec<f64>> = (0..n)
+            .map(|a: usize| {
+                (0..n)
+                    .map(|b| {
+                        if a != b && a != 3 && b != 3 {
+                            1.0 / (1.0 + a.abs_diff(b) as f64)
+                        } else {
+                            0.0
+                        }
+                    })
+                    .collect()
+            })
+            .collect();
         let sizes = [500.0, 600.0, 700.0, 5000.0, 800.0, 900.0, 1000.0, 4000.0];
         let of3: Vec<(usize, usize)> = pairs(&s, &sizes, 3)
             .into_iter()
@@ -614,11 +619,11 @@ mod tests {
                 (state >> 11) as f64 / (1u64 << 53) as f64
             };
             let mut s = vec![vec![0.0; n]; n];
-            for a in 0..n {
-                for b in a + 1..n {
-                    let v = if next() < zero_share { 0.0 } else { next() };
-                    (s[a][b], s[b][a]) = (v, v);
-                }
+            let pairs_of: Vec<(usize, usize)> =
+                (0..n).flat_map(|a| (a + 1..n).map(move |b| (a, b))).collect();
+            for (a, b) in pairs_of {
+                let v = if next() < zero_share { 0.0 } else { next() };
+                (s[a][b], s[b][a]) = (v, v);
             }
             let sizes: Vec<f64> = (0..n).map(|_| 1.0 + 1e4 * next()).collect();
             let chosen = pairs(&s, &sizes, k);

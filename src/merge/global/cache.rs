@@ -45,7 +45,8 @@ pub(super) type Kept = (Prepared, Option<Signature>);
 #[derive(Clone)]
 pub(super) struct Key {
     pub(super) hash: ContentId,
-    image: MapImage,
+    /// Shared by every pair the map is in: one copy of its pixels, however many pairs are kept.
+    image: std::sync::Arc<MapImage>,
     thresholds: Thresholds,
 }
 
@@ -53,13 +54,15 @@ impl Key {
     pub(super) fn of(map: &OccupancyMap) -> Key {
         Key {
             hash: content_id(map),
-            image: map.image.clone(),
+            image: std::sync::Arc::new(map.image.clone()),
             thresholds: map.thresholds,
         }
     }
 
     fn same(&self, other: &Key) -> bool {
-        self.hash == other.hash && self.thresholds == other.thresholds && self.image == other.image
+        self.hash == other.hash
+            && self.thresholds == other.thresholds
+            && (std::sync::Arc::ptr_eq(&self.image, &other.image) || self.image == other.image)
     }
 }
 

@@ -395,7 +395,7 @@ pub fn place(
                 MapPlacement {
                     group: None,
                     pose: Rigid::IDENTITY,
-                    reason: Some(reason.to_string()),
+                    reason: Some(unalignable(pairwise, m).unwrap_or_else(|| reason.to_string())),
                 }
             }
         })
@@ -612,5 +612,25 @@ fn mosaics_agree(
         &expected,
         pb.reference_in_map()[4],
         options,
+    ))
+}
+
+/// Why map `m` could not be aligned at all, when each of its pairs was declined before any search for
+/// the same kind of reason (too large to correlate with the other map, or no walls to align): that
+/// reason, rather than a want of confidence.
+fn unalignable(pairwise: &Pairwise, m: usize) -> Option<String> {
+    const BEFORE_ANY_SEARCH: [&str; 2] = ["too large to align", "no walls next to free space"];
+    let mine: Vec<&str> = pairwise
+        .pairs
+        .iter()
+        .filter(|p| p.a == m || p.b == m)
+        .map(|p| p.reason.as_deref().unwrap_or(""))
+        .collect();
+    let kind = BEFORE_ANY_SEARCH
+        .into_iter()
+        .find(|k| !mine.is_empty() && mine.iter().all(|r| r.contains(k)))?;
+    let first = mine.first()?;
+    Some(format!(
+        "none of its pairs could be aligned ({kind}): {first}"
     ))
 }

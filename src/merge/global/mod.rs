@@ -323,13 +323,16 @@ pub fn place(
     Ok(placement)
 }
 
+/// Pairs whose records did not hold on the maps (the maps' indices, why).
+type Refused = Vec<(usize, usize, String)>;
+
 /// The carried records (`start`) that hold on the maps ([`verify`]), checked in parallel, and the pairs
 /// whose records do not, with why.
 fn vouched(
     maps: &[Prepared],
     start: rounds::Aligned,
     options: &GlobalOptions,
-) -> Result<(rounds::Aligned, Vec<(usize, usize, String)>)> {
+) -> Result<(rounds::Aligned, Refused)> {
     use rayon::prelude::*;
     let stop = crate::stop::current();
     let verdicts: Vec<Option<String>> = start

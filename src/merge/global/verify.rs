@@ -89,7 +89,11 @@ pub(super) fn why_not(
             )));
         }
         let at = overlap_centre(pa, pb, &e.transform);
-        if !((at.0 - e.at.0).abs() <= AT_SLACK && (at.1 - e.at.1).abs() <= AT_SLACK) {
+        if (at.0 - e.at.0).abs() > AT_SLACK
+            || (at.1 - e.at.1).abs() > AT_SLACK
+            || at.0.is_nan()
+            || at.1.is_nan()
+        {
             return Ok(Some(format!(
                 "candidate {k} names ({:.1}, {:.1}) as where the maps overlap; they overlap at ({:.1}, {:.1})",
                 e.at.0, e.at.1, at.0, at.1
@@ -101,7 +105,7 @@ pub(super) fn why_not(
         } else {
             RESIDUAL_SLACK
         };
-        if !((residual - e.residual).abs() <= slack) {
+        if (residual - e.residual).abs() > slack || residual.is_nan() {
             return Ok(Some(format!(
                 "candidate {k} claims {:.3} of its walls in free space after the local shifts; the maps \
                  have {residual:.3}",
@@ -111,7 +115,7 @@ pub(super) fn why_not(
         // The aligner leaves its choice where its finest polish ends: polished again, it stays put.
         if k == 0 {
             let moved = polished_again(pa, pb, &e.transform)?;
-            if !(moved <= POLISH_SLACK) {
+            if moved > POLISH_SLACK || moved.is_nan() {
                 return Ok(Some(format!(
                     "its choice is not where the maps fit best: polished again, it moves {moved:.1} px"
                 )));
@@ -217,7 +221,8 @@ fn shape(r: &PairRecord, options: &GlobalOptions) -> Option<String> {
         if choice && (e.transform != r.transform || e.score.to_bits() != r.score.to_bits()) {
             return Some("its first candidate is not its choice".to_string());
         }
-        if !(choice && r.accepted) && !(e.score >= options.weak_from) {
+        // Finite: checked above.
+        if !(choice && r.accepted) && e.score < options.weak_from {
             return Some(format!(
                 "candidate {} is below the weak rule value, where no candidate is kept",
                 e.rank
