@@ -481,3 +481,41 @@ fn a_report_folder_holds_one_whole_report_and_a_stopped_run_leaves_the_previous_
         .collect();
     assert!(after == before, "{:?}", entries(&html));
 }
+
+/// The pre-screen aligns a bounded number of pairs a map whatever the set: maps of noise share no
+/// corner-pair term with each other, and each used to be aligned with every map (780 pairs of 40 maps);
+/// now its partners are its neighbours in order and in size, and the whole screen (first round, cycles,
+/// joins) stays within `partners + rounds x (per_round / 2 + 1)` pairs a map.
+#[test]
+fn the_pre_screen_aligns_a_bounded_number_of_pairs_a_map_for_maps_that_share_nothing() {
+    use ogm_corners::cpu::CpuBackend;
+    use ogm_corners::merge::global::{run, GlobalOptions};
+    use ogm_corners::merge::prescreen::Prescreen;
+    use ogm_corners::{MapImage, OccupancyMap};
+    let maps: Vec<OccupancyMap> = (0..40u64)
+        .map(|seed| {
+            let mut state = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
+            let px: Vec<u8> = (0..64 * 64)
+                .map(|_| {
+                    state ^= state << 13;
+                    state ^= state >> 7;
+                    state ^= state << 17;
+                    [0u8, 254, 205][(state % 3) as usize]
+                })
+                .collect();
+            OccupancyMap::from_image(MapImage::new(64, 64, px).unwrap())
+        })
+        .collect();
+    let r = run(
+        &maps,
+        &GlobalOptions::default(),
+        &mut CpuBackend,
+        &|_, _| {},
+    )
+    .unwrap();
+    let p = Prescreen::default();
+    let most = maps.len() * (p.partners + p.rounds * (p.per_round / 2 + 1));
+    let aligned = r.pairwise.pairs.len();
+    assert!(aligned <= most, "{aligned} pairs aligned, over {most}");
+    assert!(aligned < 780 / 4, "{aligned} pairs aligned");
+}

@@ -7,6 +7,8 @@ import numpy as np
 import numpy.typing as npt
 
 __version__: str
+#: The most `partners` a many-map merge takes.
+MAX_PARTNERS: int
 
 _Path = Union[str, PathLike[str]]
 _Origin = Tuple[float, float, float]

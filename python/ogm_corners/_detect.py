@@ -3,14 +3,13 @@
 from __future__ import annotations
 
 import math
-import numbers
 import os
 import threading
 from typing import Any, Dict, Optional, Tuple
 
 import numpy as np
 
-from . import _core
+from . import _args, _core
 from ._keypoints import Keypoints
 from ._map import Map, load_map
 
@@ -24,13 +23,6 @@ _UNSIGNED = {
     "t1": 32, "t2": 32, "min_scale": 32, "max_scale": 32, "nms_radius": 32, "min_strength": 32,
     "cell_occupied": 32, "cell_free": 32, "wall_gap": 32, "max_corners": 63,
 }
-
-
-def _check_unsigned(name: str, value: Any, bits: int) -> None:
-    if isinstance(value, bool) or not isinstance(value, numbers.Integral):
-        raise TypeError(f"{name} must be an int, got {type(value).__name__}")
-    if not 0 <= value < 2**bits:
-        raise ValueError(f"{name} must be between 0 and {2**bits - 1}, got {value}")
 
 
 class Detector:
@@ -58,7 +50,7 @@ class Detector:
     def __init__(self, detector: str = "ogm", backend: str = "auto", **options: Any) -> None:
         for name, bits in _UNSIGNED.items():
             if options.get(name) is not None:
-                _check_unsigned(name, options[name], bits)
+                options[name] = _args.unsigned(name, options[name], bits)
         self._d = _core.Detector(detector, backend, **options)
 
     @property

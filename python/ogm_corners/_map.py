@@ -6,14 +6,13 @@ import array as pyarray
 import enum
 import errno
 import math
-import numbers
 import os
 from dataclasses import dataclass
 from typing import Any, Optional, Tuple, Union
 
 import numpy as np
 
-from . import _core
+from . import _args, _core
 
 PathLike = Union[str, "os.PathLike[str]"]
 Origin = Tuple[float, float, float]
@@ -176,12 +175,8 @@ class Map:
             data = data.data
         if width is None or height is None or resolution is None:
             raise TypeError("from_occupancy_grid needs width, height and resolution (or a message)")
-        for name, v in (("width", width), ("height", height)):
-            # A float or a string would be truncated or parsed: a grid's size is a count.
-            if isinstance(v, bool) or not isinstance(v, numbers.Integral):
-                raise TypeError(f"{name} must be an int, got {type(v).__name__} {v!r}")
-            if not 0 <= v < 2**32:
-                raise ValueError(f"{name} must be between 0 and {2**32 - 1}, got {v}")
+        # A float or a string would be truncated or parsed: a grid's size is a count.
+        width, height = _args.unsigned("width", width, 32), _args.unsigned("height", height, 32)
         cells = _grid_cells(data)
         cells = np.ascontiguousarray(cells.reshape(-1)).view(np.uint8)
         # MapMetaData.resolution is a float32: 0.05 arrives as 0.05000000074505806. Its shortest float32
@@ -189,7 +184,7 @@ class Map:
         resolution = float(str(np.float32(resolution)))
         return cls._wrap(
             _core.Map._from_grid(
-                cells, int(width), int(height), float(resolution), _origin(origin),
+                cells, width, height, float(resolution), _origin(origin),
                 occupied_thresh, free_thresh,
             )
         )

@@ -4,14 +4,13 @@ from __future__ import annotations
 
 import json
 import math
-import numbers
 import os
 from dataclasses import dataclass, field
 from typing import Any, Dict, Iterator, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
-from . import _core
+from . import _args, _core
 from ._map import Map, load_map
 
 
@@ -164,6 +163,10 @@ class Pose:
         return rigid_matrix(self.theta_deg, self.tx, self.ty)
 
 
+class _GroupError(IndexError, ValueError):
+    """A group number past the last group."""
+
+
 class ManyMerge:
     """Many maps placed at once (``merge_many``). Unpacks as ``merged, poses = merge_many(maps)``:
     ``merged`` is group 0's merged map (None when no two maps could be placed together), ``poses`` one
@@ -202,11 +205,11 @@ class ManyMerge:
         return len(self.report["groups"])
 
     def _group(self, group: Any) -> int:
-        if isinstance(group, bool) or not isinstance(group, numbers.Integral):
-            raise TypeError(f"group must be an int, got {type(group).__name__}")
-        if group < 0:
-            raise ValueError(f"group must be 0 or more, got {group}")
-        return int(group)
+        g = _args.integer("group", group)
+        if g >= self.groups:
+            # Past the last group: an IndexError as a list's, and a ValueError as any bad argument's.
+            raise _GroupError(f"group must be less than the {self.groups} group(s), got {g}")
+        return g
 
     def merged_map(self, group: int = 0) -> Map:
         """Group ``group``'s merged map, in its first map's frame."""
@@ -272,15 +275,11 @@ def merge_many(
     and may join groups; ``partners=0`` aligns every pair. An ``executor``
     (``ogm_corners.distributed.RayExecutor()``) prepares the maps and aligns the pairs elsewhere, with the
     same result to the bit; it takes no ``cache``."""
-    if isinstance(partners, bool) or not isinstance(partners, int):
-        raise TypeError(f"partners must be an int, got {type(partners).__name__}")
-    if partners < 0:
-        raise ValueError(f"partners must be 0 or more (0 aligns every pair); got {partners}")
+    partners = _args.integer("partners", partners, 0, _core.MAX_PARTNERS)
     if cache is not None and not isinstance(cache, MergeCache):
         raise TypeError(f"cache must be a MergeCache, got {type(cache).__name__}")
-    ms = [_as_map(m) for m in maps]
-    if names is None:
-        names = [m.source or f"map{i}" for i, m in enumerate(ms)]
+    ms = [_as_map(m) for m in _args.sequence("maps", maps)]
+    names = [m.source or f"map{i}" for i, m in enumerate(ms)] if names is None else _args.names(names)
     if executor is not None:
         if cache is not None:
             raise ValueError("an executor takes no cache: each run's work is done by the executor")
@@ -291,9 +290,9 @@ def merge_many(
                     f"{type(executor).__name__} has no {method}()"
                 )
         return ManyMerge(
-            _core.merge_many_on([m._m for m in ms], list(names), executor, backend, partners)
+            _core.merge_many_on([m._m for m in ms], names, executor, backend, partners)
         )
     core_cache = cache._core if cache is not None else None
     return ManyMerge(
-        _core.merge_many([m._m for m in ms], list(names), backend, core_cache, partners)
+        _core.merge_many([m._m for m in ms], names, backend, core_cache, partners)
     )

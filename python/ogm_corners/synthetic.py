@@ -5,14 +5,15 @@ from __future__ import annotations
 
 from typing import List, Tuple
 
-from . import _core
+from . import _args, _core
 from ._map import Map
 
 
 def office(width: int = 1024, height: int = 768, seed: int = 1, resolution: float = 0.05) -> Map:
     """The synthetic office map of ``ogm-corners demo`` (rooms, doors, furniture, unknown outside),
     georeferenced at ``resolution`` metres a pixel with origin 0."""
-    return Map._wrap(_core.synthetic_office(width, height, seed, resolution))
+    width, height = _args.unsigned("width", width, 32), _args.unsigned("height", height, 32)
+    return Map._wrap(_core.synthetic_office(width, height, _args.unsigned("seed", seed, 64), resolution))
 
 
 def robot_maps(
@@ -22,6 +23,7 @@ def robot_maps(
     shared with their neighbours, each turned by a random angle and shifted, free cells speckled with
     probability ``noise``. Each comes with its exact pose (theta_deg, tx, ty): its pixels to the
     source's. They keep the source's resolution, with origin 0."""
+    n, seed = _args.integer("n", n, 0, 64), _args.unsigned("seed", seed, 64)
     return [
         (Map._wrap(m), pose)
         for m, pose in _core.synthetic_robot_maps(source._m, n, noise, seed)
@@ -32,5 +34,6 @@ def fleet(n: int, buildings: int = 4, seed: int = 1) -> Tuple[List[str], List[Ma
     """The synthetic fleet of ``ogm-corners merge-eval --global --set-size n --buildings b``: ``n`` robot
     maps cut from ``buildings`` synthetic offices (a share each, mixed), with their names
     (``oK-part-NN``: office K). For trying large merges (``merge_many``) without data."""
-    pairs = _core.synthetic_fleet(n, buildings, seed)
+    n, buildings = _args.integer("n", n, 1, 2000), _args.integer("buildings", buildings, 1, 64)
+    pairs = _core.synthetic_fleet(n, buildings, _args.unsigned("seed", seed, 64))
     return [name for name, _ in pairs], [Map._wrap(m) for _, m in pairs]

@@ -49,14 +49,48 @@ const SIGNAL_POLL: std::time::Duration = std::time::Duration::from_millis(50);
 /// handler raises (Ctrl-C: `KeyboardInterrupt`), the stop is raised, the work ends at its next check
 /// (between stages, maps or pairs) and the handler's exception is raised here, instead of the call
 /// running to its end with the interpreter deaf to Ctrl-C.
+///
+/// A signal that arrives at any moment of the call is this call's exception: one that came before the
+/// polling started (while the call converted its arguments, counted memory or opened its backend, when
+/// nothing looks for signals) is raised before the work starts, and one that came after the last poll
+/// as the work ended is raised instead of the result.
 pub fn interruptible<T: Send>(
     py: Python<'_>,
     f: impl FnOnce() -> ogm_corners::Result<T> + Send,
 ) -> PyResult<T> {
+    test_signal(py);
+    py.check_signals()?;
+    // Asked before the worker starts, and its error raised: this runs Python code, where a pending
+    // signal's handler runs too (its KeyboardInterrupt, once swallowed here, lost the Ctrl-C).
+    let main = is_main_thread(py)?;
+    let (outcome, signal) = run_polling(py, main, f);
+    if let Some(e) = signal {
+        return Err(e);
+    }
+    if main {
+        py.check_signals()?;
+    }
+    outcome
+        .unwrap_or_else(Err)
+        .map_err(panic_error)?
+        .map_err(to_py)
+}
+
+/// What a worker thread gives back: the work's result, or its panic.
+type Joined<T> = std::thread::Result<std::thread::Result<ogm_corners::Result<T>>>;
+
+/// Runs `f` on a worker thread under a stop, this thread (with the interpreter's lock released) looking
+/// for signals every [`SIGNAL_POLL`] when it is the `main` one: the work's outcome, and the exception a
+/// signal handler raised (the stop then raised and the work waited for).
+fn run_polling<T: Send>(
+    py: Python<'_>,
+    main: bool,
+    f: impl FnOnce() -> ogm_corners::Result<T> + Send,
+) -> (Joined<T>, Option<PyErr>) {
     use std::sync::mpsc::{channel, RecvTimeoutError};
     let stop = ogm_corners::stop::Stop::new();
     let (done, finished) = channel::<()>();
-    let (outcome, signal) = std::thread::scope(|s| {
+    std::thread::scope(|s| {
         let worker = {
             let stop = stop.clone();
             s.spawn(move || {
@@ -66,11 +100,10 @@ pub fn interruptible<T: Send>(
                 r
             })
         };
-        // Signal handlers run on the main thread only: elsewhere there is nothing to look for.
-        let main = is_main_thread(py);
         let signal = py.detach(move || {
             let signal = loop {
                 if !main {
+                    // Signal handlers run on the main thread only: elsewhere there is nothing to look for.
                     let _ = finished.recv();
                     break None;
                 }
@@ -92,26 +125,33 @@ pub fn interruptible<T: Send>(
             signal
         });
         (worker.join(), signal)
-    });
-    if let Some(e) = signal {
-        return Err(e);
+    })
+}
+
+/// The variable that makes the tests' signal: `start` makes SIGINT arrive once in this process, at the
+/// start of the first [`interruptible`] call, as if Ctrl-C came while the call was converting its
+/// arguments (where a Ctrl-C was once lost). Read at each call (a few hundred nanoseconds).
+const TEST_SIGNAL: &str = "OGM_CORNERS_TEST_SIGNAL";
+
+/// Makes SIGINT arrive when [`TEST_SIGNAL`] asks for it (once): as the C signal handler does, it only
+/// marks the signal pending for the next check, which then runs its Python handler.
+fn test_signal(_py: Python<'_>) {
+    use std::sync::atomic::{AtomicBool, Ordering};
+    static FIRED: AtomicBool = AtomicBool::new(false);
+    if std::env::var_os(TEST_SIGNAL).is_some_and(|v| v == "start")
+        && !FIRED.swap(true, Ordering::Relaxed)
+    {
+        // SAFETY: called attached to the interpreter (the `Python` token), as the C API asks.
+        unsafe { pyo3::ffi::PyErr_SetInterrupt() };
     }
-    outcome
-        .unwrap_or_else(Err)
-        .map_err(panic_error)?
-        .map_err(to_py)
 }
 
 /// Whether this is the interpreter's main thread (where signal handlers run).
-fn is_main_thread(py: Python<'_>) -> bool {
-    let threading = || -> PyResult<bool> {
-        let t = py.import("threading")?;
-        let current = t.call_method0("current_thread")?;
-        let main = t.call_method0("main_thread")?;
-        Ok(current.is(&main))
-    };
-    // Unknown: look for signals (harmless off the main thread).
-    threading().unwrap_or(true)
+fn is_main_thread(py: Python<'_>) -> PyResult<bool> {
+    let t = py.import("threading")?;
+    let current = t.call_method0("current_thread")?;
+    let main = t.call_method0("main_thread")?;
+    Ok(current.is(&main))
 }
 
 /// A panic's message as a `RuntimeError`.

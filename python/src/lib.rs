@@ -13,6 +13,7 @@ use pyo3::prelude::*;
 #[pymodule]
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    m.add("MAX_PARTNERS", merge::MAX_PARTNERS)?;
     m.add_class::<map::Map>()?;
     m.add_class::<detect::Detector>()?;
     m.add_class::<merge::ManyMerge>()?;

@@ -7,7 +7,9 @@ import numpy as np
 import pytest
 
 from ogm_corners import synthetic
-from ogm_corners.ros.live import Candidate, Grid, LiveMerge, Options, check_grid, pose_distance, pose_matrix
+from ogm_corners.ros.live import (
+    NOT_ESTIMATED, Candidate, Grid, LiveMerge, Options, check_grid, pose_distance, pose_matrix,
+)
 from ogm_corners.ros.scenario import crop_known, explored, frame_of_pixels, geodesic, pair_errors
 
 
@@ -282,3 +284,16 @@ def test_the_world_is_fixed_only_by_a_published_placement(robots):
     placed = live.poses()
     assert sorted(placed) == ["r0", "r1", "r2"], (placed, live.reasons())
     assert live._anchor == "r0" and placed["r0"] == (0.0, 0.0, 0.0)
+
+
+def test_a_robot_not_yet_estimated_has_a_reason(robots):
+    # Before: reasons() left it out, and the node's status said `reason: null` for it.
+    live = LiveMerge(Options())
+    (c1, res, _), (c2, _, _) = robots[0], robots[1]
+    live.update("robot1", Grid(c1, res, (0.0, 0.0, 0.0), 0.0))
+    assert live.reasons() == {"robot1": NOT_ESTIMATED}
+    live.estimate()
+    first = live.reasons()["robot1"]
+    assert first != NOT_ESTIMATED and first
+    live.update("robot2", Grid(c2, res, (0.0, 0.0, 0.0), 1.0))
+    assert live.reasons() == {"robot1": first, "robot2": NOT_ESTIMATED}

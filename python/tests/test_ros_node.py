@@ -27,6 +27,7 @@ except ImportError as e:  # pragma: no cover - the environment decides
         raise RuntimeError(f"CI=true and ROS 2 (rclpy) is not importable: {e}") from e
     pytest.skip(f"ROS 2 (rclpy) is not importable here: {e}", allow_module_level=True)
 
+import ogm_corners as oc
 from ogm_corners._map import OccupancyGrid as Cells
 from ogm_corners.ros.live import pose_distance
 
@@ -317,3 +318,65 @@ def test_a_robot_publishing_at_100_hz_is_read_at_the_merging_rate_and_transforms
     text = clean_exit(tmp_path, code)
     assert text.count("publishes its map") == 1 and "times a second: only its latest map is read" in text, text[-3000:]
     assert "tf2_ros is not importable" not in text and "Traceback" not in text, text[-3000:]
+
+
+def run_node_briefly(env, *ros_args, seconds=30):
+    """The node run with ``ros_args`` until it exits (or ``seconds``): (exit status or None, its output)."""
+    try:
+        r = subprocess.run([sys.executable, "-m", "ogm_corners.ros", "--ros-args", *ros_args], env=env,
+                           capture_output=True, text=True, timeout=seconds)
+    except subprocess.TimeoutExpired as e:
+        out = e.stdout.decode() if isinstance(e.stdout, bytes) else (e.stdout or "")
+        return None, out
+    return r.returncode, r.stdout + r.stderr
+
+
+@pytest.mark.parametrize("arg, says", [
+    ("max_cells:=0", "max_cells must be 1 or more"),
+    ("max_cells:=-1", "max_cells must be 1 or more"),
+    ("backend:=bogus", "backend must be one of auto, cpu, reference, gpu; got 'bogus'"),
+    ("robot_map_topic:=''", "robot_map_topic must be the name of each robot's map topic"),
+])
+def test_parameters_the_node_cannot_run_with_are_refused_at_start_in_one_line(env, arg, says):
+    # Before: each started and ran (every map ignored, every estimation failing, or no robot found).
+    code, out = run_node_briefly(env, "-p", arg, seconds=30)
+    assert code == 2, (arg, code, out[-2000:])
+    assert out.strip().splitlines() == [out.strip()] and says in out and "Traceback" not in out, out
+
+
+def test_a_merged_map_topic_that_is_a_robots_map_topic_is_warned_about(env, tmp_path):
+    proc = start_node(env, tmp_path, "-p", "merged_map_topic:=/robot1/map")
+    deadline = time.monotonic() + 30
+    while time.monotonic() < deadline and "merged_map_topic" not in open(tmp_path / "node.log").read():
+        time.sleep(0.1)
+    text = clean_exit(tmp_path, stop_node(proc))
+    assert "merged_map_topic /robot1/map is robot /robot1's map topic" in text, text[-3000:]
+
+
+def test_sigint_during_an_estimation_stops_the_node_without_rosout_errors(env, tmp_path):
+    """SIGINT as the node starts estimating three robots' poses (its debug line says when; the estimation
+    takes tenths of a second, the signal's delivery milliseconds): rclpy used to shut the context
+    down at once, and the estimation's log lines then failed to reach rosout, one error each. The node
+    must stop cleanly, with none, having logged its verdicts or not (it is stopping)."""
+    # Three maps of three buildings: each robot's verdict is "not placed" (a log line each).
+    maps = [oc.synthetic.office(800, 600, seed=s) for s in (1, 2, 3)]
+    # One estimation each 5 s: the first (of the first map to arrive) is over long before the second, of
+    # all three maps.
+    proc = start_node(env, tmp_path, "-p", "known_init_poses:=false", "-p", "discovery_rate:=2.0",
+                      "-p", "estimation_rate:=0.2", "--log-level", "map_merge:=debug")
+    rclpy.init()
+    node = rclpy.create_node("three_robots")
+    started = "estimating the poses of 3 robots' maps"
+    try:
+        for i, m in enumerate(maps):
+            msg = m.to_occupancy_grid().fill(OccupancyGrid())
+            msg.header.frame_id = "map"
+            node.create_publisher(OccupancyGrid, f"/robot{i + 1}/map", latched()).publish(msg)
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline and started not in open(tmp_path / "node.log").read():
+            rclpy.spin_once(node, timeout_sec=0.01)
+    finally:  # shut() sends the SIGINT
+        code = shut(node, proc)
+    text = clean_exit(tmp_path, code)
+    assert started in text, text[-3000:]
+    assert "Failed to publish" not in text and "Traceback" not in text, text[-3000:]

@@ -62,6 +62,9 @@ def cells_moved(a: Pose2, b: Pose2, spread: Spread) -> Tuple[float, float]:
     return math.hypot(moved[0], moved[1], 2.0 * math.sin(turn / 2.0) * radius), abs(math.degrees(turn))
 
 
+#: The reason of a robot whose map has not been through an estimation yet.
+NOT_ESTIMATED = "not yet estimated: waiting for the next estimation with its map"
+
 @dataclass
 class Grid:
     """One robot's latest map as it arrived: int8 cells, row 0 at the bottom (ROS)."""
@@ -472,10 +475,12 @@ class LiveMerge:
             return {r: p.pose for r, p in self._placements.items() if r in self._grids}
 
     def reasons(self) -> Dict[str, str]:
-        """Why each robot not placed is not (the latest reason), and what is wrong with a placed one (a
-        given pose the maps contradict)."""
+        """Why each robot not placed is not (the latest reason; ``NOT_ESTIMATED`` before its first
+        estimation), and what is wrong with a placed one (a given pose the maps contradict)."""
         with self._lock:
-            out = {r: why for r, why in self._reasons.items() if r not in self._placements}
+            # A robot whose map came after the last estimation has no verdict yet: said so, not left blank.
+            out = {r: NOT_ESTIMATED for r in self._grids if r not in self._placements}
+            out.update({r: why for r, why in self._reasons.items() if r not in self._placements})
             out.update(self._warnings)
             return out
 

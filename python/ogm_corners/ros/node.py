@@ -10,20 +10,25 @@ from __future__ import annotations
 
 import json
 import math
+import signal
+import sys
 import threading
 import time
-from typing import Any, Dict, Optional, Set
+from typing import Any, Dict, List, Optional, Set
 
 import numpy as np
 
+from .._detect import BACKENDS
 from .._map import OccupancyGrid as Cells
 from .live import LiveMerge, Options, Pose2, grid_of
 
 import rclpy
 from geometry_msgs.msg import PoseStamped, TransformStamped
 from nav_msgs.msg import OccupancyGrid
+from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.signals import SignalHandlerOptions
 from std_msgs.msg import String
 
 try:  # in a ROS 2 install; not in the ros-jazzy-* wheel set
@@ -60,6 +65,27 @@ OURS: Dict[str, Any] = {
 }
 
 
+class ConfigError(ValueError):
+    """A parameter the node cannot run with: refused at start, in one line, rather than failing (or doing
+    nothing) at every map."""
+
+
+def config_errors(p: Dict[str, Any]) -> List[str]:
+    """What is wrong with the parameters ``p`` (none: an empty list)."""
+    errors = []
+    if p["max_cells"] < 1:
+        errors.append(f"max_cells must be 1 or more (the most cells a map may have); got {p['max_cells']}")
+    if p["backend"] not in BACKENDS:
+        errors.append(f"backend must be one of {', '.join(BACKENDS)}; got {p['backend']!r}")
+    topic = p["robot_map_topic"]
+    if not topic.strip() or "/" in topic:
+        errors.append(
+            "robot_map_topic must be the name of each robot's map topic within its namespace, without '/' "
+            f"(as map); got {topic!r}"
+        )
+    return errors
+
+
 def latched(depth: int = 1) -> QoSProfile:
     return QoSProfile(
         history=HistoryPolicy.KEEP_LAST,
@@ -70,6 +96,10 @@ def latched(depth: int = 1) -> QoSProfile:
 
 
 class MapMerge(Node):
+    """The ``map_merge`` node: discovers robots' map topics, merges their maps with no known initial
+    poses, publishes the merged map, each robot's pose and a status document. ``ConfigError`` for
+    parameters it cannot run with."""
+
     def __init__(self) -> None:
         # Undeclared parameters allowed and overrides declared: a params file's per-robot
         # `/robot1/map_merge/init_pose_x` keys load as they do for multirobot_map_merge.
@@ -78,8 +108,15 @@ class MapMerge(Node):
             allow_undeclared_parameters=True,
             automatically_declare_parameters_from_overrides=True,
         )
+        # Log lines go to rosout; once closing, a worker's late line (an estimation that ended after
+        # Ctrl-C) is dropped, not published through a context being shut down.
+        self._log_lock = threading.Lock()
+        self._closed = False
         p = {k: self._param(k, v) for k, v in {**THEIRS, **OURS}.items()}
         self.p = p
+        errors = config_errors(p)
+        if errors:
+            raise ConfigError("; ".join(errors))
         self.live = LiveMerge(
             Options(
                 growth=p["growth"],
@@ -91,7 +128,7 @@ class MapMerge(Node):
             )
         )
         if p["estimation_confidence"] != THEIRS["estimation_confidence"]:
-            self.get_logger().info(
+            self._log("info",
                 "estimation_confidence is multirobot_map_merge's feature-match threshold; this node's "
                 "acceptance is calibrated on real maps and does not use it"
             )
@@ -102,8 +139,9 @@ class MapMerge(Node):
         self.said: Set[str] = set()
         self.bad: Dict[str, str] = {}
         self._merged_topic = self.resolve_topic_name(p["merged_map_topic"])
+        self._warn_merged_topic()
         if GridUpdate is None:
-            self.get_logger().info(
+            self._log("info",
                 "map_msgs is not importable: robots' map_updates are not read, only their full maps (with "
                 "a ROS 2 install, each OccupancyGridUpdate is applied to its robot's map)"
             )
@@ -113,7 +151,7 @@ class MapMerge(Node):
 
             self.tf = tf2_ros.TransformBroadcaster(self)
         except ImportError:
-            self.get_logger().info(
+            self._log("info",
                 "tf2_ros is not importable: no world_frame -> <robot>/map transforms are published; each "
                 "robot's map pose is on <robot>/map_merge/pose"
             )
@@ -155,7 +193,7 @@ class MapMerge(Node):
                 raise ValueError
             return out
         except (TypeError, ValueError):
-            self.get_logger().error(
+            self._log("error",
                 f"parameter {name}: {v!r} is not a valid {type(default).__name__}; using {default!r}"
             )
             return default
@@ -183,6 +221,34 @@ class MapMerge(Node):
                 return None
             values.append(v)
         return (values[0], values[1], values[3])
+
+    def _warn_merged_topic(self) -> None:
+        """Says when the merged map's topic is where a robot's map would be: that robot is never merged
+        (the node must not read its own output)."""
+        robot, _, last = self._merged_topic.rpartition("/")
+        if robot and last == self.p["robot_map_topic"] and self.p["robot_namespace"] in self._merged_topic:
+            self._log(
+                "warning",
+                f"merged_map_topic {self._merged_topic} is robot {robot}'s map topic: that robot's map is not "
+                "read (it would be this node's own output); set merged_map_topic to a topic of its own",
+            )
+
+    def _log(self, level: str, text: str) -> None:
+        """Logs ``text`` at ``level`` (``debug``, ``info``, ``warning``, ``error``) unless the node is
+        closing."""
+        with self._log_lock:
+            if self._closed:
+                return
+            # One call site a severity: rclpy refuses a site whose severity changes between calls.
+            log = self.get_logger()
+            if level == "debug":
+                log.debug(text)
+            elif level == "info":
+                log.info(text)
+            elif level == "warning":
+                log.warning(text)
+            else:
+                log.error(text)
 
     # ---- discovery ----
 
@@ -233,7 +299,7 @@ class MapMerge(Node):
                     GridUpdate, updates, lambda msg, r=robot: self.on_update(r, msg), 10
                 )
             self.pose_pubs[robot] = self.create_publisher(PoseStamped, f"{robot}/map_merge/pose", latched())
-            self.get_logger().info(
+            self._log("info",
                 f"robot {robot}: subscribed to {name} ({'transient-local' if durable else 'volatile'}, "
                 f"{'reliable' if reliable else 'best-effort'})"
             )
@@ -267,7 +333,7 @@ class MapMerge(Node):
                 grid, why = grid_of(msg, self.p["max_cells"], stamp)
                 if grid is None:
                     if self.bad.get(robot) != why:
-                        self.get_logger().warning(f"robot {robot}: map ignored: {why}")
+                        self._log("warning", f"robot {robot}: map ignored: {why}")
                         self.bad[robot] = why
                     continue
                 self.bad.pop(robot, None)
@@ -278,7 +344,7 @@ class MapMerge(Node):
         stamp = msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
         why = self.live.patch(robot, msg.x, msg.y, msg.width, msg.height, msg.data, stamp)
         if why is not None and self.bad.get(robot) != why:
-            self.get_logger().warning(f"robot {robot}: map update ignored: {why}")
+            self._log("warning", f"robot {robot}: map update ignored: {why}")
             self.bad[robot] = why
 
     # ---- estimation and output, off the executor's thread ----
@@ -295,17 +361,17 @@ class MapMerge(Node):
                 continue
             next_estimate = time.monotonic() + period
             try:
+                self._log("debug", f"estimating the poses of {len(self.live.robots())} robots' maps")
                 for e in self.live.estimate():
-                    log = self.get_logger()
                     if e.kind in ("contradicts", "moved"):
-                        log.warning(e.text)
+                        self._log("warning", e.text)
                     elif e.kind in ("placed", "not_placed"):
-                        log.info(e.text)
+                        self._log("info", e.text)
                 self._status()
             except Exception as e:  # one bad estimation must not end the node
                 if not self.context.ok():
                     return
-                self.get_logger().error(f"estimation failed: {type(e).__name__}: {e}")
+                self._log("error", f"estimation failed: {type(e).__name__}: {e}")
 
     def _merge_loop(self) -> None:
         """The merged map, poses and transforms at ``merging_rate`` when a map or a pose has changed."""
@@ -325,7 +391,7 @@ class MapMerge(Node):
             except Exception as e:
                 if not self.context.ok():
                     return
-                self.get_logger().error(f"merging failed: {type(e).__name__}: {e}")
+                self._log("error", f"merging failed: {type(e).__name__}: {e}")
             # At most merging_rate: the next one no sooner than a period after this one began.
             self._stop.wait(max(0.0, period - (time.monotonic() - started)))
 
@@ -392,25 +458,49 @@ class MapMerge(Node):
     def _once(self, key: str, text: str) -> None:
         if key not in self.said:
             self.said.add(key)
-            self.get_logger().warning(text)
+            self._log("warning", text)
 
     def close(self) -> None:
+        """Stops the workers; from now on nothing is logged (see ``_log``)."""
+        with self._log_lock:
+            self._closed = True
         self._stop.set()
         for w in self._workers:
             w.join(timeout=10)
 
 
+def _terminated(signum: int, frame: Any) -> None:
+    raise KeyboardInterrupt
+
+
 def main(args: Optional[list] = None) -> int:
-    rclpy.init(args=args)
-    node = MapMerge()
+    """Runs the node until SIGINT or SIGTERM: 0, or 2 with a one-line error for parameters it cannot run
+    with."""
+    # rclpy's own handlers would shut the context down at once, while a worker may still log through it
+    # ("Failed to publish log message to rosout"): here a signal raises KeyboardInterrupt in the spin
+    # loop, and the context is shut down once the node is closed.
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    signal.signal(signal.SIGTERM, _terminated)
     try:
-        rclpy.spin(node)
-    except KeyboardInterrupt:
-        pass
-    except rclpy.executors.ExternalShutdownException:
+        node = MapMerge()
+    except ConfigError as e:
+        print(f"map_merge: {e}", file=sys.stderr)
+        rclpy.try_shutdown()
+        return 2
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+    try:
+        # Short waits: a signal's handler runs between them (nothing wakes a wait otherwise).
+        while rclpy.ok():
+            executor.spin_once(timeout_sec=0.1)
+    except (KeyboardInterrupt, rclpy.executors.ExternalShutdownException):
         pass
     finally:
-        node.close()
+        try:
+            node.close()
+        except KeyboardInterrupt:
+            pass  # a second Ctrl-C: no waiting for the workers (daemons, whose logging is off by now)
+        executor.shutdown()
         node.destroy_node()
         rclpy.try_shutdown()
     return 0

@@ -56,6 +56,8 @@ impl Engine for Local {
         maps.par_iter()
             .map(|&(_, map)| {
                 crate::stop::with(stop.clone(), || {
+                    // A raised stop skips the maps not yet prepared.
+                    crate::stop::check()?;
                     let s = signatures.then(|| Signature::of(map)).transpose()?;
                     Ok((Prepared::new(map), s))
                 })

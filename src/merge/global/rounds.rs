@@ -47,6 +47,8 @@ pub(super) fn align_rounds(
         let s: Vec<&Signature> = signatures.iter().flatten().collect();
         prescreen::similarities(&s)
     });
+    // Comparing thousands of signatures takes a while: a raised stop ends the run here.
+    crate::stop::check()?;
     let mut chosen: Vec<(usize, usize)> = match (screen, &similar) {
         (Some(p), Some(similar)) => {
             let sizes: Vec<f64> = maps.iter().map(|m| m.walls.len() as f64).collect();
