@@ -35,32 +35,13 @@ fn group_path(base: &Path, g: usize) -> PathBuf {
 /// (a fifo would block, a device never end), and what is read is bounded as it is read (its size as
 /// the file system gives it may be wrong): reading it and its parse take about four times its bytes.
 fn previous(file: &Path, budget: &Budget) -> Result<Previous> {
-    use std::io::Read;
-    let what = format!("--from {}", file.display());
-    let bad = |why: String| Error::invalid(format!("{what}: {why}"));
-    let meta = std::fs::metadata(file).map_err(|e| bad(e.to_string()))?;
-    if !meta.is_file() {
-        return Err(bad(format!(
-            "not a regular file ({})",
-            files::kind_of(&meta)
-        )));
-    }
-    let most = budget.limit() / 4;
-    let mut bytes = Vec::new();
-    std::fs::File::open(file)
-        .and_then(|f| f.take(most.saturating_add(1)).read_to_end(&mut bytes))
-        .map_err(|e| bad(e.to_string()))?;
-    budget.check(
-        format_args!("{what} (read so far)"),
-        (bytes.len() as u64).saturating_mul(4),
-    )?;
-    let text = String::from_utf8(bytes).map_err(|e| {
-        bad(format!(
-            "not UTF-8 text (invalid byte at offset {})",
-            e.utf8_error().valid_up_to()
-        ))
-    })?;
-    Previous::parse(&text, &what)
+    let text = files::read_small_text(
+        file,
+        budget.limit() / 4,
+        "a --poses file within a quarter of the memory budget (raise it with --max-memory)",
+    )
+    .map_err(|e| Error::invalid(format!("--from {e}")))?;
+    Previous::parse(&text, &format!("--from {}", file.display()))
 }
 
 pub(super) fn run(a: MergeArgs, budget: &Budget) -> Result<()> {

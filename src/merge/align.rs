@@ -52,6 +52,8 @@ const POLISH_ROUNDS: usize = 4;
 /// Candidates refined: the best distinct ones of the tolerant screening, then more of the strict one.
 const REFINED: usize = 8;
 const STRICT: usize = 4;
+/// What a pair declined before any search for want of walls says (a placement tells it apart).
+pub(crate) const NO_WALLS: &str = "no walls next to free space";
 /// The most candidates an alignment refines (so the most a pair's record may carry).
 pub const MAX_CANDIDATES: usize = REFINED + STRICT;
 /// Two candidates are distinct when they move B's reference points (wall bounding box corners and
@@ -163,9 +165,9 @@ pub fn align_prepared_with(
         ));
     }
     if !src.alignable() || !dst.alignable() {
-        return Ok(declined(
-            "a map has (almost) no walls next to free space: nothing to align",
-        ));
+        return Ok(declined(&format!(
+            "a map has (almost) {NO_WALLS}: nothing to align"
+        )));
     }
     let CoarseSet {
         cell,

@@ -342,6 +342,9 @@ fn peaks(vals: &[f32], n: usize, k: usize) -> Vec<(usize, f32)> {
     }
 }
 
+/// What refusing a pair too large to correlate says (a placement tells it apart).
+pub(crate) const TOO_LARGE: &str = "too large to align";
+
 /// Refuses maps whose prepared parts (`src` moved onto `dst`, pixels) are too large to align: the
 /// correlation at the coarsest cells would be over [`MAX_FFT`] cells a side. Known from the sizes alone,
 /// so callers check before preparing.
@@ -353,7 +356,7 @@ pub(super) fn check_size(src: (usize, usize), dst: (usize, usize)) -> Result<()>
     let n = (dh.max(dw) + diag).next_power_of_two();
     if n > MAX_FFT {
         return Err(Error::invalid(format!(
-            "maps whose explored parts span {}x{} and {}x{} pixels are too large to align (at most {} \
+            "maps whose explored parts span {}x{} and {}x{} pixels are {TOO_LARGE} (at most {} \
              coarse cells across both)",
             src.0, src.1, dst.0, dst.1, MAX_FFT
         )));

@@ -4,7 +4,9 @@
 //! holding one small room is not refused for the canvas.
 
 use super::compose::Canvas;
-use super::prepare::{crop_box, kept_bytes, prepared_bytes, spectrum_bytes, CROP_PAD};
+use super::prepare::{
+    crop_box, kept_bytes, prepared_bytes, preparing_bytes, rotation_tasks, spectrum_bytes, CROP_PAD,
+};
 use super::resample::resampled_size;
 use super::transform::Rigid;
 use crate::error::Result;
@@ -56,11 +58,8 @@ impl Footprint {
     pub fn working(&self) -> u64 {
         let side = |v: u64| u32::try_from(v).unwrap_or(u32::MAX);
         let (c0, c1) = (side(self.crop.0), side(self.crop.1));
-        let spectra = spectrum_bytes(c0, c1);
-        let tasks = rayon::current_num_threads().clamp(1, 10) as u64;
-        let correlation = (4 + 3 * tasks) * spectra;
-        let prepare = prepared_bytes(c0, c1).saturating_sub(kept_bytes(c0, c1));
-        let temporaries = prepare.saturating_sub((3 * tasks + 3) * spectra);
+        let correlation = (4 + 3 * rotation_tasks()) * spectrum_bytes(c0, c1);
+        let temporaries = preparing_bytes(c0, c1).saturating_sub(kept_bytes(c0, c1));
         temporaries.max(correlation)
     }
 }

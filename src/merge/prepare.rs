@@ -23,10 +23,19 @@ const PAD: usize = 8;
 /// each of up to 10 rotation pairs at once, and the reference map's, n of its coarsest cells and another
 /// map's diagonal, at most the correlation's limit).
 pub fn prepared_bytes(width: u32, height: u32) -> u64 {
-    let px = u64::from(width) * u64::from(height);
-    let tasks = rayon::current_num_threads().clamp(1, 10) as u64;
-    px.saturating_mul(42)
-        .saturating_add((3 * tasks + 3) * spectrum_bytes(width, height))
+    preparing_bytes(width, height)
+        .saturating_add((3 * rotation_tasks() + 3) * spectrum_bytes(width, height))
+}
+
+/// Bytes a `width` x `height` map's preparation holds while it is made: 42 a pixel (two distance maps
+/// with their nearest pixels, the flag bytes, the masks, the transform's row buffers).
+pub fn preparing_bytes(width: u32, height: u32) -> u64 {
+    (u64::from(width) * u64::from(height)).saturating_mul(42)
+}
+
+/// A pair's coarse rotations that run at once: one a core, at most 10 (20 rotations, two a task).
+pub fn rotation_tasks() -> u64 {
+    rayon::current_num_threads().clamp(1, 10) as u64
 }
 
 /// Bytes of one n x n complex spectrum of the coarse correlation of a `width` x `height` map with

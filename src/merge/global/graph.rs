@@ -619,7 +619,10 @@ fn mosaics_agree(
 /// the same kind of reason (too large to correlate with the other map, or no walls to align): that
 /// reason, rather than a want of confidence.
 fn unalignable(pairwise: &Pairwise, m: usize) -> Option<String> {
-    const BEFORE_ANY_SEARCH: [&str; 2] = ["too large to align", "no walls next to free space"];
+    const BEFORE_ANY_SEARCH: [&str; 2] = [
+        crate::merge::coarse::TOO_LARGE,
+        crate::merge::align::NO_WALLS,
+    ];
     let mine: Vec<&str> = pairwise
         .pairs
         .iter()

@@ -326,24 +326,34 @@ pub fn place(
 /// Pairs whose records did not hold on the maps (the maps' indices, why).
 type Refused = Vec<(usize, usize, String)>;
 
-/// The carried records (`start`) that hold on the maps ([`verify`]), checked in parallel, and the pairs
-/// whose records do not, with why.
-fn vouched(
+/// Why each record (map `b` onto map `a`) does not hold on the maps ([`verify`]), `None` where it does;
+/// checked in parallel, a raised stop ending the checks not started.
+fn why_not_each(
     maps: &[Prepared],
-    start: rounds::Aligned,
+    records: &[((usize, usize), &PairRecord)],
     options: &GlobalOptions,
-) -> Result<(rounds::Aligned, Refused)> {
+) -> Result<Vec<Option<String>>> {
     use rayon::prelude::*;
     let stop = crate::stop::current();
-    let verdicts: Vec<Option<String>> = start
+    records
         .par_iter()
-        .map(|(&(a, b), r)| {
+        .map(|&((a, b), r)| {
             crate::stop::with(stop.clone(), || {
                 crate::stop::check()?;
                 verify::why_not(&maps[a], &maps[b], r, options)
             })
         })
-        .collect::<Result<_>>()?;
+        .collect()
+}
+
+/// The carried records (`start`) that hold on the maps, and the pairs whose records do not, with why.
+fn vouched(
+    maps: &[Prepared],
+    start: rounds::Aligned,
+    options: &GlobalOptions,
+) -> Result<(rounds::Aligned, Refused)> {
+    let records: Vec<((usize, usize), &PairRecord)> = start.iter().map(|(&p, r)| (p, r)).collect();
+    let verdicts = why_not_each(maps, &records, options)?;
     let mut refused = Vec::new();
     let mut kept = rounds::Aligned::new();
     for (((a, b), r), why) in start.into_iter().zip(verdicts) {
@@ -365,7 +375,6 @@ fn refuse_unfounded(
     records: &[PairRecord],
     options: &GlobalOptions,
 ) -> Result<()> {
-    use rayon::prelude::*;
     if records.len() != pairs.len() {
         return Err(crate::Error::invalid(format!(
             "the engine aligned {} pairs of {}",
@@ -373,17 +382,8 @@ fn refuse_unfounded(
             pairs.len()
         )));
     }
-    let stop = crate::stop::current();
-    let verdicts: Vec<Option<String>> = pairs
-        .par_iter()
-        .zip(records)
-        .map(|(&(a, b), r)| {
-            crate::stop::with(stop.clone(), || {
-                crate::stop::check()?;
-                verify::why_not(&maps[a], &maps[b], r, options)
-            })
-        })
-        .collect::<Result<_>>()?;
+    let each: Vec<((usize, usize), &PairRecord)> = pairs.iter().copied().zip(records).collect();
+    let verdicts = why_not_each(maps, &each, options)?;
     match pairs
         .iter()
         .zip(verdicts)

@@ -51,9 +51,9 @@ const AT_SLACK: f64 = 1e-6;
 /// The longest reason a record may give, characters.
 const MAX_REASON: usize = 2000;
 
-/// Why `r` (B, `pb`, onto A, `pa`) does not hold on the maps, or `None` when it does. `whole`: the maps
-/// are held whole ([`Prepared`] able to align), so an accepted choice's self-symmetry and alternative
-/// poses are measured too.
+/// Why `r` (B, `pb`, onto A, `pa`) does not hold on the maps, or `None` when it does. When the maps are
+/// held whole ([`Prepared`] able to align), an accepted choice's self-symmetry and alternative poses are
+/// measured too.
 pub(super) fn why_not(
     pa: &Prepared,
     pb: &Prepared,
@@ -209,9 +209,9 @@ fn shape(r: &PairRecord, options: &GlobalOptions) -> Option<String> {
             ));
         }
         if e.rank >= MAX_CANDIDATES || last.is_some_and(|l| e.rank <= l) {
-            return Some(
-                "its candidates' ranks are not distinct, ascending and below 12".to_string(),
-            );
+            return Some(format!(
+                "its candidates' ranks are not distinct, ascending and below {MAX_CANDIDATES}"
+            ));
         }
         last = Some(e.rank);
         if !(0.0..=1.0).contains(&e.residual) {
