@@ -99,9 +99,12 @@ pub fn decode(data: &[u8]) {
 
 /// The map yaml loader: any text parses or fails with a one-line message; what parses is valid.
 pub fn yaml(data: &[u8]) {
+    // What a folder search reads of any file's first bytes: never a panic.
+    let _ = ogm_corners::marks::mark_in(data);
     let Ok(text) = std::str::from_utf8(data) else {
         return;
     };
+    let _ = MapYaml::meant_image(text);
     match MapYaml::parse(text) {
         Ok(m) => {
             assert!(m.resolution.is_finite() && m.resolution > 0.0);

@@ -424,17 +424,26 @@ pub fn write_png(path: &Path, img: &image::RgbImage) -> Result<()> {
     write_atomic(path, |w| encode_png(w, img))
 }
 
-/// `img` as a PNG into `w`.
+/// `img` as a PNG into `w`, marked as the tool's picture (a `Software` text chunk, [`crate::marks`]) so
+/// that a folder run never reads it back as a map.
 pub fn encode_png(w: &mut dyn Write, img: &image::RgbImage) -> io::Result<()> {
-    use image::ImageEncoder as _;
-    image::codecs::png::PngEncoder::new(w)
-        .write_image(
-            img.as_raw(),
-            img.width(),
-            img.height(),
-            image::ExtendedColorType::Rgb8,
+    let mut encoder = png::Encoder::new(w, img.width(), img.height());
+    encoder.set_color(png::ColorType::Rgb);
+    encoder.set_depth(png::BitDepth::Eight);
+    // The settings the `image` crate's encoder used before the mark.
+    encoder.set_compression(png::Compression::Balanced);
+    encoder.set_filter(png::Filter::Adaptive);
+    encoder
+        .add_text_chunk(
+            crate::marks::PNG_KEYWORD.to_string(),
+            crate::marks::PICTURE.to_string(),
         )
-        .map_err(io::Error::other)
+        .map_err(io::Error::other)?;
+    let mut writer = encoder.write_header().map_err(io::Error::other)?;
+    writer
+        .write_image_data(img.as_raw())
+        .map_err(io::Error::other)?;
+    writer.finish().map_err(io::Error::other)
 }
 
 /// Creates `dir` (and its parents) unless it exists; a file in its place is a usage error (exit 2), not

@@ -25,7 +25,8 @@
 //! A file imports only its own layer and the layers below it, and no file imports one that imports it
 //! back: `tests/layering.rs` checks both on the source.
 //!
-//! 1. **Services**: [`error`], [`stop`], [`memory`], [`files`], [`plot`] (drawing), [`report`] (HTML pages).
+//! 1. **Services**: [`error`], [`stop`], [`threads`] (the worker pool), [`memory`], [`files`], [`marks`] (what the tool's own outputs
+//!    carry), [`plot`] (drawing), [`report`] (HTML pages).
 //! 2. **Maps**: [`decode`] (PGM/PNG), [`map`] (yaml, georeference, thresholds), [`stream`] (maps as rows),
 //!    [`states`] (the three states), [`synth`] (synthetic maps), [`grid`] (a grid turned to the walls).
 //! 3. **Rules, the backend interface and the reference**: [`rules`] (the paper's 256-entry table),
@@ -55,11 +56,13 @@ macro_rules! say {
 // 1. Services.
 pub mod error;
 pub mod files;
+pub mod marks;
 pub mod memory;
 pub mod plot;
 pub mod report;
 mod stats;
 pub mod stop;
+pub mod threads;
 // 2. Maps.
 pub mod decode;
 pub mod grid;

@@ -82,6 +82,11 @@ fn main() -> ExitCode {
             ogm_corners::error::one_line(&what)
         );
     }));
+    quiet_display_probe();
+    // Before the first parallel work, so the pool is made at its capped size.
+    if let Some(note) = ogm_corners::threads::cap_pool() {
+        ogm_corners::say!("ogm-corners: note: {note}");
+    }
     // Past a file size limit (`ulimit -f`) a write then fails with EFBIG, reported and cleaned up like a
     // full disk, instead of SIGXFSZ killing the process with its temporary files left behind.
     #[cfg(unix)]
@@ -124,6 +129,20 @@ fn main() -> ExitCode {
         }
         // The panic hook has said what happened.
         Err(_) => ExitCode::from(1),
+    }
+}
+
+/// Without a desktop session (no `XDG_RUNTIME_DIR`), Mesa's Vulkan device-selection layer still asks
+/// Wayland for the display's GPU when adapters are listed, and Wayland prints "error: XDG_RUNTIME_DIR is
+/// invalid or not set" on standard error, however well the run goes. With no display there is nothing to
+/// select by, so the layer is turned off (its own switch, `NODEVICE_SELECT`) unless the user set it.
+fn quiet_display_probe() {
+    let session = std::env::var_os("XDG_RUNTIME_DIR")
+        .is_some_and(|d| !d.is_empty() && std::path::Path::new(&d).is_dir());
+    if !session && std::env::var_os("NODEVICE_SELECT").is_none() {
+        // At the start of main, before any other thread exists (the interrupt handler's and the
+        // worker pool's are made after this).
+        std::env::set_var("NODEVICE_SELECT", "1");
     }
 }
 

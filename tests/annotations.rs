@@ -21,7 +21,15 @@ fn eval(args: &[&str]) -> (String, String, Option<i32>) {
 #[test]
 fn marked_room_corners_are_found_and_unannotated_maps_are_noted() {
     let d = tempfile::tempdir().unwrap();
-    let room = common::art(&["########", "#......#", "#......#", "#......#", "########"]);
+    // The room in the top-left corner of a 40 x 40 map that is otherwise unknown, so a mark can lie on
+    // the map and far from every corner.
+    let art = common::art(&["########", "#......#", "#......#", "#......#", "########"]);
+    let mut room = ogm_corners::MapImage::filled(40, 40, ogm_corners::synth::UNKNOWN).unwrap();
+    for y in 0..art.height() {
+        for x in 0..art.width() {
+            room.pixels_mut()[(y * 40 + x) as usize] = art.get(x, y);
+        }
+    }
     room.write_pgm(&d.path().join("room.pgm")).unwrap();
     room.write_pgm(&d.path().join("other.pgm")).unwrap();
     // The four inner corners are (1,1), (6,1), (1,3), (6,3); one mark is far from all of them.

@@ -292,7 +292,8 @@ fn the_checker_sees_use_groups_and_paths() {
 fn layer_of(file: &str) -> Option<u32> {
     let top = file.split('/').next()?.trim_end_matches(".rs");
     Some(match top {
-        "error" | "stop" | "memory" | "files" | "stats" | "plot" | "report" => 1,
+        "error" | "stop" | "threads" | "memory" | "files" | "marks" | "stats" | "plot"
+        | "report" => 1,
         "decode" | "map" | "stream" | "states" | "synth" | "grid" => 2,
         "rules" | "baselines" | "backend" | "cpu" => 3,
         "fast" | "gpu" => 4,

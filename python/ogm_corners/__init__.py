@@ -12,8 +12,21 @@ drives, bit-identical between them; and a merger of many robots' maps that decli
         merged = oc.compose(m, "other.yaml", al)
 """
 
+import os as _os
+import warnings as _warnings
+
+# Without a desktop session, Mesa's Vulkan device-selection layer asks Wayland for the display's GPU
+# when adapters are listed, and Wayland prints "error: XDG_RUNTIME_DIR is invalid or not set" however
+# well the call goes; with no display there is nothing to select by (as the command line does).
+_session = _os.environ.get("XDG_RUNTIME_DIR")
+if not (_session and _os.path.isdir(_session)):
+    _os.environ.setdefault("NODEVICE_SELECT", "1")
+
 from . import _core
 from ._core import BackendUnavailableError
+
+if _core._THREADS_NOTE is not None:
+    _warnings.warn(_core._THREADS_NOTE, RuntimeWarning, stacklevel=2)
 from ._detect import BACKENDS, DETECTORS, Detector, detect
 from ._keypoints import DTYPE, DTYPE_WORLD, Keypoints
 from ._map import Map, OccupancyGrid, State, load_map

@@ -7,6 +7,7 @@ import enum
 import errno
 import math
 import os
+import warnings
 from dataclasses import dataclass
 from typing import Any, Optional, Tuple, Union
 
@@ -43,6 +44,23 @@ def _origin(origin: Any) -> Origin:
     if len(values) != 3:
         raise ValueError(f"origin must be (x, y, yaw) or a Pose, got {origin!r}")
     return values  # type: ignore[return-value]
+
+
+def _finite_yaw(origin: Origin, stacklevel: int = 3) -> Origin:
+    """``origin`` with a non-finite yaw (NaN, inf) replaced by 0, with a warning: as the command line
+    reads a yaml whose yaw is ``nan``, so that every later use (world coordinates, an OccupancyGrid's
+    quaternion) is finite."""
+    x, y, yaw = origin
+    if math.isfinite(yaw):
+        return origin
+    warnings.warn(f"origin yaw is {yaw}; world coordinates use yaw 0", RuntimeWarning,
+                  stacklevel=stacklevel)
+    return (x, y, 0.0)
+
+
+def _zero_nonfinite_yaw(origin: Origin) -> Origin:
+    x, y, yaw = origin
+    return origin if math.isfinite(yaw) else (x, y, 0.0)
 
 
 def _grid_cells(data: Any) -> np.ndarray:
@@ -133,7 +151,7 @@ class Map:
             raise TypeError(f"a map image is uint8 grey levels, got {a.dtype}{hint}")
         if a.ndim != 2:
             raise ValueError(f"a map image is 2-D (height, width), got shape {a.shape}")
-        o = None if origin is None else _origin(origin)
+        o = None if origin is None else _finite_yaw(_origin(origin))
         self._m = _core.Map(
             a, resolution, o, negate=negate, occupied_thresh=occupied_thresh,
             free_thresh=free_thresh, copy=copy,
@@ -198,7 +216,8 @@ class Map:
             width=self.width,
             height=self.height,
             resolution=self.resolution or 1.0,
-            origin=self.origin or (0.0, 0.0, 0.0),
+            # A yaml's `nan` yaw (said in `warnings` when loaded) is read as 0, as everywhere else.
+            origin=_zero_nonfinite_yaw(self.origin or (0.0, 0.0, 0.0)),
         )
 
     @property
@@ -255,7 +274,8 @@ class Map:
 
     def with_georef(self, resolution: float, origin: Any = None) -> "Map":
         """The same pixels (not copied) with another resolution and origin."""
-        return Map._wrap(self._m.with_georef(resolution, None if origin is None else _origin(origin)))
+        o = None if origin is None else _finite_yaw(_origin(origin))
+        return Map._wrap(self._m.with_georef(resolution, o))
 
     def pixel_to_world(self, x: Any, y: Any) -> Tuple[np.ndarray, np.ndarray]:
         """World coordinates (metres) of pixel centres (x, y), rows counted from the top."""
@@ -269,17 +289,25 @@ class Map:
         return ox + c * mx - s * my, oy + s * mx + c * my
 
     def __reduce__(self) -> Any:
-        # Pickled (multiprocessing, joblib) as its pixels, georeference and thresholds.
+        # Pickled (multiprocessing, joblib) as its pixels, georeference, thresholds, the files it came
+        # from (a merge names the map by them) and what loading noticed.
         negate, occupied, free = self.thresholds
         kwargs = {"negate": negate, "occupied_thresh": occupied, "free_thresh": free}
-        return (_unpickle, (np.array(self.pixels), self.resolution, self.origin, kwargs))
+        files = self._m._files()
+        return (_unpickle, (np.array(self.pixels), self.resolution, self.origin, kwargs, files))
 
     def __repr__(self) -> str:
         return repr(self._m)
 
 
-def _unpickle(pixels: np.ndarray, resolution: Optional[float], origin: Any, kwargs: dict) -> Map:
-    return Map(pixels, resolution, origin, copy=False, **kwargs)
+def _unpickle(pixels: np.ndarray, resolution: Optional[float], origin: Any, kwargs: dict,
+              files: Any = None) -> Map:
+    # A loaded map's `nan` yaw was said when it was loaded (its warnings come along): not again.
+    origin = None if origin is None else _zero_nonfinite_yaw(tuple(origin))
+    m = Map(pixels, resolution, origin, copy=False, **kwargs)
+    if files is not None:
+        m._m = m._m._with_files(*files)
+    return m
 
 
 def load_map(path: PathLike) -> Map:

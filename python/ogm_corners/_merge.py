@@ -230,9 +230,19 @@ class ManyMerge:
     def __iter__(self) -> Iterator[Any]:
         return iter((self.merged, self.poses))
 
+    def __reduce__(self) -> Any:
+        # Pickled (a process pool's result) as the report, the maps as placed, the groups and poses:
+        # what its merged maps and pictures are drawn from.
+        report, maps, groups, poses = self._core._parts()
+        return (_unpickle_many, (report, [Map._wrap(m) for m in maps], groups, poses))
+
     def __repr__(self) -> str:
         placed = sum(p is not None for p in self.poses)
         return f"ManyMerge({placed} of {len(self.poses)} maps placed in {self.groups} group(s))"
+
+
+def _unpickle_many(report: str, maps: List[Map], groups: List[List[int]], poses: List[Any]) -> ManyMerge:
+    return ManyMerge(_core.ManyMerge._from_parts(report, [m._m for m in maps], groups, poses))
 
 
 class MergeCache:

@@ -155,7 +155,7 @@ pub fn merge_many_on(
     if let Some(e) = engine.raised.take() {
         return Err(e);
     }
-    Ok(ManyMerge { inner: outcome? })
+    ManyMerge::of(outcome?)
 }
 
 /// A map's preparation as bytes: whole, its placement part, its signature when asked for.

@@ -294,6 +294,31 @@ impl Map {
         }))
     }
 
+    /// The files the map came from and what loading noticed: (yaml, image, warnings), for pickling.
+    fn _files(&self) -> (Option<PathBuf>, Option<PathBuf>, Vec<String>) {
+        let m = &self.inner;
+        (
+            m.yaml_path.clone(),
+            m.image_path.clone(),
+            m.warnings.clone(),
+        )
+    }
+
+    /// The same map said to come from these files, with these warnings (a pickled map unpickled).
+    fn _with_files(
+        &self,
+        yaml: Option<PathBuf>,
+        image: Option<PathBuf>,
+        warnings: Vec<String>,
+    ) -> Map {
+        Map::wrap(OccupancyMap {
+            yaml_path: yaml,
+            image_path: image,
+            warnings,
+            ..self.inner.clone()
+        })
+    }
+
     fn __repr__(&self) -> String {
         let m = &self.inner;
         let mut s = format!("Map({}x{}", m.image.width(), m.image.height());

@@ -4,9 +4,10 @@
 use numpy::ndarray::Array3;
 use numpy::{IntoPyArray, PyArray3};
 use ogm_corners::merge::global::{self, GlobalOptions};
+use ogm_corners::merge::mosaic;
 use ogm_corners::merge::pair;
 use ogm_corners::merge::{MergeOptions, Rigid};
-use ogm_corners::{BackendChoice, Error};
+use ogm_corners::{BackendChoice, Error, OccupancyMap};
 use pyo3::prelude::*;
 
 use crate::errors::{finite_transform, interruptible, to_py, unlocked, within_budget};
@@ -96,44 +97,128 @@ fn rigid((theta_deg, tx, ty): (f64, f64, f64)) -> Rigid {
     Rigid { theta_deg, tx, ty }
 }
 
-/// Many maps placed; see the package's `ogm_corners.ManyMerge`.
+/// Many maps placed; see the package's `ogm_corners.ManyMerge`. It keeps what its methods draw from: the
+/// report, the maps as placed and each group's members and poses (not the pairs' verdicts), which is also
+/// what it is pickled as.
 #[pyclass(frozen, module = "ogm_corners._core", name = "ManyMerge")]
 pub struct ManyMerge {
-    pub(crate) inner: global::ManyMerge,
-}
-
-#[pymethods]
-impl ManyMerge {
-    /// The report (`merge ... --poses` JSON).
-    fn _report(&self) -> PyResult<String> {
-        serde_json::to_string(&self.inner.report).map_err(|e| to_py(Error::Internal(e.to_string())))
-    }
-
-    /// Group `g`'s merged map.
-    fn _merged(&self, py: Python<'_>, g: usize) -> PyResult<Map> {
-        self.check(g)?;
-        let m = &self.inner;
-        interruptible(py, || m.merged(g)).map(Map::wrap)
-    }
-
-    /// Group `g`'s picture, each map's walls in its own colour.
-    fn _overlay<'py>(&self, py: Python<'py>, g: usize) -> PyResult<Bound<'py, PyArray3<u8>>> {
-        self.check(g)?;
-        let m = &self.inner;
-        let picture = interruptible(py, || m.overlay(g))?;
-        rgb_array(py, picture)
-    }
+    report: String,
+    maps: Vec<OccupancyMap>,
+    groups: Vec<Vec<usize>>,
+    poses: Vec<Rigid>,
 }
 
 impl ManyMerge {
+    /// What Python keeps of a many-map merge.
+    pub(crate) fn of(m: global::ManyMerge) -> PyResult<ManyMerge> {
+        let report =
+            serde_json::to_string(&m.report).map_err(|e| to_py(Error::Internal(e.to_string())))?;
+        let poses = m.run.placement.maps.iter().map(|p| p.pose).collect();
+        Ok(ManyMerge {
+            report,
+            groups: m.run.placement.groups,
+            poses,
+            maps: m.maps,
+        })
+    }
+
     fn check(&self, g: usize) -> PyResult<()> {
-        let n = self.inner.groups();
+        let n = self.groups.len();
         if g >= n {
             return Err(pyo3::exceptions::PyIndexError::new_err(format!(
                 "group {g} of {n}"
             )));
         }
         Ok(())
+    }
+
+    /// Group `g`'s maps and their poses in its frame.
+    fn group(&self, g: usize) -> (Vec<&OccupancyMap>, Vec<Rigid>) {
+        self.groups[g]
+            .iter()
+            .map(|&m| (&self.maps[m], self.poses[m]))
+            .unzip()
+    }
+}
+
+#[pymethods]
+impl ManyMerge {
+    /// The report (`merge ... --poses` JSON).
+    fn _report(&self) -> String {
+        self.report.clone()
+    }
+
+    /// Group `g`'s merged map.
+    fn _merged(&self, py: Python<'_>, g: usize) -> PyResult<Map> {
+        self.check(g)?;
+        let (ms, ps) = self.group(g);
+        interruptible(py, || mosaic::compose_many(&ms, &ps).map(|(m, _)| m)).map(Map::wrap)
+    }
+
+    /// Group `g`'s picture, each map's walls in its own colour.
+    fn _overlay<'py>(&self, py: Python<'py>, g: usize) -> PyResult<Bound<'py, PyArray3<u8>>> {
+        self.check(g)?;
+        let (ms, ps) = self.group(g);
+        let picture = interruptible(py, || mosaic::overlay_many(&ms, &ps))?;
+        rgb_array(py, picture)
+    }
+
+    /// What it is pickled as: the report, the maps as placed, the groups' members and every map's pose
+    /// (theta degrees, tx, ty).
+    #[allow(clippy::type_complexity)]
+    fn _parts(&self) -> (String, Vec<Map>, Vec<Vec<usize>>, Vec<(f64, f64, f64)>) {
+        (
+            self.report.clone(),
+            self.maps.iter().cloned().map(Map::wrap).collect(),
+            self.groups.clone(),
+            self.poses
+                .iter()
+                .map(|p| (p.theta_deg, p.tx, p.ty))
+                .collect(),
+        )
+    }
+
+    /// A merge from its [`ManyMerge::_parts`] (unpickling), checked: every group's members are maps
+    /// of the set, each in one group, every pose finite.
+    #[staticmethod]
+    fn _from_parts(
+        report: String,
+        maps: Vec<PyRef<'_, Map>>,
+        groups: Vec<Vec<usize>>,
+        poses: Vec<(f64, f64, f64)>,
+    ) -> PyResult<ManyMerge> {
+        let bad = |m: String| pyo3::exceptions::PyValueError::new_err(m);
+        if poses.len() != maps.len() {
+            return Err(bad(format!(
+                "{} poses for {} maps",
+                poses.len(),
+                maps.len()
+            )));
+        }
+        let mut seen = vec![false; maps.len()];
+        for g in &groups {
+            if g.is_empty() {
+                return Err(bad("a group with no maps".into()));
+            }
+            for &m in g {
+                if m >= maps.len() || std::mem::replace(&mut seen[m], true) {
+                    return Err(bad(format!(
+                        "map {m} is not one of the {} maps, or is in two groups",
+                        maps.len()
+                    )));
+                }
+            }
+        }
+        let poses = poses
+            .into_iter()
+            .map(|p| finite_transform(p).map(rigid))
+            .collect::<PyResult<Vec<_>>>()?;
+        Ok(ManyMerge {
+            report,
+            maps: maps.iter().map(|m| m.inner.clone()).collect(),
+            groups,
+            poses,
+        })
     }
 }
 
@@ -231,5 +316,5 @@ pub fn merge_many(
             held.as_deref_mut().unwrap_or(&mut fresh),
         )
     })?;
-    Ok(ManyMerge { inner })
+    ManyMerge::of(inner)
 }

@@ -275,6 +275,9 @@ pub(super) fn bench(a: BenchArgs, budget: &Budget) -> Result<()> {
             }
         },
     });
+    if sources.is_empty() {
+        return Err(Error::invalid("no maps to measure (see above)"));
+    }
     let saves = save_paths(a.save_map.as_deref(), &sizes, a.seed)?;
     for s in saves.iter().flatten() {
         inputs.claim_output(s, "--save-map")?;
@@ -434,10 +437,14 @@ pub(super) fn bench(a: BenchArgs, budget: &Budget) -> Result<()> {
         })?;
     }
     if problems > 0 {
+        // A problem is a map that could not be read, or a folder with none: said above, each.
         return Err(Error::invalid(if problems == 1 {
-            "1 map could not be read and was skipped (see above)".to_string()
+            "1 input could not be used and was skipped (see above); the others were measured"
+                .to_string()
         } else {
-            format!("{problems} maps could not be read and were skipped (see above)")
+            format!(
+                "{problems} inputs could not be used and were skipped (see above); the others were measured"
+            )
         }));
     }
     Ok(())

@@ -8,7 +8,7 @@ use std::time::Instant;
 use serde_json::json;
 
 use ogm_corners::files;
-use ogm_corners::map::{yaml_text, GeoRef};
+use ogm_corners::map::{merged_yaml_text, write_merged_pgm_to, yaml_text, GeoRef};
 use ogm_corners::memory::Budget;
 use ogm_corners::merge::footprint;
 use ogm_corners::merge::global::{merge_maps, GlobalOptions};
@@ -227,8 +227,8 @@ pub(super) fn run(a: &DemoArgs, budget: &Budget) -> Result<()> {
         let merged = many.merged(g)?;
         let pgm = dir.join("merged.pgm");
         let yaml = dir.join("merged.yaml");
-        staged.write(&pgm, |out| merged.image.write_pgm_to(out))?;
-        let text = yaml_text(&pgm, &merged, &names[many.run.placement.groups[g][0]]);
+        staged.write(&pgm, |out| write_merged_pgm_to(&merged, out))?;
+        let text = merged_yaml_text(&pgm, &merged, &names[many.run.placement.groups[g][0]]);
         staged.write(&yaml, |out| out.write_all(text.as_bytes()))?;
         wrote.push(yaml);
         let picture = picture(&many, g, &corners)?;

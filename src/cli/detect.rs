@@ -136,8 +136,18 @@ fn run_streamed(a: &DetectArgs, format: Format, budget: &Budget) -> Result<()> {
         inner: std::io::BufWriter::new(stdout.lock()),
         closed: false,
     };
-    let (out, name): (&mut dyn Write, String) = match (&mut file, &a.output) {
-        (Some(f), Some(o)) => (f, o.display().to_string()),
+    // With a cap, the paper's detector may refuse the map only once the cap is passed, after keypoints
+    // were written: for standard output they are held in a temporary file until the run is done, so a
+    // refused run prints nothing but its error.
+    let mut spool = match (&a.output, a.opts.options().max_corners) {
+        (None, Some(_)) => Some(std::io::BufWriter::new(
+            tempfile::tempfile().map_err(|e| Error::write("a temporary file", e))?,
+        )),
+        _ => None,
+    };
+    let (out, name): (&mut dyn Write, String) = match (&mut file, &a.output, &mut spool) {
+        (Some(f), Some(o), _) => (f, o.display().to_string()),
+        (_, _, Some(s)) => (s, "<stdout>".into()),
         _ => (&mut pipe, "<stdout>".into()),
     };
     let mut outputs = [streamed::Output {
@@ -153,6 +163,10 @@ fn run_streamed(a: &DetectArgs, format: Format, budget: &Budget) -> Result<()> {
                 .map(|()| d)
                 .map_err(|e| Error::write(&name, e))
         });
+    let done = done.and_then(|d| match spool {
+        Some(s) => unspool(s, &mut pipe).map(|()| d),
+        None => Ok(d),
+    });
     let done = match done {
         // `| head`: the reader has what it wanted.
         Err(_) if pipe.closed => return Ok(()),
@@ -169,6 +183,18 @@ fn run_streamed(a: &DetectArgs, format: Format, budget: &Budget) -> Result<()> {
         ogm_corners::say!("ogm-corners: warning: {w}");
     }
     Ok(())
+}
+
+/// The keypoints held back for standard output, written there now that the run is done.
+fn unspool(spool: std::io::BufWriter<std::fs::File>, out: &mut dyn Write) -> Result<()> {
+    use std::io::Seek as _;
+    let name = "a temporary file";
+    let mut file = spool
+        .into_inner()
+        .map_err(|e| Error::write(name, e.into_error()))?;
+    file.rewind().map_err(|e| Error::write(name, e))?;
+    std::io::copy(&mut file, out).map_err(|e| Error::write("<stdout>", e))?;
+    out.flush().map_err(|e| Error::write("<stdout>", e))
 }
 
 /// Standard output that remembers a closed pipe, so that `| head` ends the run quietly.

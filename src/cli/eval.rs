@@ -221,6 +221,9 @@ fn annotated(
                     0
                 })
         })?;
+        marks
+            .check_within(name, map.image.width(), map.image.height())
+            .map_err(|m| Error::input(file, m))?;
         // The paper's detector both ways of reading unknown neighbours, then the baselines.
         let unknown_blocks = DetectOptions {
             unknown_as_occupied: true,

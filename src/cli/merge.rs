@@ -9,7 +9,7 @@ use clap::Args;
 use serde::Serialize;
 
 use ogm_corners::files;
-use ogm_corners::map::{save_names, yaml_text};
+use ogm_corners::map::{merged_yaml_text, save_names, write_merged_pgm_to};
 use ogm_corners::memory::Budget;
 use ogm_corners::merge::footprint::{self, check_alignable};
 use ogm_corners::merge::pair::{self, Verdict};
@@ -205,9 +205,9 @@ pub(super) fn run(a: MergeArgs, budget: &Budget) -> Result<()> {
     let mut wrote = Vec::new();
     if let Some(pgm) = &pgm_out {
         let merged_map = pair::compose_pair(&map_a, &map_b, &al.transform)?;
-        staged.write(pgm, |out| merged_map.image.write_pgm_to(out))?;
+        staged.write(pgm, |out| write_merged_pgm_to(&merged_map, out))?;
         if let Some(yaml) = &yaml_out {
-            let text = yaml_text(pgm, &merged_map, "A");
+            let text = merged_yaml_text(pgm, &merged_map, "A");
             staged.write(yaml, |out| out.write_all(text.as_bytes()))?;
         }
         wrote.push(pgm);

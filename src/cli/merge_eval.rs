@@ -138,7 +138,7 @@ pub(super) fn run(a: MergeEvalArgs, budget: &Budget) -> Result<()> {
     let (rows, costs) = match (&a.pairs, &a.synthetic) {
         (Some(pairs), _) => {
             let set = PairSet::load(pairs)?;
-            let maps = maps_folder(&a, pairs);
+            let maps = maps_folder(&a, &set, pairs);
             if a.ablation {
                 check_set_memory(&set, &maps, budget)?;
                 let rows = eval::ablation(&set, &maps, &mut |h| {
@@ -340,7 +340,7 @@ fn library(set: &PairSet, maps: &std::path::Path) -> Result<global_eval::Library
     let maps = named
         .into_iter()
         .map(|(name, building)| {
-            let map = OccupancyMap::load(eval::map_path(maps, &name))?;
+            let map = OccupancyMap::load(eval::map_path(maps, &name)?)?;
             Ok((name, building, map))
         })
         .collect::<Result<_>>()?;
@@ -363,7 +363,7 @@ fn check_set_memory(set: &PairSet, maps: &std::path::Path, budget: &Budget) -> R
         .collect();
     let mut total = 0u64;
     for name in &names {
-        let (w, h, _) = OccupancyMap::probe(&eval::map_path(maps, name))?;
+        let (w, h, _) = OccupancyMap::probe(&eval::map_path(maps, name)?)?;
         total = total.saturating_add(set_bytes(w, h));
     }
     budget.check(
@@ -403,7 +403,7 @@ fn run_global(a: &MergeEvalArgs, budget: &Budget) -> Result<()> {
                 ));
             }
             let set = PairSet::load(pairs)?;
-            let maps = maps_folder(a, pairs);
+            let maps = maps_folder(a, &set, pairs);
             let lib = library(&set, &maps)?;
             // The largest set placed holds every map and its preparation at once, and the synthetic set.
             let all = ogm_corners::merge::footprint::set_bytes(
@@ -483,7 +483,8 @@ fn save_set(
             m.image.write_pgm_to(out)
         })?;
     }
-    let doc = serde_json::json!({ "pairs": truths, "negatives": [] });
+    // Its maps beside it, as it says: `merge-eval DIR/pairs.json` finds them.
+    let doc = serde_json::json!({ "pairs": truths, "negatives": [], "maps": "." });
     staged.write(&dir.join("pairs.json"), |out| {
         serde_json::to_writer_pretty(&mut *out, &doc)?;
         writeln!(out)
@@ -491,14 +492,9 @@ fn save_set(
     staged.commit()
 }
 
-/// The maps of a pair file: `--maps`, else `maps` beside the file.
-fn maps_folder(a: &MergeEvalArgs, pairs: &std::path::Path) -> PathBuf {
-    a.maps.clone().unwrap_or_else(|| {
-        pairs
-            .parent()
-            .unwrap_or(std::path::Path::new("."))
-            .join("maps")
-    })
+/// The maps of a pair file: `--maps`, else the folder the file names, else `maps` beside the file.
+fn maps_folder(a: &MergeEvalArgs, set: &PairSet, pairs: &std::path::Path) -> PathBuf {
+    a.maps.clone().unwrap_or_else(|| set.maps_folder(pairs))
 }
 
 /// Rows on standard output: the markdown table `md` writes, or the rows as JSON.

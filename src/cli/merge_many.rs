@@ -5,7 +5,7 @@
 use std::path::{Path, PathBuf};
 
 use ogm_corners::files;
-use ogm_corners::map::{save_names, yaml_text};
+use ogm_corners::map::{merged_yaml_text, save_names, write_merged_pgm_to};
 use ogm_corners::memory::Budget;
 use ogm_corners::merge::footprint;
 use ogm_corners::merge::global::previous::Previous;
@@ -209,11 +209,11 @@ pub(super) fn run(a: MergeArgs, budget: &Budget) -> Result<()> {
         if let Some(pgm) = &pgm_out {
             let pgm = group_path(pgm, g);
             let merged = many.merged(g)?;
-            staged.write(&pgm, |out| merged.image.write_pgm_to(out))?;
+            staged.write(&pgm, |out| write_merged_pgm_to(&merged, out))?;
             doc.groups[g].merged = Some(pgm.display().to_string());
             if let Some(yaml) = &yaml_out {
                 let yaml = group_path(yaml, g);
-                let text = yaml_text(&pgm, &merged, "the group's first map");
+                let text = merged_yaml_text(&pgm, &merged, "the group's first map");
                 staged.write(&yaml, |out| out.write_all(text.as_bytes()))?;
                 doc.groups[g].merged = Some(yaml.display().to_string());
             }

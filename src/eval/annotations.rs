@@ -34,7 +34,34 @@ pub struct Annotations {
 
 #[derive(serde::Deserialize)]
 struct File {
-    maps: HashMap<String, Vec<[f64; 2]>>,
+    maps: Entries,
+}
+
+/// A JSON object's entries in file order, duplicates kept: a map named twice is an error, not the last
+/// list silently winning.
+struct Entries(Vec<(String, Vec<[f64; 2]>)>);
+
+impl<'de> serde::Deserialize<'de> for Entries {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        struct Visit;
+        impl<'de> serde::de::Visitor<'de> for Visit {
+            type Value = Entries;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("an object of map names to lists of [x, y] points")
+            }
+            fn visit_map<A: serde::de::MapAccess<'de>>(
+                self,
+                mut m: A,
+            ) -> std::result::Result<Entries, A::Error> {
+                let mut v = Vec::new();
+                while let Some(entry) = m.next_entry()? {
+                    v.push(entry);
+                }
+                Ok(Entries(v))
+            }
+        }
+        d.deserialize_map(Visit)
+    }
 }
 
 impl Annotations {
@@ -50,13 +77,41 @@ impl Annotations {
             format!("not an annotation file ({{\"maps\": {{NAME: [[x, y], ...]}}}}): {e}")
         })?;
         let mut maps = HashMap::new();
-        for (name, pts) in f.maps {
+        for (name, pts) in f.maps.0 {
             if let Some(p) = pts.iter().find(|p| !(p[0].is_finite() && p[1].is_finite())) {
                 return Err(format!("{name}: point {p:?} is not finite"));
+            }
+            if maps.contains_key(&name) {
+                return Err(format!(
+                    "map {name:?} is listed twice (which list is meant cannot be told)"
+                ));
             }
             maps.insert(name, pts.into_iter().map(|p| (p[0], p[1])).collect());
         }
         Ok(Annotations { maps })
+    }
+
+    /// Checks that every marked point of map `name` lies on its `width` x `height` pixels (pixel centres
+    /// at integers, so from -0.5 to width - 0.5): a point off the map is a mistake in the file (another
+    /// map's points, a swapped axis), and would silently count as missed.
+    pub fn check_within(
+        &self,
+        name: &str,
+        width: u32,
+        height: u32,
+    ) -> std::result::Result<(), String> {
+        let (w, h) = (f64::from(width) - 0.5, f64::from(height) - 0.5);
+        let off = self
+            .points(name)
+            .unwrap_or_default()
+            .iter()
+            .find(|&&(x, y)| !((-0.5..=w).contains(&x) && (-0.5..=h).contains(&y)));
+        match off {
+            Some((x, y)) => Err(format!(
+                "{name}: the marked point [{x}, {y}] lies outside the {width}x{height} map"
+            )),
+            None => Ok(()),
+        }
     }
 
     /// The marked points of map `name`, if it has any.
@@ -100,8 +155,9 @@ pub struct RecallRecord {
 }
 
 impl RecallRecord {
-    fn rate(&self, hits: usize) -> f64 {
-        hits as f64 / self.marked.max(1) as f64
+    /// The share of marked points `hits` is; None for a map with no marked points (no recall to give).
+    fn rate(&self, hits: usize) -> Option<f64> {
+        (self.marked > 0).then(|| hits as f64 / self.marked as f64)
     }
 }
 
@@ -232,7 +288,7 @@ pub fn html_table(rows: &[RecallRecord]) -> crate::report::Table {
         ],
     );
     for r in rows {
-        let pct = |h: Option<usize>| Cell::opt(h.map(|h| 100.0 * r.rate(h)), 1);
+        let pct = |h: Option<usize>| Cell::opt(h.and_then(|h| r.rate(h)).map(|v| 100.0 * v), 1);
         t.row_with(
             vec![
                 Cell::text(&r.map),
@@ -259,7 +315,8 @@ pub fn write_table(
     rows: &[RecallRecord],
 ) -> io::Result<()> {
     let pct = |r: &RecallRecord, h: Option<usize>| {
-        h.map_or("n/a".to_string(), |h| format!("{:.1}%", 100.0 * r.rate(h)))
+        h.and_then(|h| r.rate(h))
+            .map_or("n/a".to_string(), |v| format!("{:.1}%", 100.0 * v))
     };
     match format {
         TableFormat::Json => {
@@ -357,6 +414,21 @@ mod tests {
         assert_eq!(a.names(), ["F5_01"]);
         assert!(Annotations::parse(r#"{"maps": {"a": [[1e999, 0]]}}"#).is_err());
         assert!(Annotations::parse("[]").is_err());
+        let twice = Annotations::parse(r#"{"maps": {"a": [[1, 1]], "a": [[2, 2]]}}"#);
+        assert!(twice.unwrap_err().contains("listed twice"));
+        let a = Annotations::parse(r#"{"maps": {"a": [[-0.5, 9.5]], "b": [[1e300, 0]]}}"#).unwrap();
+        assert!(a.check_within("a", 10, 10).is_ok());
+        assert!(a.check_within("a", 10, 9).is_err());
+        assert!(a.check_within("b", 10, 10).unwrap_err().contains("outside"));
+    }
+
+    #[test]
+    fn a_map_with_no_marked_points_has_no_recall_rather_than_none_found() {
+        let r = recall("m", "harris", &[], &[]);
+        let mut md = Vec::new();
+        write_table(&mut md, TableFormat::Md, &[r]).unwrap();
+        let md = String::from_utf8(md).unwrap();
+        assert!(md.contains("n/a") && !md.contains("0.0%"), "{md}");
     }
 
     #[test]

@@ -6,6 +6,7 @@ use std::path::{Path, PathBuf};
 
 use super::{MapYaml, MAX_YAML_BYTES};
 use crate::files::{self, FileId};
+use crate::marks::{self, Written};
 
 /// What [`find_maps`] found.
 #[derive(Debug, Default)]
@@ -23,8 +24,10 @@ pub struct FoundMaps {
 /// The maps named by `inputs`: files as given, and for each folder (searched recursively, in path order,
 /// hidden entries left out, each real folder once however many links lead to it) every ROS map yaml plus
 /// every PGM/PNG image that no yaml there names. A yaml that is not a map (ROS packages keep other yaml
-/// files beside their maps) is left out with a note. Unreadable entries are reported in
-/// [`FoundMaps::problems`] and skipped; they never stop the search.
+/// files beside their maps) is left out with a note, and so are the tool's own outputs (merged maps,
+/// pictures: [`crate::marks`]). A map yaml that cannot be read or parsed is a problem, and the image it
+/// names is not used alone. Unreadable entries are reported in [`FoundMaps::problems`] and skipped; they
+/// never stop the search.
 pub fn find_maps(inputs: &[PathBuf]) -> FoundMaps {
     let mut found = FoundMaps::default();
     let mut seen_dirs: HashSet<FileId> = HashSet::new();
@@ -42,55 +45,61 @@ pub fn find_maps(inputs: &[PathBuf]) -> FoundMaps {
                 .push(format!("{}: searched already", input.display()));
             continue;
         }
-        let files = walk(input, &mut seen_dirs, &mut seen_files, &mut found);
+        let (files, unreadable) = walk(input, &mut seen_dirs, &mut seen_files, &mut found);
         let ext = |p: &Path| {
             p.extension()
                 .and_then(|e| e.to_str())
                 .map(str::to_ascii_lowercase)
                 .unwrap_or_default()
         };
-        // The images the yamls name, compared as file identities (links and spellings alike).
-        let mut named = HashSet::new();
+        // The images the yamls name (or meant to name), compared as file identities (links and
+        // spellings alike): never read as bare images.
+        let mut named: HashSet<FileId> = unreadable
+            .iter()
+            .filter(|p| super::is_yaml(p))
+            .flat_map(|y| same_stem_images(y))
+            .filter_map(|p| FileId::of(&p))
+            .collect();
+        let mut own = OwnOutputs::default();
         for y in files.iter().filter(|p| super::is_yaml(p)) {
-            let text = match files::read_small_text(y, MAX_YAML_BYTES, "a map yaml") {
-                Ok(t) => t,
-                Err(e) if e.to_string().contains("too large") => {
-                    found
-                        .notes
-                        .push(format!("skipped {}: not a map yaml: {e}", y.display()));
-                    continue;
-                }
-                Err(e) => {
-                    found.problems.push(format!("skipped {e}"));
-                    continue;
-                }
-            };
             let dir = y.parent().unwrap_or(Path::new(""));
-            match MapYaml::parse(&text) {
-                Ok(meta) => {
-                    named.extend(FileId::of(&dir.join(meta.image)));
+            match read_map_yaml(y) {
+                YamlFound::Map(image) if own.left_out(y) => {
+                    named.extend(FileId::of(&dir.join(image)));
+                }
+                YamlFound::Map(image) => {
+                    named.extend(FileId::of(&dir.join(image)));
                     found.maps.push(y.clone());
                 }
-                // A broken map yaml is an error, and its image is not read as a bare image either: that
-                // would detect with the wrong thresholds and no world coordinates.
-                Err(e) => match MapYaml::meant_image(&text) {
-                    Some(image) => {
-                        named.extend(FileId::of(&dir.join(image)));
-                        found.problems.push(format!("skipped {}: {e}", y.display()));
+                YamlFound::NotAMap(why) => found
+                    .notes
+                    .push(format!("skipped {}: not a map yaml: {why}", y.display())),
+                // A broken or unreadable map yaml is an error, and the image it names (or, when it
+                // cannot say, the image of its own name beside it) is not read as a bare image either:
+                // that would detect with the wrong thresholds and place the map with no georeference.
+                YamlFound::Broken { image, why } => {
+                    for p in image
+                        .map(|i| dir.join(i))
+                        .into_iter()
+                        .chain(same_stem_images(y))
+                    {
+                        named.extend(FileId::of(&p));
                     }
-                    None => found
-                        .notes
-                        .push(format!("skipped {}: not a map yaml: {e}", y.display())),
-                },
+                    found
+                        .problems
+                        .push(format!("skipped {}: {why}", y.display()));
+                }
             }
         }
         for p in &files {
             if matches!(ext(p).as_str(), "pgm" | "png")
                 && !FileId::of(p).is_some_and(|id| named.contains(&id))
+                && !own.left_out(p)
             {
                 found.maps.push(p.clone());
             }
         }
+        found.notes.extend(own.note(input));
         if found.maps.len() == before {
             found.problems.push(format!(
                 "{}: no maps in this folder (looked for .yaml, .pgm and .png files)",
@@ -101,14 +110,94 @@ pub fn find_maps(inputs: &[PathBuf]) -> FoundMaps {
     found
 }
 
-/// The regular files under `root`, sorted, each real folder and file visited once.
+/// What a yaml in a searched folder is.
+enum YamlFound {
+    /// A map yaml naming this image.
+    Map(String),
+    /// Some other yaml (ROS packages keep parameter files beside their maps), with why.
+    NotAMap(String),
+    /// A map yaml that cannot be read or parsed, with the image it means when that can be made out.
+    Broken { image: Option<String>, why: String },
+}
+
+fn read_map_yaml(y: &Path) -> YamlFound {
+    let text = match files::read_small_text(y, MAX_YAML_BYTES, "a map yaml") {
+        Ok(t) => t,
+        Err(e) if e.to_string().contains("too large") => return YamlFound::NotAMap(e.to_string()),
+        Err(e) => {
+            let why = e.to_string();
+            // The error names the file already.
+            let why = why
+                .strip_prefix(&format!("{}: ", y.display()))
+                .unwrap_or(&why);
+            return YamlFound::Broken {
+                image: None,
+                why: why.to_string(),
+            };
+        }
+    };
+    match MapYaml::parse(&text) {
+        Ok(meta) => YamlFound::Map(meta.image),
+        Err(why) => match MapYaml::meant_image(&text) {
+            Some(image) => YamlFound::Broken {
+                image: Some(image),
+                why,
+            },
+            None => YamlFound::NotAMap(why),
+        },
+    }
+}
+
+/// `NAME.pgm` and `NAME.png` beside `NAME.yaml`: the images a yaml that cannot be read most likely names.
+fn same_stem_images(y: &Path) -> impl Iterator<Item = PathBuf> + '_ {
+    ["pgm", "png", "PGM", "PNG"]
+        .into_iter()
+        .map(move |e| y.with_extension(e))
+}
+
+/// The tool's own outputs met in a folder (a merged map, report pictures, overlays): left out, and
+/// counted for one note.
+#[derive(Default)]
+struct OwnOutputs {
+    count: usize,
+    first: Option<(PathBuf, Written)>,
+}
+
+impl OwnOutputs {
+    /// Whether `p` carries the tool's mark (and so is left out).
+    fn left_out(&mut self, p: &Path) -> bool {
+        let Some(kind) = marks::written_by_tool(p) else {
+            return false;
+        };
+        self.count += 1;
+        self.first.get_or_insert_with(|| (p.to_path_buf(), kind));
+        true
+    }
+
+    fn note(&self, dir: &Path) -> Option<String> {
+        let (first, kind) = self.first.as_ref()?;
+        Some(format!(
+            "{}: left out {} {} that ogm-corners wrote (merged maps, pictures), such as {} ({}); name a \
+             file to use it as a map",
+            dir.display(),
+            self.count,
+            if self.count == 1 { "file" } else { "files" },
+            first.display(),
+            kind.describe()
+        ))
+    }
+}
+
+/// The regular files under `root`, sorted, each real folder and file visited once; and the entries
+/// named like maps that are no regular file or cannot be read (reported in `found`).
 fn walk(
     root: &Path,
     seen_dirs: &mut HashSet<FileId>,
     seen_files: &mut HashSet<FileId>,
     found: &mut FoundMaps,
-) -> Vec<PathBuf> {
+) -> (Vec<PathBuf>, Vec<PathBuf>) {
     let mut files = Vec::new();
+    let mut unreadable = Vec::new();
     let mut stack = vec![root.to_path_buf()];
     while let Some(dir) = stack.pop() {
         let Some(id) = FileId::of(&dir) else {
@@ -165,22 +254,28 @@ fn walk(
                         files.push(p);
                     }
                 }
-                Ok(m) if is_map_name => found.problems.push(format!(
-                    "skipped {}: not a regular file ({})",
-                    p.display(),
-                    files::kind_of(&m)
-                )),
+                Ok(m) if is_map_name => {
+                    found.problems.push(format!(
+                        "skipped {}: not a regular file ({})",
+                        p.display(),
+                        files::kind_of(&m)
+                    ));
+                    unreadable.push(p);
+                }
                 Ok(_) => {}
-                Err(e) if is_map_name => found
-                    .problems
-                    .push(format!("skipped {}: cannot read: {e}", p.display())),
+                Err(e) if is_map_name => {
+                    found
+                        .problems
+                        .push(format!("skipped {}: cannot read: {e}", p.display()));
+                    unreadable.push(p);
+                }
                 // A broken link or unreadable entry that is no map is none of our business.
                 Err(_) => {}
             }
         }
     }
     files.sort();
-    files
+    (files, unreadable)
 }
 
 /// A file name for each map: its stem, or its folder for ROS's usual `map.yaml`, made unique with `-2`,

@@ -20,7 +20,7 @@ use crate::memory::Budget;
 pub use find::{find_maps, map_name, output_names, FoundMaps};
 pub use ros_grid::{grid_image, GridThresholds, GRID_FREE, GRID_OCCUPIED, GRID_UNKNOWN};
 pub use rows::{DecoderRows, MapRows};
-pub use save::{save_names, yaml_text};
+pub use save::{merged_yaml_text, save_names, write_merged_pgm_to, yaml_text};
 use yaml::read_yaml;
 pub use yaml::{
     is_yaml, map_yaml_text, map_yaml_text_with, yaml_image, MapYaml, MAX_YAML_BYTES,

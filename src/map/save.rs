@@ -44,6 +44,29 @@ pub fn yaml_text(pgm: &Path, map: &OccupancyMap, reference: &str) -> String {
     }
 }
 
+/// The text of a merged map's yaml: [`yaml_text`] opened by the comment that tells a later folder run it
+/// is the tool's output, not a robot's map ([`crate::marks`]).
+pub fn merged_yaml_text(pgm: &Path, map: &OccupancyMap, reference: &str) -> String {
+    crate::marks::merged_yaml_comment() + &yaml_text(pgm, map, reference)
+}
+
+/// A merged map's image as a binary PGM into `out`, its header carrying the merged map's mark (a comment,
+/// which every PGM reader skips).
+pub fn write_merged_pgm_to(
+    map: &OccupancyMap,
+    out: &mut dyn std::io::Write,
+) -> std::io::Result<()> {
+    let image = &map.image;
+    write!(
+        out,
+        "P5\n# {}\n{} {}\n255\n",
+        crate::marks::MERGED_MAP,
+        image.width(),
+        image.height()
+    )?;
+    out.write_all(image.pixels())
+}
+
 impl OccupancyMap {
     /// Writes the map to `NAME.yaml` (and `NAME.pgm` beside it) or `NAME.pgm` alone, both renamed into
     /// place together when complete: a failure leaves neither. The image is written as it is, the yaml

@@ -122,7 +122,9 @@ impl MapYaml {
         };
         let get = |k: &str| map.get(Value::String(k.to_string()));
         let image = match get("image") {
-            Some(Value::String(s)) if !s.trim().is_empty() => s.trim().to_string(),
+            // As written: a quoted name keeps its spaces, as ROS map_server keeps them (YAML already
+            // trims an unquoted one).
+            Some(Value::String(s)) if !s.trim().is_empty() => s.clone(),
             Some(_) => return Err("`image` must be a file name".into()),
             None => return Err("missing `image` (the map's image file)".into()),
         };
@@ -195,7 +197,9 @@ impl MapYaml {
         if text.len() as u64 > MAX_YAML_BYTES || nesting_depth(text) > MAX_YAML_NESTING {
             return None;
         }
-        let doc: Value = serde_yaml::from_str(text).ok()?;
+        let Ok(doc) = serde_yaml::from_str::<Value>(text) else {
+            return meant_image_by_lines(text);
+        };
         let map = doc.as_mapping()?;
         let has = |k: &str| map.contains_key(Value::String(k.to_string()));
         if !(has("resolution") || has("origin")) {
@@ -203,8 +207,33 @@ impl MapYaml {
         }
         map.get(Value::String("image".into()))?
             .as_str()
-            .map(|s| s.trim().to_string())
+            .map(str::to_string)
     }
+}
+
+/// The `image` of yaml text that does not parse, read line by line: a top-level `image:` line beside a
+/// top-level `resolution:` or `origin:` line is a map yaml with a typo (an unclosed bracket, a stray tab),
+/// and the image it names must not then be read as a bare image.
+fn meant_image_by_lines(text: &str) -> Option<String> {
+    let value = |key: &str| {
+        text.lines()
+            .find_map(|l| l.strip_prefix(key)?.strip_prefix(':'))
+            .map(str::trim)
+    };
+    if value("resolution").is_none() && value("origin").is_none() {
+        return None;
+    }
+    let image = value("image")?;
+    // A comment after the value, then the quotes around it.
+    let image = match image.find(" #") {
+        Some(i) => image[..i].trim_end(),
+        None => image,
+    };
+    let unquoted = ['"', '\'']
+        .iter()
+        .find_map(|q| image.strip_prefix(*q)?.strip_suffix(*q))
+        .unwrap_or(image);
+    (!unquoted.trim().is_empty()).then(|| unquoted.to_string())
 }
 
 /// A yaml number; also accepts numbers written as strings (real maps contain `nan`).

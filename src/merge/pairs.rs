@@ -58,6 +58,10 @@ pub struct PairSet {
     /// Pairs of different places.
     #[serde(default)]
     pub negatives: Vec<Negative>,
+    /// The folder of the maps, relative to the pair file (a pair file the tool writes says `.`: its maps
+    /// stand beside it); absent: `maps` beside the pair file, as in the shared merge-pairs data.
+    #[serde(default)]
+    pub maps: Option<String>,
 }
 
 impl PairSet {
@@ -66,6 +70,13 @@ impl PairSet {
         let text = crate::files::read_small_text(path, MAX_PAIRS_BYTES, "a pair file")?;
         let set: PairSet = serde_json::from_str(&text)
             .map_err(|e| Error::input(path, format!("not a pair file: {e}")))?;
+        // A file of no pairs would give a table of zeros that reads as a result.
+        if set.pairs.is_empty() {
+            return Err(Error::input(
+                path,
+                "has no pairs (a pair file lists maps of one place with their true transform)",
+            ));
+        }
         for p in &set.pairs {
             let finite = [p.theta_deg, p.tx, p.ty, p.rms_limit_px, p.rot_limit_deg]
                 .iter()
@@ -93,6 +104,15 @@ impl PairSet {
             }
         }
         Ok(set)
+    }
+}
+
+impl PairSet {
+    /// The folder of the maps of the pair file at `path`: its `maps` entry (relative to the file's
+    /// folder), else `maps` beside it.
+    pub fn maps_folder(&self, path: &Path) -> std::path::PathBuf {
+        let dir = path.parent().unwrap_or(Path::new("."));
+        dir.join(self.maps.as_deref().unwrap_or("maps"))
     }
 }
 

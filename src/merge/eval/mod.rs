@@ -49,16 +49,27 @@ pub struct PairRecord {
     pub accurate_candidates: Vec<bool>,
 }
 
-/// The file of map `name` in the folder `maps`: `NAME.yaml`, `.png` or `.pgm`, the first that exists
-/// (`NAME.png` when none does, for the error).
-pub fn map_path(maps: &Path, name: &str) -> std::path::PathBuf {
-    ["yaml", "png", "pgm"]
+/// The file of map `name` in the folder `maps`: `NAME.yaml`, `.png` or `.pgm`, the first that exists;
+/// an error naming all three when none does.
+pub fn map_path(maps: &Path, name: &str) -> Result<std::path::PathBuf> {
+    MAP_EXTENSIONS
         .iter()
         .map(|e| maps.join(format!("{name}.{e}")))
         // Anything there, not only a regular file: loading then says what it is (a fifo, a device).
         .find(|p| p.exists())
-        .unwrap_or_else(|| maps.join(format!("{name}.png")))
+        .ok_or_else(|| {
+            crate::error::Error::input(
+                maps,
+                format!(
+                    "no map {name:?} in this folder (looked for {})",
+                    MAP_EXTENSIONS.map(|e| format!("{name}.{e}")).join(", ")
+                ),
+            )
+        })
 }
+
+/// The files a pair file's map name may stand for, in the order they are looked for.
+const MAP_EXTENSIONS: [&str; 3] = ["yaml", "png", "pgm"];
 
 /// Sees each pair as it is run: its index, its record, A (the reference map), B (the moved map), and the
 /// true transform of B's pixels to A's when known. How `--html` draws the pairs without holding them.
@@ -89,7 +100,7 @@ pub fn run_with(
                timer: &mut PrepTimer|
      -> Result<()> {
         if !prepared.contains_key(name) {
-            let map = OccupancyMap::load(map_path(maps, name))?;
+            let map = OccupancyMap::load(map_path(maps, name)?)?;
             let p = timer.prepare_with(&map, options.hypotheses.detector())?;
             prepared.insert(name.to_string(), (map, p));
         }
@@ -249,7 +260,8 @@ pub fn run_synthetic_with(
         }
     }
     if let Some(dir) = save {
-        let set = serde_json::json!({ "pairs": saved, "negatives": [] });
+        // Its maps beside it, as it says: `merge-eval DIR/pairs.json` finds them.
+        let set = serde_json::json!({ "pairs": saved, "negatives": [], "maps": "." });
         let text = serde_json::to_string_pretty(&set)
             .map_err(|e| crate::error::Error::Internal(e.to_string()))?;
         crate::files::write_atomic(&dir.join("pairs.json"), |w| {
