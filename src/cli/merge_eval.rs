@@ -19,9 +19,12 @@ use super::write_stdout;
 #[derive(Args, Debug)]
 pub(super) struct MergeEvalArgs {
     /// The pair file (the format of `pairs.json` in the shared merge-pairs data); not with --synthetic.
+    /// With --cross-validate, several: their buildings judged together (`merge-pairs/pairs.json` and the
+    /// sets `--save-pairs` wrote).
     #[arg(required_unless_present_any = ["synthetic", "global"], conflicts_with = "synthetic")]
-    pairs: Option<PathBuf>,
-    /// Folder of the maps, `NAME.png|pgm|yaml` (default: `maps` beside the pair file).
+    pairs: Vec<PathBuf>,
+    /// Folder of the maps, `NAME.png|pgm|yaml` (default: the folder the pair file names, else `maps`
+    /// beside it).
     #[arg(long)]
     maps: Option<PathBuf>,
     /// Instead of a pair file: synthetic pairs with exact truth cut from these maps or folders of maps
@@ -35,6 +38,12 @@ pub(super) struct MergeEvalArgs {
     /// 250 and 400 px overlapping or apart), or all (the default).
     #[arg(long, value_delimiter = ',', value_name = "FAMILY")]
     family: Vec<String>,
+    /// With --synthetic MAPS: a map `NAME_furnished` given beside `NAME` is its furnished copy (the same
+    /// place in the same frame with furniture drawn in, as in the maps-more data): not cut on its own,
+    /// but --per-map plan-vs-furnished pairs, A a window of `NAME` and B one of the copy, each 36-64% of
+    /// the known area, B turned by any angle, exact truth (`NAME+furnished/<k>`).
+    #[arg(long)]
+    furnished: bool,
     /// Synthetic pairs per map and overlap (per family and overlap for the generated families).
     #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u32).range(1..=1000))]
     per_map: u32,
@@ -55,7 +64,7 @@ pub(super) struct MergeEvalArgs {
     ablation: bool,
     /// Leave-one-building-out: the acceptance rule fitted on every building but one and the one left out
     /// judged with it, for each building; then the pooled held-out figures, the in-sample ones and the
-    /// shipped rule's (a pair file only).
+    /// shipped rule's (pair files only; several are judged together).
     #[arg(long, conflicts_with_all = ["synthetic", "ablation", "html"])]
     cross_validate: bool,
     /// With --cross-validate: only the pairs (and negatives) whose maps' names start with one of these
@@ -106,6 +115,11 @@ pub(super) fn run(a: MergeEvalArgs, budget: &Budget) -> Result<()> {
     if a.global {
         return run_global(&a, budget);
     }
+    if a.furnished && a.synthetic.as_ref().is_none_or(|g| g.is_empty()) {
+        return Err(Error::invalid(
+            "--furnished pairs given maps with their furnished copies: use it with --synthetic MAPS",
+        ));
+    }
     if a.save_pairs.is_some() && a.synthetic.is_none() {
         return Err(Error::invalid(
             "--save-pairs writes synthetic pairs (--synthetic) or the synthetic set (--global without a pair file)",
@@ -135,7 +149,10 @@ pub(super) fn run(a: MergeEvalArgs, budget: &Budget) -> Result<()> {
         Some(p) => p.add(i, r, ma, mb, truth),
         None => Ok(()),
     };
-    let (rows, costs) = match (&a.pairs, &a.synthetic) {
+    if a.cross_validate {
+        return cross_validate(&a, budget);
+    }
+    let (rows, costs) = match (a.pair_file()?, &a.synthetic) {
         (Some(pairs), _) => {
             let set = PairSet::load(pairs)?;
             let maps = maps_folder(&a, &set, pairs);
@@ -146,53 +163,34 @@ pub(super) fn run(a: MergeEvalArgs, budget: &Budget) -> Result<()> {
                 })?;
                 return write_table(a.format, &rows, |out| eval::write_ablation(out, &rows));
             }
-            if a.cross_validate {
-                let mut set = set;
-                let keep =
-                    |n: &str| a.only.is_empty() || a.only.iter().any(|p| n.starts_with(p.as_str()));
-                set.pairs.retain(|p| keep(&p.src) && keep(&p.dst));
-                set.negatives.retain(|p| keep(&p.src) && keep(&p.dst));
-                if set.pairs.is_empty() {
-                    return Err(Error::invalid(format!(
-                        "--only {}: no pair of the pair file has both maps named so",
-                        a.only.join(",")
-                    )));
-                }
-                check_set_memory(&set, &maps, budget)?;
-                let options = MergeOptions {
-                    always_verify: true,
-                    ..MergeOptions::default()
-                };
-                let (rows, _) = eval::run(&set, &maps, &options)?;
-                let folds = eval::crossval::cross_validate(&rows);
-                return write_table(a.format, &folds, |out| {
-                    eval::crossval::write_folds(out, &folds)
-                });
-            }
             check_set_memory(&set, &maps, budget)?;
             eval::run_with(&set, &maps, &MergeOptions::default(), &mut on_pair)?
         }
         (None, sources) => {
             let given = sources.as_deref().unwrap_or(&[]);
             let (sources, mut inputs) = synthetic_sources(given, budget)?;
+            let (sources, furnished) = furnished_of(&a, sources)?;
             let overlaps = vec![0.5, 0.3];
             if let Some(dir) = &a.save_pairs {
                 std::fs::create_dir_all(dir)
                     .map_err(|e| Error::input(dir, format!("cannot create the folder: {e}")))?;
                 // Every file it may write, checked against the inputs before the first pair.
                 inputs.claim_output(&dir.join("pairs.json"), "--save-pairs")?;
-                for (name, _) in &sources {
-                    for o in &overlaps {
-                        for k in 0..a.per_map {
-                            let stem =
-                                eval::saved_stem(&eval::synthetic_label(name, *o, k as usize));
-                            for side in ["a", "b"] {
-                                inputs.claim_output(
-                                    &dir.join(format!("{side}_{stem}.pgm")),
-                                    "--save-pairs",
-                                )?;
-                            }
-                        }
+                let labels = sources.iter().flat_map(|(name, _)| {
+                    overlaps.iter().flat_map(move |&o| {
+                        (0..a.per_map as usize).map(move |k| eval::synthetic_label(name, o, k))
+                    })
+                });
+                let furnished_labels = furnished.iter().flat_map(|(name, _)| {
+                    (0..a.per_map as usize).map(move |k| eval::furnished_label(name, k))
+                });
+                for label in labels.chain(furnished_labels) {
+                    let stem = eval::saved_stem(&label);
+                    for side in ["a", "b"] {
+                        inputs.claim_output(
+                            &dir.join(format!("{side}_{stem}.pgm")),
+                            "--save-pairs",
+                        )?;
                     }
                 }
             }
@@ -204,6 +202,7 @@ pub(super) fn run(a: MergeEvalArgs, budget: &Budget) -> Result<()> {
                 noise: a.noise,
                 seed: a.seed,
                 negatives: given.is_empty(),
+                furnished,
                 save: a.save_pairs.clone(),
             };
             let options = MergeOptions::default();
@@ -266,6 +265,79 @@ pub(super) fn run(a: MergeEvalArgs, budget: &Budget) -> Result<()> {
     write_table(a.format, &rows, |out| {
         eval::write_summary(out, &rows, &costs)
     })
+}
+
+impl MergeEvalArgs {
+    /// The one pair file of a run that takes one (all but --cross-validate).
+    fn pair_file(&self) -> Result<Option<&PathBuf>> {
+        match self.pairs.as_slice() {
+            [] => Ok(None),
+            [one] => Ok(Some(one)),
+            more => Err(Error::invalid(format!(
+                "{} pair files: only --cross-validate takes several",
+                more.len()
+            ))),
+        }
+    }
+}
+
+/// `merge-eval --cross-validate PAIRS...`: the merger over every pair file's pairs (their `--only`
+/// subset), every veto measured, then leave-one-building-out over all their buildings together.
+fn cross_validate(a: &MergeEvalArgs, budget: &Budget) -> Result<()> {
+    if a.maps.is_some() && a.pairs.len() > 1 {
+        return Err(Error::invalid(
+            "--maps names one pair file's maps: with several, each finds its own (its \"maps\" entry, \
+             else maps beside it)",
+        ));
+    }
+    let options = MergeOptions {
+        always_verify: true,
+        ..MergeOptions::default()
+    };
+    let keep = |n: &str| a.only.is_empty() || a.only.iter().any(|p| n.starts_with(p.as_str()));
+    // Every file read and checked before the first pair is run.
+    let mut sets = Vec::new();
+    for pairs in &a.pairs {
+        let mut set = PairSet::load(pairs)?;
+        set.pairs.retain(|p| keep(&p.src) && keep(&p.dst));
+        set.negatives.retain(|p| keep(&p.src) && keep(&p.dst));
+        let maps = maps_folder(a, &set, pairs);
+        check_set_memory(&set, &maps, budget)?;
+        sets.push((set, maps));
+    }
+    if sets.iter().all(|(set, _)| set.pairs.is_empty()) {
+        return Err(Error::invalid(format!(
+            "--only {}: no pair of the pair file has both maps named so",
+            a.only.join(",")
+        )));
+    }
+    let mut rows = Vec::new();
+    for (set, maps) in sets.iter().filter(|(set, _)| !set.pairs.is_empty()) {
+        rows.extend(eval::run(set, maps, &options)?.0);
+    }
+    let folds = eval::crossval::cross_validate(&rows);
+    write_table(a.format, &folds, |out| {
+        eval::crossval::write_folds(out, &folds)
+    })
+}
+
+/// With `--furnished`: the given maps split into those cut on their own and the furnished copies
+/// (`NAME_furnished` beside `NAME`); an error when there is none. Without it, every map on its own.
+fn furnished_of(
+    a: &MergeEvalArgs,
+    sources: Vec<eval::NamedMap>,
+) -> Result<(Vec<eval::NamedMap>, Vec<eval::NamedMap>)> {
+    if !a.furnished {
+        return Ok((sources, Vec::new()));
+    }
+    let (own, copies) = eval::furnished_copies(sources);
+    if copies.is_empty() {
+        return Err(Error::invalid(format!(
+            "--furnished: no map NAME{} beside a map NAME among the maps given",
+            eval::FURNISHED_SUFFIX
+        )));
+    }
+    Ok((own, copies))
 }
 
 /// Whether to run the office family, and which generated families: all of them by default; given maps
@@ -350,28 +422,14 @@ fn library(set: &PairSet, maps: &std::path::Path) -> Result<global_eval::Library
 /// Refuses a pair file whose maps, each held with its preparation (every map is prepared once and kept
 /// while its pairs run), would exceed the budget; read up to their image headers only.
 fn check_set_memory(set: &PairSet, maps: &std::path::Path, budget: &Budget) -> Result<()> {
-    let names: std::collections::BTreeSet<&str> = set
-        .pairs
-        .iter()
-        .map(|p| [p.src.as_str(), p.dst.as_str()])
-        .chain(
-            set.negatives
-                .iter()
-                .map(|p| [p.src.as_str(), p.dst.as_str()]),
-        )
-        .flatten()
-        .collect();
-    let mut total = 0u64;
-    for name in &names {
+    let bytes = |name: &str| {
         let (w, h, _) = OccupancyMap::probe(&eval::map_path(maps, name)?)?;
-        total = total.saturating_add(set_bytes(w, h));
-    }
+        Ok(set_bytes(w, h))
+    };
+    let (peak, held) = eval::peak_held(set, &bytes)?;
     budget.check(
-        format_args!(
-            "the {} maps of the pair file and their preparation",
-            names.len()
-        ),
-        total,
+        format_args!("the {held} maps of the pair file held at once and their preparation"),
+        peak,
     )
 }
 
@@ -395,7 +453,7 @@ fn run_global(a: &MergeEvalArgs, budget: &Budget) -> Result<()> {
             "--buildings {buildings} is more than --set-size {size}: each office needs a map"
         )));
     }
-    let rows = match &a.pairs {
+    let rows = match a.pair_file()? {
         Some(pairs) => {
             if a.save_pairs.is_some() {
                 return Err(Error::invalid(

@@ -51,6 +51,64 @@ pub fn accepts(features: &Features, rule_value: f64) -> bool {
         && features.support >= MIN_SUPPORT
 }
 
+/// Why an alignment with these features and rule value is declined, in the order its `why:` line
+/// says it: the first test that fails. `None` when it is accepted.
+pub fn decline(features: &Features, rule_value: f64) -> Option<Decline> {
+    if accepts(features, rule_value) {
+        return None;
+    }
+    let vetoed = rule_value >= 0.0;
+    Some(if vetoed && features.alias >= MAX_ALIAS {
+        Decline::Repeat
+    } else if vetoed && features.support < MIN_SUPPORT {
+        Decline::LittleSupport
+    } else if vetoed && features.self_match > MAX_SELF_SYMMETRY {
+        Decline::SelfMatch
+    } else if vetoed && !not_contradicted(features) {
+        Decline::Contradicted
+    } else {
+        Decline::NotConfident
+    })
+}
+
+/// The reasons an alignment is declined ([`decline`]), as its `why:` line opens.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Decline {
+    /// Another pose a map's repeat offers fits almost as well ([`MAX_ALIAS`]).
+    Repeat,
+    /// Too few wall pixels match ([`MIN_SUPPORT`]).
+    LittleSupport,
+    /// A map matches itself turned or shifted ([`MAX_SELF_SYMMETRY`]).
+    SelfMatch,
+    /// Walls on free space ([`MAX_FINE_CONFLICT`], [`MAX_CONTRADICTION`]).
+    Contradicted,
+    /// The rule's value is below its threshold.
+    NotConfident,
+}
+
+impl Decline {
+    /// Every reason, in the order they are tested.
+    pub const ALL: [Decline; 5] = [
+        Decline::Repeat,
+        Decline::LittleSupport,
+        Decline::SelfMatch,
+        Decline::Contradicted,
+        Decline::NotConfident,
+    ];
+
+    /// A short name, as the `why:` line opens ("ambiguous: ...", "too little to go on: ...").
+    pub fn name(self) -> &'static str {
+        match self {
+            Decline::Repeat => "ambiguous (a repeat's pose)",
+            Decline::LittleSupport => "too little to go on",
+            Decline::SelfMatch => "ambiguous (self-match)",
+            Decline::Contradicted => "contradicted",
+            Decline::NotConfident => "not confident",
+        }
+    }
+}
+
 /// Whether an alignment passes the two contradiction vetoes ([`MAX_FINE_CONFLICT`],
 /// [`MAX_CONTRADICTION`]).
 pub fn not_contradicted(features: &Features) -> bool {
@@ -233,5 +291,56 @@ mod tests {
             ..f
         };
         assert!(rule.margin(&touching) < 0.0);
+    }
+
+    /// A decline's reason is the first test that fails, in the order the `why:` line is chosen: the
+    /// vetoes only when the rule's value would accept.
+    #[test]
+    fn a_decline_names_the_first_test_that_fails() {
+        let ok = Features {
+            support: 5000.0,
+            free_agree: 1.0,
+            ..Features::default()
+        };
+        assert_eq!(decline(&ok, 1.0), None);
+        assert_eq!(decline(&ok, -1.0), Some(Decline::NotConfident));
+        let cases = [
+            (
+                Features {
+                    alias: 0.9,
+                    support: 10.0,
+                    ..ok
+                },
+                Decline::Repeat,
+            ),
+            (
+                Features {
+                    support: 10.0,
+                    self_match: 0.9,
+                    ..ok
+                },
+                Decline::LittleSupport,
+            ),
+            (
+                Features {
+                    self_match: 0.9,
+                    conflict_fine: 0.9,
+                    ..ok
+                },
+                Decline::SelfMatch,
+            ),
+            (
+                Features {
+                    conflict_fine: 0.9,
+                    ..ok
+                },
+                Decline::Contradicted,
+            ),
+        ];
+        for (f, want) in cases {
+            assert_eq!(decline(&f, 1.0), Some(want), "{f:?}");
+            // Below the threshold the rule's verdict comes first.
+            assert_eq!(decline(&f, -1.0), Some(Decline::NotConfident), "{f:?}");
+        }
     }
 }

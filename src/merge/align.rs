@@ -20,8 +20,8 @@
 use serde::Serialize;
 
 pub use super::accept::{
-    accepts, contradiction, not_contradicted, Acceptance, Features, MAX_ALIAS, MAX_CONTRADICTION,
-    MAX_FINE_CONFLICT, MAX_SELF_SYMMETRY, MIN_SUPPORT,
+    accepts, contradiction, decline, not_contradicted, Acceptance, Decline, Features, MAX_ALIAS,
+    MAX_CONTRADICTION, MAX_FINE_CONFLICT, MAX_SELF_SYMMETRY, MIN_SUPPORT,
 };
 use super::coarse::{coarse_hypotheses, screen, CoarseSet, Crop};
 pub use super::fft::FINE_FFT;
@@ -279,10 +279,11 @@ pub fn align_prepared_with(
         (features.alias, alternative) = alias(src, dst, &best, sa, sb, backend)?;
     }
     let accepted = accepts(&features, score);
-    let reason = (!accepted).then(|| {
-        if let Some(alt) = alternative.filter(|_| score >= 0.0 && features.alias >= MAX_ALIAS) {
+    let reason = decline(&features, score).map(|why| match why {
+        Decline::Repeat => {
+            let alt = alternative.unwrap_or(best);
             let d = transform_distance(&alt, &best);
-            return format!(
+            format!(
                 "ambiguous: the maps fit almost as well ({:.0}% of the evidence) at another pose that a \
                  map's repeat offers, {d:.0} px away (theta {:.1} deg, t ({:.0}, {:.0})), so it could be \
                  merged more than one way",
@@ -290,44 +291,36 @@ pub fn align_prepared_with(
                 alt.theta_deg,
                 alt.tx,
                 alt.ty
-            );
+            )
         }
-        if score >= 0.0 && features.support < MIN_SUPPORT {
-            return format!(
-                "too little to go on: {:.0} wall pixels of the two maps match each other (at least \
-                 {MIN_SUPPORT:.0} are needed to tell a right pose from a wrong one)",
-                features.support
-            );
-        }
-        if score >= 0.0 && features.self_match > MAX_SELF_SYMMETRY {
-            let s = features.self_match;
-            return format!(
-                "ambiguous: a map matches itself turned or shifted (self-match {s:.2} over \
-                 {MAX_SELF_SYMMETRY}), so it could be merged more than one way"
-            );
-        }
-        if score >= 0.0 && contradiction(&features) > MAX_CONTRADICTION {
-            return format!(
-                "contradicted: {:.0}% of the walls that fall in the other map lie inside its free space, \
-                 and {:.1}% of the free space that falls in it on its walls or unknown",
-                100.0 * features.conflict_fine,
-                100.0 * (1.0 - features.free_agree)
-            );
-        }
-        if score >= 0.0 && features.conflict_fine > MAX_FINE_CONFLICT {
-            return format!(
-                "contradicted: {:.0}% of the walls that fall in the other map lie inside its free space",
-                100.0 * features.conflict_fine
-            );
-        }
-        format!(
+        Decline::LittleSupport => format!(
+            "too little to go on: {:.0} wall pixels of the two maps match each other (at least \
+             {MIN_SUPPORT:.0} are needed to tell a right pose from a wrong one)",
+            features.support
+        ),
+        Decline::SelfMatch => format!(
+            "ambiguous: a map matches itself turned or shifted (self-match {:.2} over \
+             {MAX_SELF_SYMMETRY}), so it could be merged more than one way",
+            features.self_match
+        ),
+        Decline::Contradicted if contradiction(&features) > MAX_CONTRADICTION => format!(
+            "contradicted: {:.0}% of the walls that fall in the other map lie inside its free space, \
+             and {:.1}% of the free space that falls in it on its walls or unknown",
+            100.0 * features.conflict_fine,
+            100.0 * (1.0 - features.free_agree)
+        ),
+        Decline::Contradicted => format!(
+            "contradicted: {:.0}% of the walls that fall in the other map lie inside its free space",
+            100.0 * features.conflict_fine
+        ),
+        Decline::NotConfident => format!(
             "not confident: {:.0}% of the smaller map's free space falls in the other ({:.1}% of it on \
              occupied or unknown pixels), the consistent coarse score stands {:.2}x the best distinct \
              alternative's (rule value {score:.2} below 0)",
             100.0 * features.free_inside,
             100.0 * (1.0 - features.free_agree),
             features.coarse_ratio
-        )
+        ),
     });
     // Each other candidate's ratios over the best candidate distinct from it, and its rule value.
     let mut candidates: Vec<Candidate> = Vec::with_capacity(refined.len());

@@ -120,6 +120,18 @@ pub fn merge_pairs() -> Option<PathBuf> {
     )
 }
 
+/// The maps-more data set (`$OGM_MAPS_MORE_DIR`, else `../shared/maps-more`): more buildings, floor
+/// plans with furnished copies; None with a clear message, and under CI=true a failure.
+pub fn maps_more() -> Option<PathBuf> {
+    shared_dir(
+        "OGM_MAPS_MORE_DIR",
+        "maps-more",
+        Some("README.md"),
+        "maps-more data",
+        "checks on more buildings",
+    )
+}
+
 /// `$var`, else `../shared/<name>` beside the project, when it is a folder (holding `marker`, if given);
 /// otherwise None after saying which `checks` did not run, or a panic under CI=true.
 fn shared_dir(

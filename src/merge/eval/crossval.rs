@@ -10,13 +10,13 @@
 //! set on, in the acceptance module); as the threshold does not lean on them, the held-out figures with
 //! the rule alone are reported too (`rule alone` rows): what the vetoes' hand-set limits add.
 
-use std::collections::HashMap;
+use std::collections::{BTreeMap, HashMap};
 use std::io::{self, Write};
 
 use serde::Serialize;
 
 use super::PairRecord;
-use crate::merge::align::{accepts, Acceptance, Features};
+use crate::merge::align::{decline, Acceptance, Decline, Features};
 
 /// Inputs of the rule.
 const K: usize = 3;
@@ -178,6 +178,18 @@ pub struct FoldRow {
     /// Wrong accepts and negatives accepted by the rule alone, no veto applied: whether the held-out
     /// safety rests on the vetoes' hand-set limits.
     pub rule_alone_wrong: usize,
+    /// Its pairs declined.
+    pub declined: usize,
+    /// Declines whose best candidate was the right pose: found, and turned down.
+    pub found_turned_down: usize,
+    /// Its pairs whose right pose was among the refined candidates at all (the candidate recall).
+    pub right_among_candidates: usize,
+    /// Why its pairs were declined ([`Decline`], as their `why:` lines open), counted.
+    pub reasons: BTreeMap<Decline, usize>,
+    /// The shipped rule on the same pairs: accepted and accurate.
+    pub shipped_accepted_accurate: usize,
+    /// The shipped rule on the same pairs: accepted and not accurate, and negatives accepted.
+    pub shipped_wrong: usize,
     /// The rule fitted without it (none for the pooled row: each fold has its own).
     pub rule: Option<Acceptance>,
 }
@@ -213,20 +225,44 @@ pub fn cross_validate(rows: &[PairRecord]) -> Vec<FoldRow> {
     names.sort();
     names.dedup();
     let judge = |rule: &Acceptance, sel: &[&PairRecord], label: String| {
-        let ok =
-            |r: &PairRecord| accepts(&r.alignment.features, rule.margin(&r.alignment.features));
+        let why = |rule: &Acceptance, r: &PairRecord| {
+            decline(&r.alignment.features, rule.margin(&r.alignment.features))
+        };
         let alone = |r: &&&PairRecord| rule.margin(&r.alignment.features) >= 0.0;
         let pos: Vec<&PairRecord> = sel.iter().copied().filter(|r| !r.negative).collect();
         let neg: Vec<&PairRecord> = sel.iter().copied().filter(|r| r.negative).collect();
+        let shipped = Acceptance::default();
+        let count = |rule: &Acceptance, accurate: bool| {
+            pos.iter()
+                .filter(|r| why(rule, r).is_none() && r.accurate == accurate)
+                .count()
+        };
+        let mut reasons = BTreeMap::new();
+        for d in pos.iter().filter_map(|r| why(rule, r)) {
+            *reasons.entry(d).or_insert(0) += 1;
+        }
         FoldRow {
             building: label,
             pairs: pos.len(),
-            accepted_accurate: pos.iter().filter(|r| ok(r) && r.accurate).count(),
-            wrong: pos.iter().filter(|r| ok(r) && !r.accurate).count(),
+            accepted_accurate: count(rule, true),
+            wrong: count(rule, false),
             negatives: neg.len(),
-            negatives_accepted: neg.iter().filter(|r| ok(r)).count(),
+            negatives_accepted: neg.iter().filter(|r| why(rule, r).is_none()).count(),
             rule_alone_wrong: pos.iter().filter(|r| !r.accurate).filter(alone).count()
                 + neg.iter().filter(alone).count(),
+            declined: pos.iter().filter(|r| why(rule, r).is_some()).count(),
+            found_turned_down: pos
+                .iter()
+                .filter(|r| r.accurate && why(rule, r).is_some())
+                .count(),
+            right_among_candidates: pos
+                .iter()
+                .filter(|r| r.accurate_candidates.iter().any(|&a| a))
+                .count(),
+            reasons,
+            shipped_accepted_accurate: count(&shipped, true),
+            shipped_wrong: count(&shipped, false)
+                + neg.iter().filter(|r| why(&shipped, r).is_none()).count(),
             rule: Some(*rule),
         }
     };
@@ -239,6 +275,10 @@ pub fn cross_validate(rows: &[PairRecord]) -> Vec<FoldRow> {
         out.push(judge(&rule, &test, b.clone()));
     }
     let sum = |f: fn(&FoldRow) -> usize, v: &[FoldRow]| v.iter().map(f).sum::<usize>();
+    let mut reasons = BTreeMap::new();
+    for (&d, &n) in out.iter().flat_map(|r| &r.reasons) {
+        *reasons.entry(d).or_insert(0) += n;
+    }
     let pooled = FoldRow {
         building: "pooled held-out".to_string(),
         pairs: sum(|r| r.pairs, &out),
@@ -248,6 +288,12 @@ pub fn cross_validate(rows: &[PairRecord]) -> Vec<FoldRow> {
         negatives: sum(|r| r.negatives, &out),
         negatives_accepted: sum(|r| r.negatives_accepted, &out),
         rule_alone_wrong: sum(|r| r.rule_alone_wrong, &out),
+        declined: sum(|r| r.declined, &out),
+        found_turned_down: sum(|r| r.found_turned_down, &out),
+        right_among_candidates: sum(|r| r.right_among_candidates, &out),
+        reasons,
+        shipped_accepted_accurate: sum(|r| r.shipped_accepted_accurate, &out),
+        shipped_wrong: sum(|r| r.shipped_wrong, &out),
         rule: None,
     };
     let all: Vec<(Features, bool)> = rows.iter().map(sample).collect();
@@ -264,13 +310,25 @@ pub fn cross_validate(rows: &[PairRecord]) -> Vec<FoldRow> {
     out
 }
 
+/// A row's decline reasons, most frequent first: `not confident 5, ambiguous (self-match) 2`.
+fn reasons_cell(r: &FoldRow) -> String {
+    let mut v: Vec<(&Decline, &usize)> = r.reasons.iter().collect();
+    v.sort_by(|a, b| b.1.cmp(a.1).then(a.0.cmp(b.0)));
+    let s: Vec<String> = v.iter().map(|(d, n)| format!("{} {n}", d.name())).collect();
+    if s.is_empty() {
+        "-".to_string()
+    } else {
+        s.join(", ")
+    }
+}
+
 /// The folds as a markdown table.
 pub fn write_folds(out: &mut dyn Write, rows: &[FoldRow]) -> io::Result<()> {
     writeln!(
         out,
-        "| building left out | pairs | accepted and accurate | wrong accepts | negatives accepted | rule alone, no veto: wrong or negative accepts | rule fitted without it (coarse, free inside, free disagree; threshold) |"
+        "| building left out | pairs | accepted and accurate | wrong accepts | declined | found and turned down | right pose among the candidates | why declined | negatives accepted | rule alone, no veto: wrong or negative accepts | shipped rule: accurate, wrong or negative accepts | rule fitted without it (coarse, free inside, free disagree; threshold) |"
     )?;
-    writeln!(out, "|---|---|---|---|---|---|---|")?;
+    writeln!(out, "|---|---|---|---|---|---|---|---|---|---|---|---|")?;
     for r in rows {
         let rule = match &r.rule {
             Some(a) if a.threshold.is_infinite() => {
@@ -282,17 +340,25 @@ pub fn write_folds(out: &mut dyn Write, rows: &[FoldRow]) -> io::Result<()> {
             ),
             None => "each fold's own".to_string(),
         };
+        let pct = |n: usize| 100.0 * n as f64 / r.pairs.max(1) as f64;
         writeln!(
             out,
-            "| {} | {} | {} ({:.1}%) | {} | {} of {} | {} | {rule} |",
+            "| {} | {} | {} ({:.1}%) | {} | {} | {} | {} ({:.1}%) | {} | {} of {} | {} | {}, {} | {rule} |",
             crate::output::md_cell(&r.building),
             r.pairs,
             r.accepted_accurate,
-            100.0 * r.accepted_accurate as f64 / r.pairs.max(1) as f64,
+            pct(r.accepted_accurate),
             r.wrong,
+            r.declined,
+            r.found_turned_down,
+            r.right_among_candidates,
+            pct(r.right_among_candidates),
+            reasons_cell(r),
             r.negatives_accepted,
             r.negatives,
             r.rule_alone_wrong,
+            r.shipped_accepted_accurate,
+            r.shipped_wrong,
         )?;
     }
     Ok(())
@@ -337,7 +403,7 @@ mod tests {
             conflict_fine: 0.9,
             ..f
         };
-        assert!(!accepts(&vetoed, f64::INFINITY));
+        assert!(!crate::merge::align::accepts(&vetoed, f64::INFINITY));
         train.push((vetoed, false));
         let strict = fit(&train);
         assert!(strict.margin(&vetoed) < 0.0, "{strict:?}");

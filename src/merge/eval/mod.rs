@@ -14,7 +14,7 @@ use serde::Serialize;
 use super::align::{align_prepared, Alignment, MergeOptions, Prepared};
 use super::hypotheses::Hypotheses;
 use super::pairs::{PairSet, TruePair};
-use super::synthetic::{synthetic_pair, SyntheticPair, SyntheticSpec};
+use super::synthetic::{furnished_pair, synthetic_pair, SyntheticPair, SyntheticSpec};
 use super::transform::Rigid;
 use crate::backend::DetectorKind;
 use crate::baselines::Baseline;
@@ -107,16 +107,10 @@ pub fn run_with(
         Ok(())
     };
     let mut out = Vec::new();
-    let jobs = set
-        .pairs
-        .iter()
-        .map(|p| (p.src.clone(), p.dst.clone(), Some(p)))
-        .chain(
-            set.negatives
-                .iter()
-                .map(|n| (n.src.clone(), n.dst.clone(), None)),
-        );
-    for (src, dst, truth) in jobs {
+    let jobs = jobs(set);
+    let last = last_uses(&jobs);
+    for (k, (src, dst, truth)) in jobs.into_iter().enumerate() {
+        let (src, dst) = (src.to_string(), dst.to_string());
         get(&src, &mut prepared, &mut timer)?;
         get(&dst, &mut prepared, &mut timer)?;
         let (alignment, ms) = timer.align(&prepared[&dst].1, &prepared[&src].1, options);
@@ -157,8 +151,57 @@ pub fn run_with(
             truth.map(TruePair::truth),
         )?;
         out.push(record);
+        // A map no later pair names is let go: a set of cut pairs names each map once.
+        prepared.retain(|name, _| last[name.as_str()] > k);
     }
     Ok((out, timer.costs()))
+}
+
+/// A pair set's pairs, then its negatives, in the order [`run`] aligns them: (src, dst, the truth).
+type Job<'a> = (&'a str, &'a str, Option<&'a TruePair>);
+
+fn jobs(set: &PairSet) -> Vec<Job<'_>> {
+    set.pairs
+        .iter()
+        .map(|p| (p.src.as_str(), p.dst.as_str(), Some(p)))
+        .chain(
+            set.negatives
+                .iter()
+                .map(|n| (n.src.as_str(), n.dst.as_str(), None)),
+        )
+        .collect()
+}
+
+/// Each map's last job.
+fn last_uses<'a>(jobs: &[Job<'a>]) -> HashMap<&'a str, usize> {
+    let mut last = HashMap::new();
+    for (k, (src, dst, _)) in jobs.iter().enumerate() {
+        last.insert(*src, k);
+        last.insert(*dst, k);
+    }
+    last
+}
+
+/// The most bytes [`run`] holds at once over `set`, from each map's bytes (`bytes(name)`: the map and its
+/// preparation): a map is held from its first pair to its last. With the number of maps then held.
+pub fn peak_held(set: &PairSet, bytes: &dyn Fn(&str) -> Result<u64>) -> Result<(u64, usize)> {
+    let jobs = jobs(set);
+    let last = last_uses(&jobs);
+    let mut held: HashMap<&str, u64> = HashMap::new();
+    let (mut peak, mut most) = (0u64, 0usize);
+    for (k, (src, dst, _)) in jobs.iter().enumerate() {
+        for name in [*src, *dst] {
+            if !held.contains_key(name) {
+                held.insert(name, bytes(name)?);
+            }
+        }
+        let total = held.values().fold(0u64, |a, &b| a.saturating_add(b));
+        if total > peak {
+            (peak, most) = (total, held.len());
+        }
+        held.retain(|name, _| last[name] > k);
+    }
+    Ok((peak, most))
 }
 
 /// Runs the merger on synthetic pairs cut from each of `sources` ([`synthetic_pair`]) as `run` says:
@@ -186,12 +229,41 @@ pub fn run_synthetic_with(
         noise,
         seed,
         negatives,
+        furnished,
         save,
     } = run;
     let (per_map, noise, seed, negatives) = (*per_map, *noise, *seed, *negatives);
     let mut saved: Vec<TruePair> = Vec::new();
     let mut out = Vec::new();
     let mut prep = PrepTimer::default();
+    // A cut pair written (when saving), run, shown and kept.
+    let mut take = |label: String,
+                    group: &str,
+                    pair: &SyntheticPair,
+                    out: &mut Vec<PairRecord>,
+                    prep: &mut PrepTimer,
+                    on_pair: &mut OnPair|
+     -> Result<()> {
+        let stem = saved_stem(&label);
+        // The truth as a pair file holds it, named as saved maps are, with its building.
+        let building = synthetic_building(&label);
+        let truth = pair.true_pair(&format!("b_{stem}"), &format!("a_{stem}"), building);
+        if let Some(dir) = save {
+            pair.a
+                .image
+                .write_pgm(&dir.join(format!("{}.pgm", truth.dst)))?;
+            pair.b
+                .image
+                .write_pgm(&dir.join(format!("{}.pgm", truth.src)))?;
+        }
+        let record = synthetic_record(label, group, false, pair, &truth, options, prep);
+        on_pair(out.len(), &record, &pair.a, &pair.b, Some(truth.truth()))?;
+        out.push(record);
+        if save.is_some() {
+            saved.push(truth);
+        }
+        Ok(())
+    };
     for &overlap in overlaps.iter() {
         let spec = SyntheticSpec { overlap, noise };
         let group = format!("synthetic, {:.0}% overlap", 100.0 * overlap);
@@ -205,25 +277,14 @@ pub fn run_synthetic_with(
                 let Some(pair) = synthetic_pair(map, &spec, s) else {
                     continue;
                 };
-                let label = synthetic_label(name, overlap, k);
-                let stem = saved_stem(&label);
-                // The truth as a pair file holds it, named as saved maps are.
-                let truth = pair.true_pair(&format!("b_{stem}"), &format!("a_{stem}"), &group);
-                if let Some(dir) = save {
-                    pair.a
-                        .image
-                        .write_pgm(&dir.join(format!("{}.pgm", truth.dst)))?;
-                    pair.b
-                        .image
-                        .write_pgm(&dir.join(format!("{}.pgm", truth.src)))?;
-                }
-                let record =
-                    synthetic_record(label, &group, false, &pair, &truth, options, &mut prep);
-                on_pair(out.len(), &record, &pair.a, &pair.b, Some(truth.truth()))?;
-                out.push(record);
-                if save.is_some() {
-                    saved.push(truth);
-                }
+                take(
+                    synthetic_label(name, overlap, k),
+                    &group,
+                    &pair,
+                    &mut out,
+                    &mut prep,
+                    on_pair,
+                )?;
                 if k == 0 {
                     cuts.push((name.clone(), pair));
                 }
@@ -256,6 +317,27 @@ pub fn run_synthetic_with(
                 };
                 on_pair(out.len(), &record, a, b, None)?;
                 out.push(record);
+            }
+        }
+    }
+    // Each plan against its furnished copy: A a window of the plan, B one of the copy.
+    for (name, copy) in furnished {
+        let Some((i, (_, plan))) = sources.iter().enumerate().find(|(_, (n, _))| n == name) else {
+            continue;
+        };
+        for k in 0..per_map {
+            let s = seed
+                .wrapping_mul(1_000_033)
+                .wrapping_add((i * 7919 + k) as u64);
+            if let Some(pair) = furnished_pair(plan, copy, noise, s) {
+                take(
+                    furnished_label(name, k),
+                    FURNISHED_GROUP,
+                    &pair,
+                    &mut out,
+                    &mut prep,
+                    on_pair,
+                )?;
             }
         }
     }
@@ -429,9 +511,47 @@ pub struct SyntheticRun {
     pub seed: u64,
     /// One negative per map and overlap (only for sources known to be different places).
     pub negatives: bool,
+    /// Furnished copies of sources (the same place in the same frame with furniture drawn in), each
+    /// under its source's name: `per_map` plan-vs-furnished pairs each ([`furnished_pair`]), named
+    /// `<map>+furnished/<k>`.
+    pub furnished: Vec<NamedMap>,
     /// Write every pair there (`a_<stem>.pgm`, `b_<stem>.pgm`) with a `pairs.json` of their truths, which
     /// `merge-eval DIR/pairs.json` reads back.
     pub save: Option<std::path::PathBuf>,
+}
+
+/// A map and its name.
+pub type NamedMap = (String, OccupancyMap);
+
+/// What a map named `NAME_furnished` beside a map `NAME` is: its furnished copy (the maps-more layout).
+pub const FURNISHED_SUFFIX: &str = "_furnished";
+
+/// The group of the plan-vs-furnished pairs in a summary.
+pub const FURNISHED_GROUP: &str = "plan vs furnished";
+
+/// `sources` split into the maps cut on their own and the furnished copies ([`SyntheticRun::furnished`]):
+/// a map named `NAME_furnished` when a map `NAME` is among them goes under `NAME`.
+pub fn furnished_copies(sources: Vec<NamedMap>) -> (Vec<NamedMap>, Vec<NamedMap>) {
+    let names: std::collections::HashSet<String> = sources.iter().map(|(n, _)| n.clone()).collect();
+    let (mut own, mut copies) = (Vec::new(), Vec::new());
+    for (name, map) in sources {
+        match name.strip_suffix(FURNISHED_SUFFIX) {
+            Some(base) if names.contains(base) => copies.push((base.to_string(), map)),
+            _ => own.push((name, map)),
+        }
+    }
+    (own, copies)
+}
+
+/// A plan-vs-furnished pair's name: `<map>+furnished/<k>`.
+pub fn furnished_label(map: &str, k: usize) -> String {
+    format!("{map}+furnished/{k}")
+}
+
+/// The building a synthetic pair's name names: its map (`<map>[+furnished]/...`).
+pub fn synthetic_building(label: &str) -> &str {
+    let map = label.split('/').next().unwrap_or(label);
+    map.strip_suffix("+furnished").unwrap_or(map)
 }
 
 /// A synthetic pair's name: `<map>/<overlap percent>/<k>`.
@@ -680,6 +800,29 @@ pub fn operating_curve(rows: &[PairRecord]) -> Vec<(f64, usize, usize, usize, us
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A map is held from its first pair to its last: a set of cut pairs (each map once) holds two maps
+    /// at a time, a hub map named by every pair stays throughout.
+    #[test]
+    fn a_pair_set_holds_each_map_from_its_first_pair_to_its_last() {
+        let pair = |src: &str, dst: &str| {
+            format!(
+                r#"{{"src": "{src}", "dst": "{dst}", "theta_deg": 0, "tx": 0, "ty": 0, "rms_limit_px": 3,
+                "rot_limit_deg": 2, "src_points": [[0, 0]], "dst_points": [[0, 0]]}}"#
+            )
+        };
+        let set = |pairs: &[(&str, &str)]| -> PairSet {
+            let list: Vec<String> = pairs.iter().map(|(s, d)| pair(s, d)).collect();
+            serde_json::from_str(&format!(r#"{{"pairs": [{}]}}"#, list.join(","))).unwrap()
+        };
+        let one = |_: &str| Ok(1u64);
+        let cut = set(&[("b1", "a1"), ("b2", "a2"), ("b3", "a3")]);
+        assert_eq!(peak_held(&cut, &one).unwrap(), (2, 2));
+        let hub = set(&[("b", "a"), ("c", "a"), ("d", "a"), ("d", "e")]);
+        assert_eq!(peak_held(&hub, &one).unwrap(), (2, 2));
+        let ring = set(&[("b", "a"), ("c", "b"), ("a", "c")]);
+        assert_eq!(peak_held(&ring, &one).unwrap(), (3, 3));
+    }
 
     /// The self-symmetry that a pair's alignment measures is counted once per map, out of the pair's
     /// time; a second pair of the same maps and a map aligned with itself add what they should.

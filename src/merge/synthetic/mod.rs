@@ -63,6 +63,26 @@ pub struct PairShape {
     pub lattice: Vec<(f64, f64)>,
     /// Share of B's rooms left unexplored: discs of its known area turned unknown.
     pub unexplored: f64,
+    /// Where each part lies along the cut direction, instead of the two ends overlapping by the spec's
+    /// overlap: shares of the known area, in the order of the known pixels' projections.
+    pub window: Option<Window>,
+}
+
+/// Two windows of a map's known area along the cut direction: each a range of shares (0 to 1) of the
+/// known pixels in the order of their projections, so `(0.2, 0.7)` holds half the known area.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Window {
+    /// A's range.
+    pub a: (f64, f64),
+    /// B's range.
+    pub b: (f64, f64),
+}
+
+impl Window {
+    /// The share of the known area both windows hold.
+    pub fn shared(&self) -> f64 {
+        (self.a.1.min(self.b.1) - self.a.0.max(self.b.0)).max(0.0)
+    }
 }
 
 /// Fewest contradicting cells that count as breaking the period ([`SyntheticPair::alias_contradiction`]).
@@ -92,10 +112,28 @@ pub fn synthetic_pair_with(
     shape: &PairShape,
     seed: u64,
 ) -> Option<SyntheticPair> {
+    synthetic_pair_from(source, source, spec, shape, seed)
+}
+
+/// [`synthetic_pair_with`], B's part read from `copy`: the same place in the same frame (the same size)
+/// seen another time, as a floor plan's furnished copy is; the cut and the truth are the source's. `None`
+/// also when the two differ in size.
+pub fn synthetic_pair_from(
+    source: &OccupancyMap,
+    copy: &OccupancyMap,
+    spec: &SyntheticSpec,
+    shape: &PairShape,
+    seed: u64,
+) -> Option<SyntheticPair> {
     let classes = ClassTable::new(&source.thresholds);
     let img = &source.image;
     let (w, h) = (img.width() as usize, img.height() as usize);
+    if (copy.image.width(), copy.image.height()) != (img.width(), img.height()) {
+        return None;
+    }
     let state = |x: usize, y: usize| classes.state(img.pixels()[y * w + x]);
+    let copy_classes = ClassTable::new(&copy.thresholds);
+    let state_b = |x: usize, y: usize| copy_classes.state(copy.image.pixels()[y * w + x]);
     let mut rng = Rng::new(seed);
     let unit = |r: &mut Rng| f64::from(r.range(0, 1 << 24)) / f64::from(1u32 << 24);
     let phi = unit(&mut rng) * std::f64::consts::PI;
@@ -113,11 +151,16 @@ pub fn synthetic_pair_with(
     if hi - lo < MIN_EXTENT {
         return None;
     }
-    let overlap = spec.overlap.clamp(0.01, 0.99);
-    let part = (hi - lo) / (2.0 - overlap);
-    let (a_end, b_start) = (lo + part, hi - part);
-    let in_a = |x: usize, y: usize| proj(x as f64, y as f64) < a_end;
-    let in_b = |x: usize, y: usize| proj(x as f64, y as f64) >= b_start;
+    let [a_lo, a_hi, b_lo, b_hi] = match &shape.window {
+        None => {
+            let overlap = spec.overlap.clamp(0.01, 0.99);
+            let part = (hi - lo) / (2.0 - overlap);
+            [f64::MIN, lo + part, hi - part, f64::MAX]
+        }
+        Some(win) => window_bounds(&state, (w, h), &proj, win)?,
+    };
+    let in_a = |x: usize, y: usize| (a_lo..a_hi).contains(&proj(x as f64, y as f64));
+    let in_b = |x: usize, y: usize| (b_lo..b_hi).contains(&proj(x as f64, y as f64));
     let bbox = |keep: &dyn Fn(usize, usize) -> bool| {
         let (mut x0, mut y0, mut x1, mut y1) = (w, h, 0, 0);
         for y in 0..h {
@@ -174,7 +217,7 @@ pub fn synthetic_pair_with(
         (centre.0 + c * d.0 - s * d.1, centre.1 + s * d.0 + c * d.1)
     };
     let (mut b_px, side, to_source, (kx0, ky0, kx1, ky1)) = turned(
-        &state,
+        &state_b,
         (w, h),
         &in_b,
         bbox(&in_b),
@@ -257,6 +300,79 @@ pub fn synthetic_pair_with(
         rms_limit_px,
         alias_contradiction,
     })
+}
+
+/// Shares of the known area each part of a plan-vs-furnished pair holds ([`furnished_pair`]).
+pub const FURNISHED_PART: (f64, f64) = (0.36, 0.64);
+
+/// Least share of the known area both parts of a plan-vs-furnished pair hold.
+pub const FURNISHED_MIN_SHARED: f64 = 0.15;
+
+/// A plan-vs-furnished pair: A a window of `plan`, B a window of `furnished` (the same place in the same
+/// frame with furniture drawn in: a second session whose appearance changed), each holding 36 to 64% of
+/// the known area along a random direction and both at least 15% of it, B turned by a random angle;
+/// deterministic in `seed`, the truth exact (both share one frame). `None` as [`synthetic_pair_from`].
+pub fn furnished_pair(
+    plan: &OccupancyMap,
+    furnished: &OccupancyMap,
+    noise: f64,
+    seed: u64,
+) -> Option<SyntheticPair> {
+    let mut rng = Rng::new(seed ^ 0x5eed_f00d);
+    let mut unit = || f64::from(rng.range(0, 1 << 24)) / f64::from(1u32 << 24);
+    let (lo, hi) = FURNISHED_PART;
+    let (fa, fb) = (lo + unit() * (hi - lo), lo + unit() * (hi - lo));
+    let a0 = unit() * (1.0 - fa);
+    // B placed at random until the two share enough; else B from where A starts.
+    let window = (0..64)
+        .map(|_| unit() * (1.0 - fb))
+        .map(|b0| Window {
+            a: (a0, a0 + fa),
+            b: (b0, b0 + fb),
+        })
+        .find(|w| w.shared() >= FURNISHED_MIN_SHARED)
+        .unwrap_or(Window {
+            a: (a0, a0 + fa),
+            b: (a0, a0 + fb),
+        });
+    let shape = PairShape {
+        window: Some(window),
+        ..PairShape::default()
+    };
+    let spec = SyntheticSpec {
+        overlap: window.shared(),
+        noise,
+    };
+    synthetic_pair_from(plan, furnished, &spec, &shape, seed)
+}
+
+/// The projections bounding `win`'s two windows: `[a_lo, a_hi, b_lo, b_hi]`, from the known pixels'
+/// projections in order (a window reaching share 0 or 1 is open at that end). `None` when there are too
+/// few known pixels to split.
+fn window_bounds(
+    state: &dyn Fn(usize, usize) -> CellState,
+    (w, h): (usize, usize),
+    proj: &dyn Fn(f64, f64) -> f64,
+    win: &Window,
+) -> Option<[f64; 4]> {
+    let mut p: Vec<f64> = Vec::new();
+    for y in 0..h {
+        for x in 0..w {
+            if state(x, y) != CellState::Unknown {
+                p.push(proj(x as f64, y as f64));
+            }
+        }
+    }
+    if p.len() < 64 {
+        return None;
+    }
+    p.sort_unstable_by(f64::total_cmp);
+    let at = |q: f64| match q {
+        q if q <= 0.0 => f64::MIN,
+        q if q >= 1.0 => f64::MAX,
+        q => p[((q * p.len() as f64) as usize).min(p.len() - 1)],
+    };
+    Some([at(win.a.0), at(win.a.1), at(win.b.0), at(win.b.1)])
 }
 
 /// Turns discs of the known area of a `side` x `side` canvas unknown until about `share` of it is:
