@@ -349,3 +349,106 @@ fn cross_validation_takes_several_pair_files_and_reports_each_building() {
         "only --cross-validate",
     );
 }
+
+/// The on-disk cache of measured alignments: a second run reads every pair back with the same records, a
+/// changed map is measured again (and only its pair), and another build's entries are not read.
+#[test]
+fn measured_pairs_are_kept_and_found_again_until_a_map_or_the_code_changes() {
+    let d = tmp();
+    let (plan, copy) = furnished(3);
+    let (p, c) = (
+        d.path().join("hall.pgm"),
+        d.path().join("hall_furnished.pgm"),
+    );
+    plan.image.write_pgm(&p).unwrap();
+    copy.image.write_pgm(&c).unwrap();
+    let sp = d.path().join("sp");
+    let o = ogm(&[
+        "merge-eval",
+        "--synthetic",
+        s(&p),
+        s(&c),
+        "--furnished",
+        "--per-map",
+        "1",
+        "--save-pairs",
+        s(&sp),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let cache = d.path().join("cache");
+    let run = || {
+        let o = ogm(&[
+            "merge-eval",
+            s(&sp.join("pairs.json")),
+            "--cache",
+            s(&cache),
+            "--format",
+            "json",
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let rows: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+        (rows, stderr(&o))
+    };
+    let (first, e) = run();
+    let n = first.as_array().unwrap().len();
+    assert_eq!(n, 3);
+    assert!(e.contains("0 pairs read from the cache"), "{e}");
+    assert!(e.contains(&format!("{n} aligned")), "{e}");
+    let (again, e) = run();
+    assert!(e.contains(&format!("{n} pairs read from the cache")), "{e}");
+    assert!(e.contains("0 aligned"), "{e}");
+    assert_eq!(first, again);
+    // One map changed (a wall pixel more): its pair is measured again, the others are read.
+    let set: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(sp.join("pairs.json")).unwrap()).unwrap();
+    let dst = set["pairs"][0]["dst"].as_str().unwrap();
+    let path = sp.join(format!("{dst}.pgm"));
+    let mut m = OccupancyMap::load(&path).unwrap();
+    let i = m.image.pixels().iter().position(|&v| v == FREE).unwrap();
+    m.image.pixels_mut()[i] = OCCUPIED;
+    m.image.write_pgm(&path).unwrap();
+    let (_, e) = run();
+    assert!(
+        e.contains(&format!("{} pairs read from the cache", n - 1)),
+        "{e}"
+    );
+    assert!(e.contains("1 aligned"), "{e}");
+    // --no-cache reads and writes nothing.
+    let o = ogm(&["merge-eval", s(&sp.join("pairs.json")), "--no-cache"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(!stderr(&o).contains("cache"), "{}", stderr(&o));
+    // Another build of the measuring code finds nothing of this one's.
+    use ogm_corners::merge::eval::cache::RecordCache;
+    use ogm_corners::merge::MergeOptions;
+    let options = MergeOptions::default();
+    let al = ogm_corners::merge::align(&plan, &copy, &options).unwrap();
+    let mut one = RecordCache::for_build(&cache, "build one");
+    let key = one.key_of(&plan, &copy, &options);
+    one.put(&key, &al, 1.0);
+    assert_eq!(one.get(&key).map(|(a, _)| a), Some(al.clone()));
+    let mut two = RecordCache::for_build(&cache, "build two");
+    assert_ne!(two.key_of(&plan, &copy, &options), key);
+    assert!(two.get(&key).is_none());
+    // A damaged entry is measured again, not an error.
+    std::fs::write(cache.join(format!("{key}.json")), "{ not json").unwrap();
+    assert!(one.get(&key).is_none());
+}
+
+/// The symmetric family's pairs: each kind's truth carries B's walls onto A's, over a large shared part
+/// (both windows hold the hall), and a pose a few pixels off does not.
+#[test]
+fn a_symmetric_halls_pairs_have_exact_truths() {
+    use ogm_corners::merge::synthetic::{hall_pair, SymmetricKind};
+    for kind in SymmetricKind::suite() {
+        let pair = hall_pair(kind, 5).unwrap();
+        let (share, landed) = walls_on_walls(&pair.b.image, &pair.a.image, &pair.truth);
+        assert!(landed > 500, "{kind:?}: {landed}");
+        assert!(share > 0.97, "{kind:?}: {share:.3} of {landed}");
+        let off = Rigid {
+            tx: pair.truth.tx + 9.0,
+            ..pair.truth
+        };
+        let (wrong, _) = walls_on_walls(&pair.b.image, &pair.a.image, &off);
+        assert!(wrong < share - 0.1, "{kind:?}: {wrong:.3} vs {share:.3}");
+    }
+}

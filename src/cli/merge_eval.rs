@@ -35,7 +35,8 @@ pub(super) struct MergeEvalArgs {
     /// With --synthetic and no maps: the families to run, comma-separated: office (the office generator's
     /// offices cut in two, with negatives), grid-rooms, warehouse, doors (repetitive layouts at 50, 30 and
     /// 20% overlap), bent (offices with heading drift, speckle and unexplored rooms), crops (windows of 120,
-    /// 250 and 400 px overlapping or apart), or all (the default).
+    /// 250 and 400 px overlapping or apart), symmetric (a hall with 2 to 8 identical wings, mirrored or
+    /// not, or one extra room, cut into two windows that both hold the hall), or all (the default).
     #[arg(long, value_delimiter = ',', value_name = "FAMILY")]
     family: Vec<String>,
     /// With --synthetic MAPS: a map `NAME_furnished` given beside `NAME` is its furnished copy (the same
@@ -99,6 +100,15 @@ pub(super) struct MergeEvalArgs {
     /// the truth); opened from disk, no server.
     #[arg(long, value_name = "DIR", conflicts_with_all = ["ablation", "global"])]
     html: Option<PathBuf>,
+    /// Keep each pair's measured alignment in DIR, and read it back when the same maps are aligned again
+    /// by the same build with the same options (a pair file's runs and --cross-validate): default
+    /// `$OGM_CORNERS_CACHE`, else `$XDG_CACHE_HOME/ogm-corners/merge-eval`, else
+    /// `~/.cache/ogm-corners/merge-eval`.
+    #[arg(long, value_name = "DIR", conflicts_with = "no_cache")]
+    cache: Option<PathBuf>,
+    /// Measure every pair again and keep nothing.
+    #[arg(long)]
+    no_cache: bool,
     /// Output: a summary table, or every pair's record as JSON.
     #[arg(long, value_enum, default_value = "md")]
     format: super::TextOrJsonMd,
@@ -164,7 +174,16 @@ pub(super) fn run(a: MergeEvalArgs, budget: &Budget) -> Result<()> {
                 return write_table(a.format, &rows, |out| eval::write_ablation(out, &rows));
             }
             check_set_memory(&set, &maps, budget)?;
-            eval::run_with(&set, &maps, &MergeOptions::default(), &mut on_pair)?
+            let mut cache = a.record_cache();
+            let done = eval::run_cached(
+                &set,
+                &maps,
+                &MergeOptions::default(),
+                &mut on_pair,
+                cache.as_mut(),
+            )?;
+            say_cache_use(cache.as_ref());
+            done
         }
         (None, sources) => {
             let given = sources.as_deref().unwrap_or(&[]);
@@ -267,7 +286,36 @@ pub(super) fn run(a: MergeEvalArgs, budget: &Budget) -> Result<()> {
     })
 }
 
+/// How a run used the cache, on standard error.
+fn say_cache_use(cache: Option<&eval::cache::RecordCache>) {
+    if let Some(c) = cache {
+        ogm_corners::say!(
+            "ogm-corners: merge-eval: {} pairs read from the cache ({}), {} aligned",
+            c.hits,
+            ogm_corners::error::one_line(&c.dir().display().to_string()),
+            c.misses
+        );
+        if let Some(why) = &c.unwritable {
+            ogm_corners::say!(
+                "ogm-corners: warning: merge-eval: the cache could not be written ({}); give another \
+                 with --cache DIR, or --no-cache",
+                ogm_corners::error::one_line(why)
+            );
+        }
+    }
+}
+
 impl MergeEvalArgs {
+    /// The cache of measured alignments the options ask for (none with --no-cache, or when no folder
+    /// can be told).
+    fn record_cache(&self) -> Option<eval::cache::RecordCache> {
+        if self.no_cache {
+            return None;
+        }
+        let dir = self.cache.clone().or_else(eval::cache::default_dir)?;
+        Some(eval::cache::RecordCache::new(&dir))
+    }
+
     /// The one pair file of a run that takes one (all but --cross-validate).
     fn pair_file(&self) -> Result<Option<&PathBuf>> {
         match self.pairs.as_slice() {
@@ -312,9 +360,16 @@ fn cross_validate(a: &MergeEvalArgs, budget: &Budget) -> Result<()> {
         )));
     }
     let mut rows = Vec::new();
+    let mut cache = a.record_cache();
     for (set, maps) in sets.iter().filter(|(set, _)| !set.pairs.is_empty()) {
-        rows.extend(eval::run(set, maps, &options)?.0);
+        let none = &mut |_: usize,
+                         _: &eval::PairRecord,
+                         _: &OccupancyMap,
+                         _: &OccupancyMap,
+                         _: Option<Rigid>| Ok(());
+        rows.extend(eval::run_cached(set, maps, &options, none, cache.as_mut())?.0);
     }
+    say_cache_use(cache.as_ref());
     let folds = eval::crossval::cross_validate(&rows);
     write_table(a.format, &folds, |out| {
         eval::crossval::write_folds(out, &folds)

@@ -159,7 +159,7 @@ impl Acceptance {
 }
 
 /// What the verification measures for a candidate transform.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, serde::Deserialize)]
 pub struct Features {
     /// Share of both maps' wall pixels (each mapped into the other) that lie more than 20 px deep inside
     /// the other map's free space.

@@ -88,7 +88,7 @@ impl Default for MergeOptions {
 }
 
 /// One refined candidate.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, serde::Deserialize)]
 pub struct Candidate {
     /// B's pixels to A's.
     pub transform: Rigid,
@@ -100,7 +100,7 @@ pub struct Candidate {
 }
 
 /// The result of [`align`].
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, serde::Deserialize)]
 pub struct Alignment {
     /// The best candidate's transform (also when not accepted).
     pub transform: Rigid,

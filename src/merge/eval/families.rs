@@ -1,7 +1,8 @@
 //! The hard synthetic families of `merge-eval --synthetic`, each with exact truth from the project's own
 //! generators: repetitive layouts (a grid of equal rooms, warehouse aisles, a corridor of identical
 //! doors) at 50, 30 and 20% overlap; bent maps (heading drift, speckle, unexplored rooms); small partial
-//! maps (windows of 120 to 400 px, overlapping or apart).
+//! maps (windows of 120 to 400 px, overlapping or apart); symmetric halls (2 to 8 identical wings,
+//! mirrored or not, one with an extra room) cut into two windows that both hold the hall.
 //!
 //! A repetitive pair is reported in its own row when nothing in its overlap breaks the period
 //! ([`SyntheticPair::alias_contradiction`] under [`MIN_ALIAS_CONTRADICTION`]): no merger can tell its
@@ -13,8 +14,8 @@ use crate::error::{Error, Result};
 use crate::map::OccupancyMap;
 use crate::merge::align::MergeOptions;
 use crate::merge::synthetic::{
-    synthetic_crops, synthetic_pair_with, CropSpec, LayoutKind, PairShape, SyntheticPair,
-    SyntheticSpec, MIN_ALIAS_CONTRADICTION,
+    hall_pair, synthetic_crops, synthetic_pair_with, CropSpec, LayoutKind, PairShape,
+    SymmetricKind, SyntheticPair, SyntheticSpec, MIN_ALIAS_CONTRADICTION,
 };
 
 /// A family of synthetic pairs.
@@ -26,6 +27,8 @@ pub enum Family {
     Bent,
     /// Small windows of offices, overlapping or apart.
     Crops,
+    /// Symmetric halls ([`SymmetricKind::suite`]): two windows that both hold the hall.
+    Symmetric,
 }
 
 impl Family {
@@ -34,7 +37,7 @@ impl Family {
         LayoutKind::ALL
             .iter()
             .map(|&k| Family::Layout(k))
-            .chain([Family::Bent, Family::Crops])
+            .chain([Family::Bent, Family::Crops, Family::Symmetric])
             .collect()
     }
 
@@ -44,6 +47,7 @@ impl Family {
             Family::Layout(k) => k.name(),
             Family::Bent => "bent",
             Family::Crops => "crops",
+            Family::Symmetric => "symmetric",
         }
     }
 
@@ -204,6 +208,26 @@ pub fn run_families(
                                 &mut out,
                             )?;
                         }
+                    }
+                }
+            }
+            Family::Symmetric => {
+                for kind in SymmetricKind::suite() {
+                    for k in 0..per {
+                        let s = seed
+                            .wrapping_mul(613)
+                            .wrapping_add(k as u64 * 17 + u64::from(kind.wings));
+                        let Some(pair) = hall_pair(kind, s) else {
+                            continue;
+                        };
+                        let what = kind.name();
+                        push(
+                            format!("{name}/{}/{k}", what.replace(", ", "-").replace(' ', "-")),
+                            format!("{name}: {what}"),
+                            false,
+                            pair,
+                            &mut out,
+                        )?;
                     }
                 }
             }

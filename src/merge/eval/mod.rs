@@ -1,6 +1,8 @@
 //! `merge-eval`: the merger over a pair set with ground truth, per pair and summed per building; the hard
-//! synthetic families (`families.rs`); leave-one-building-out cross-validation (`crossval.rs`).
+//! synthetic families (`families.rs`); leave-one-building-out cross-validation (`crossval.rs`); what was
+//! measured kept on disk (`cache.rs`).
 
+pub mod cache;
 pub mod crossval;
 pub mod families;
 
@@ -93,68 +95,120 @@ pub fn run_with(
     options: &MergeOptions,
     on_pair: &mut OnPair,
 ) -> Result<(Vec<PairRecord>, MapCosts)> {
-    let mut prepared: HashMap<String, (OccupancyMap, Prepared)> = HashMap::new();
+    run_cached(set, maps, options, on_pair, None)
+}
+
+/// A map of a pair set while its pairs run: prepared only when some pair of it is not in the cache.
+struct Held {
+    map: OccupancyMap,
+    prepared: Option<Prepared>,
+}
+
+/// [`run_with`], each pair's alignment read from `cache` when it was measured before (the same maps'
+/// contents, options and build) and kept there when not; a map is prepared only for a pair not found.
+pub fn run_cached(
+    set: &PairSet,
+    maps: &Path,
+    options: &MergeOptions,
+    on_pair: &mut OnPair,
+    mut cache: Option<&mut cache::RecordCache>,
+) -> Result<(Vec<PairRecord>, MapCosts)> {
+    let mut held: HashMap<String, Held> = HashMap::new();
     let mut timer = PrepTimer::default();
-    let get = |name: &str,
-               prepared: &mut HashMap<String, (OccupancyMap, Prepared)>,
-               timer: &mut PrepTimer|
-     -> Result<()> {
-        if !prepared.contains_key(name) {
-            let map = OccupancyMap::load(map_path(maps, name)?)?;
-            let p = timer.prepare_with(&map, options.hypotheses.detector())?;
-            prepared.insert(name.to_string(), (map, p));
-        }
-        Ok(())
-    };
     let mut out = Vec::new();
     let jobs = jobs(set);
     let last = last_uses(&jobs);
     for (k, (src, dst, truth)) in jobs.into_iter().enumerate() {
-        let (src, dst) = (src.to_string(), dst.to_string());
-        get(&src, &mut prepared, &mut timer)?;
-        get(&dst, &mut prepared, &mut timer)?;
-        let (alignment, ms) = timer.align(&prepared[&dst].1, &prepared[&src].1, options);
-        let alignment = alignment?;
-        let accurate_candidates = match truth {
-            Some(p) => alignment
-                .candidates
-                .iter()
-                .map(|c| p.accurate(&c.transform))
-                .collect(),
-            None => Vec::new(),
-        };
-        let (accurate, rot, rms) = match truth {
-            Some(p) => {
-                let (rot, rms) = p.errors(&alignment.transform);
-                (p.accurate(&alignment.transform), rot, rms)
+        for name in [src, dst] {
+            if !held.contains_key(name) {
+                let map = OccupancyMap::load(map_path(maps, name)?)?;
+                held.insert(
+                    name.to_string(),
+                    Held {
+                        map,
+                        prepared: None,
+                    },
+                );
             }
-            None => (false, 0.0, 0.0),
+        }
+        let key = cache
+            .as_deref()
+            .map(|c| c.key_of(&held[dst].map, &held[src].map, options));
+        let found = match (&mut cache, &key) {
+            (Some(c), Some(key)) => c.get(key),
+            _ => None,
         };
-        let record = PairRecord {
-            building: truth.map_or("negative".to_string(), |p| p.building.clone()),
-            negative: truth.is_none(),
-            accepted: alignment.accepted,
-            accurate,
-            rot_err_deg: rot,
-            rms_px: rms,
-            src,
-            dst,
-            alignment,
-            ms,
-            accurate_candidates,
+        let (alignment, ms) = match found {
+            Some(kept) => kept,
+            None => {
+                for name in [src, dst] {
+                    let h = held.get_mut(name).expect("loaded above");
+                    if h.prepared.is_none() {
+                        h.prepared =
+                            Some(timer.prepare_with(&h.map, options.hypotheses.detector())?);
+                    }
+                }
+                let prepared = |name: &str| held[name].prepared.as_ref().expect("prepared above");
+                let (alignment, ms) = timer.align(prepared(dst), prepared(src), options);
+                let alignment = alignment?;
+                if let (Some(c), Some(key)) = (&mut cache, &key) {
+                    c.put(key, &alignment, ms);
+                }
+                (alignment, ms)
+            }
         };
+        let record = pair_record(src, dst, truth, alignment, ms);
         on_pair(
             out.len(),
             &record,
-            &prepared[&record.dst].0,
-            &prepared[&record.src].0,
+            &held[dst].map,
+            &held[src].map,
             truth.map(TruePair::truth),
         )?;
         out.push(record);
         // A map no later pair names is let go: a set of cut pairs names each map once.
-        prepared.retain(|name, _| last[name.as_str()] > k);
+        held.retain(|name, _| last[name.as_str()] > k);
     }
     Ok((out, timer.costs()))
+}
+
+/// The record of aligning `src` onto `dst` (`alignment`, in `ms`), judged against `truth` (none: a
+/// negative).
+fn pair_record(
+    src: &str,
+    dst: &str,
+    truth: Option<&TruePair>,
+    alignment: Alignment,
+    ms: f64,
+) -> PairRecord {
+    let accurate_candidates = match truth {
+        Some(p) => alignment
+            .candidates
+            .iter()
+            .map(|c| p.accurate(&c.transform))
+            .collect(),
+        None => Vec::new(),
+    };
+    let (accurate, rot, rms) = match truth {
+        Some(p) => {
+            let (rot, rms) = p.errors(&alignment.transform);
+            (p.accurate(&alignment.transform), rot, rms)
+        }
+        None => (false, 0.0, 0.0),
+    };
+    PairRecord {
+        building: truth.map_or("negative".to_string(), |p| p.building.clone()),
+        negative: truth.is_none(),
+        accepted: alignment.accepted,
+        accurate,
+        rot_err_deg: rot,
+        rms_px: rms,
+        src: src.to_string(),
+        dst: dst.to_string(),
+        alignment,
+        ms,
+        accurate_candidates,
+    }
 }
 
 /// A pair set's pairs, then its negatives, in the order [`run`] aligns them: (src, dst, the truth).

@@ -11,10 +11,12 @@
 mod crops;
 mod explore;
 mod layouts;
+mod symmetric;
 
 pub use crops::{synthetic_crops, CropSpec};
 pub use explore::{explore, Exploration};
 pub use layouts::{doors, grid_rooms, warehouse, Layout, LayoutKind};
+pub use symmetric::{symmetric_plan, SymmetricKind};
 
 use super::pairs::TruePair;
 use super::transform::Rigid;
@@ -76,6 +78,9 @@ pub struct Window {
     pub a: (f64, f64),
     /// B's range.
     pub b: (f64, f64),
+    /// A source pixel both ranges are counted from: each is shifted by the share of the known area
+    /// before it, so `(-0.3, 0.2)` holds half the area with the pixel at three fifths of it.
+    pub around: Option<(f64, f64)>,
 }
 
 impl Window {
@@ -329,11 +334,13 @@ pub fn furnished_pair(
         .map(|b0| Window {
             a: (a0, a0 + fa),
             b: (b0, b0 + fb),
+            around: None,
         })
         .find(|w| w.shared() >= FURNISHED_MIN_SHARED)
         .unwrap_or(Window {
             a: (a0, a0 + fa),
             b: (a0, a0 + fb),
+            around: None,
         });
     let shape = PairShape {
         window: Some(window),
@@ -344,6 +351,34 @@ pub fn furnished_pair(
         noise,
     };
     synthetic_pair_from(plan, furnished, &spec, &shape, seed)
+}
+
+/// A pair of a symmetric plan ([`symmetric_plan`]): two windows that both hold its hall, each 45-70% of
+/// the known area with the hall's centre a quarter to three quarters of the way across it, B turned by a
+/// random angle; deterministic in `seed`. `None` as [`synthetic_pair_with`].
+pub fn hall_pair(kind: SymmetricKind, seed: u64) -> Option<SyntheticPair> {
+    let (image, hall) = symmetric_plan(kind, seed).ok()?;
+    let plan = OccupancyMap::from_image(image);
+    let mut rng = Rng::new(seed ^ 0x4a11_5eed);
+    let mut unit = || f64::from(rng.range(0, 1 << 24)) / f64::from(1u32 << 24);
+    let mut part = || {
+        let (f, r) = (0.45 + 0.25 * unit(), 0.25 + 0.5 * unit());
+        (-r * f, (1.0 - r) * f)
+    };
+    let window = Window {
+        a: part(),
+        b: part(),
+        around: Some(hall),
+    };
+    let shape = PairShape {
+        window: Some(window),
+        ..PairShape::default()
+    };
+    let spec = SyntheticSpec {
+        overlap: window.shared(),
+        noise: 0.0,
+    };
+    synthetic_pair_with(&plan, &spec, &shape, seed)
 }
 
 /// The projections bounding `win`'s two windows: `[a_lo, a_hi, b_lo, b_hi]`, from the known pixels'
@@ -367,7 +402,10 @@ fn window_bounds(
         return None;
     }
     p.sort_unstable_by(f64::total_cmp);
-    let at = |q: f64| match q {
+    let origin = win.around.map_or(0.0, |(x, y)| {
+        p.partition_point(|&v| v < proj(x, y)) as f64 / p.len() as f64
+    });
+    let at = |q: f64| match q + origin {
         q if q <= 0.0 => f64::MIN,
         q if q >= 1.0 => f64::MAX,
         q => p[((q * p.len() as f64) as usize).min(p.len() - 1)],

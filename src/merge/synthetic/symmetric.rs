@@ -1,0 +1,292 @@
+//! Symmetric buildings for the hard synthetic suite: a hall with 2 to 8 identical wings around it (the
+//! plan turns onto itself by a whole wing), each wing mirrored about its axis (rooms on both sides) or not
+//! (rooms on one side); and the variant whose only asymmetric part is one extra room at the end of one
+//! wing. A pair cut from such a plan can be placed wrongly by a turn of the building's symmetry with
+//! nearly every wall on a wall: only the extra room, or what the windows leave out, tells the turns apart.
+//!
+//! Drawn as a union of free rectangles (corridors, rooms, doors) and a regular polygon (the hall); walls
+//! are what is not free within [`WALL`] px of free space, the rest unknown, as a floor plan's map.
+
+use crate::error::Result;
+use crate::map::MapImage;
+use crate::states::{FREE, OCCUPIED, UNKNOWN};
+use crate::synth::Rng;
+
+/// Wall thickness, pixels.
+const WALL: f64 = 3.0;
+/// Margin of unknown around the plan, pixels.
+const MARGIN: f64 = 12.0;
+
+/// A symmetric plan: a hall with `wings` identical wings.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SymmetricKind {
+    /// Wings around the hall, 2 to 8: the plan turns onto itself by 360 / wings degrees.
+    pub wings: u8,
+    /// Rooms on both sides of each wing's corridor (the wing mirrored about its axis), or on one side.
+    pub mirrored: bool,
+    /// One more room at the end of the first wing: the one detail that tells the turns apart.
+    pub extra_room: bool,
+}
+
+impl SymmetricKind {
+    /// The kinds of the suite: 2 to 8 mirrored wings; 3 and 5 wings not mirrored; 4 and 6 with one
+    /// extra room.
+    pub fn suite() -> Vec<SymmetricKind> {
+        let kind = |wings, mirrored, extra_room| SymmetricKind {
+            wings,
+            mirrored,
+            extra_room,
+        };
+        (2..=8)
+            .map(|k| kind(k, true, false))
+            .chain([kind(3, false, false), kind(5, false, false)])
+            .chain([kind(4, true, true), kind(6, true, true)])
+            .collect()
+    }
+
+    /// Its name in reports: `5 wings`, `3 wings, not mirrored`, `4 wings, one extra room`.
+    pub fn name(self) -> String {
+        let mut s = format!("{} wings", self.wings);
+        if !self.mirrored {
+            s += ", not mirrored";
+        }
+        if self.extra_room {
+            s += ", one extra room";
+        }
+        s
+    }
+}
+
+/// A rectangle in plan coordinates: centre, half sizes, turned by `angle` radians.
+#[derive(Clone, Copy, Debug)]
+struct Rect {
+    cx: f64,
+    cy: f64,
+    hx: f64,
+    hy: f64,
+    angle: f64,
+}
+
+impl Rect {
+    fn contains(&self, x: f64, y: f64) -> bool {
+        let (s, c) = self.angle.sin_cos();
+        let (dx, dy) = (x - self.cx, y - self.cy);
+        let (u, v) = (c * dx + s * dy, -s * dx + c * dy);
+        u.abs() <= self.hx && v.abs() <= self.hy
+    }
+}
+
+/// A wing along +u from `start` to `start + len` (before turning by `angle` about the origin, then
+/// shifting by `at`): a corridor `corridor` wide with `rooms` rooms on each of `sides` (-1, 1: both), each
+/// with a door.
+#[allow(clippy::too_many_arguments)]
+fn wing(
+    out: &mut Vec<Rect>,
+    at: (f64, f64),
+    angle: f64,
+    start: f64,
+    len: f64,
+    corridor: f64,
+    rooms: usize,
+    depth: f64,
+    sides: &[f64],
+) {
+    let (s, c) = angle.sin_cos();
+    let place = |u: f64, v: f64, hx: f64, hy: f64| Rect {
+        cx: at.0 + c * u - s * v,
+        cy: at.1 + s * u + c * v,
+        hx,
+        hy,
+        angle,
+    };
+    out.push(place(start + len / 2.0, 0.0, len / 2.0, corridor / 2.0));
+    let pitch = len / rooms as f64;
+    for k in 0..rooms {
+        let u = start + pitch * (k as f64 + 0.5);
+        for &side in sides {
+            let v = side * (corridor / 2.0 + 2.0 * WALL + depth / 2.0);
+            out.push(place(u, v, pitch / 2.0 - 2.0 * WALL, depth / 2.0));
+            // The door through the wall between room and corridor.
+            out.push(place(u, side * (corridor / 2.0 + WALL), 6.0, WALL + 1.0));
+        }
+    }
+}
+
+/// The plan of `kind` for `seed` (map_server values), a few hundred px a side, and the hall's centre in
+/// its pixels.
+pub fn symmetric_plan(kind: SymmetricKind, seed: u64) -> Result<(MapImage, (f64, f64))> {
+    let mut rng = Rng::new(seed);
+    let corridor = f64::from(rng.range(18, 28));
+    let depth = f64::from(rng.range(40, 64));
+    let rooms = rng.range(3, 6) as usize;
+    let len = rooms as f64 * f64::from(rng.range(48, 64));
+    let turn0 = f64::from(rng.range(0, 360)).to_radians();
+    let n = usize::from(kind.wings.clamp(2, 8));
+    let sides: &[f64] = if kind.mirrored { &[-1.0, 1.0] } else { &[1.0] };
+    // A hall wide enough that neighbouring wings' rooms do not meet (a square one for two wings).
+    let corners = if n < 3 { 4 } else { n };
+    let reach = corridor / 2.0 + 2.0 * WALL + depth;
+    let radius = reach / (std::f64::consts::PI / corners as f64).tan() + 2.0 * WALL;
+    let mut rects = Vec::new();
+    for k in 0..n {
+        let a = turn0 + std::f64::consts::TAU * k as f64 / n as f64;
+        wing(
+            &mut rects,
+            (0.0, 0.0),
+            a,
+            radius * 0.9,
+            len,
+            corridor,
+            rooms,
+            depth,
+            sides,
+        );
+    }
+    if kind.extra_room {
+        // One more room at the end of the first wing, with its door.
+        let (s, c) = turn0.sin_cos();
+        let u = radius * 0.9 + len + 2.0 * WALL + depth / 2.0;
+        rects.push(Rect {
+            cx: c * u,
+            cy: s * u,
+            hx: depth / 2.0,
+            hy: depth / 2.0,
+            angle: turn0,
+        });
+        rects.push(Rect {
+            cx: c * (u - depth / 2.0 - WALL),
+            cy: s * (u - depth / 2.0 - WALL),
+            hx: WALL + 1.0,
+            hy: 6.0,
+            angle: turn0,
+        });
+    }
+    // The hall's polygon turned with the wings, so that the whole plan turns onto itself.
+    draw(&rects, (corners, radius, turn0))
+}
+
+/// The free union of `rects` and a regular polygon (corners, circumradius, turn) about the origin, walls
+/// around, unknown beyond, on a canvas that holds it with a margin; with the origin in its pixels.
+fn draw(rects: &[Rect], (n, r, turn): (usize, f64, f64)) -> Result<(MapImage, (f64, f64))> {
+    let in_hub = |x: f64, y: f64| {
+        (0..n).all(|k| {
+            let a = turn + std::f64::consts::TAU * (k as f64 + 0.5) / n as f64;
+            x * a.cos() + y * a.sin() <= r * (std::f64::consts::PI / n as f64).cos()
+        })
+    };
+    let free_at = |x: f64, y: f64| in_hub(x, y) || rects.iter().any(|r| r.contains(x, y));
+    // The extent: every rectangle's corners and the hall.
+    let (mut lo, mut hi) = ((-r, -r), (r, r));
+    for r in rects {
+        let reach = r.hx.hypot(r.hy);
+        lo = (lo.0.min(r.cx - reach), lo.1.min(r.cy - reach));
+        hi = (hi.0.max(r.cx + reach), hi.1.max(r.cy + reach));
+    }
+    let pad = MARGIN + WALL + 2.0;
+    let (x0, y0) = (lo.0 - pad, lo.1 - pad);
+    let (w, h) = (
+        (hi.0 - lo.0 + 2.0 * pad).ceil() as usize,
+        (hi.1 - lo.1 + 2.0 * pad).ceil() as usize,
+    );
+    let mut free = vec![false; w * h];
+    for (i, f) in free.iter_mut().enumerate() {
+        let (x, y) = ((i % w) as f64 + x0 + 0.5, (i / w) as f64 + y0 + 0.5);
+        *f = free_at(x, y);
+    }
+    let t = WALL as isize;
+    let mut px = vec![UNKNOWN; w * h];
+    for y in 0..h as isize {
+        for x in 0..w as isize {
+            let i = y as usize * w + x as usize;
+            if free[i] {
+                px[i] = FREE;
+                continue;
+            }
+            let near = (-t..=t).any(|dy| {
+                (-t..=t).any(|dx| {
+                    let (u, v) = (x + dx, y + dy);
+                    u >= 0
+                        && v >= 0
+                        && (u as usize) < w
+                        && (v as usize) < h
+                        && free[v as usize * w + u as usize]
+                })
+            });
+            if near {
+                px[i] = OCCUPIED;
+            }
+        }
+    }
+    Ok((
+        MapImage::new(w as u32, h as u32, px)?,
+        (-x0 - 0.5, -y0 - 0.5),
+    ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_plan_is_drawn_with_walls_between_free_and_unknown() {
+        for kind in SymmetricKind::suite() {
+            let (img, (cx, cy)) = symmetric_plan(kind, 3).unwrap();
+            let px = img.pixels();
+            let count = |v: u8| px.iter().filter(|&&p| p == v).count();
+            assert!(count(FREE) > 10_000, "{kind:?}");
+            assert!(count(OCCUPIED) > 2_000, "{kind:?}");
+            assert!(count(UNKNOWN) > 0, "{kind:?}");
+            assert!(img.width() < 2400 && img.height() < 2400, "{kind:?}");
+            // The hall's centre is free.
+            assert_eq!(
+                img.get(cx.round() as u32, cy.round() as u32),
+                FREE,
+                "{kind:?}"
+            );
+        }
+    }
+
+    /// The share of the free pixels that land on free pixels when the plan is turned by `deg` about
+    /// the hall's centre.
+    fn agree(kind: SymmetricKind, deg: f64) -> f64 {
+        let (img, c) = symmetric_plan(kind, 4).unwrap();
+        let (w, h) = (img.width() as usize, img.height() as usize);
+        let px = img.pixels();
+        let free: Vec<(usize, usize)> = (0..w * h)
+            .filter(|&i| px[i] == FREE)
+            .map(|i| (i % w, i / w))
+            .step_by(7)
+            .collect();
+        let (s, co) = deg.to_radians().sin_cos();
+        let hits = free
+            .iter()
+            .filter(|p| {
+                let (dx, dy) = (p.0 as f64 - c.0, p.1 as f64 - c.1);
+                let (x, y) = (c.0 + co * dx - s * dy, c.1 + s * dx + co * dy);
+                let (x, y) = (x.round() as isize, y.round() as isize);
+                x >= 0
+                    && y >= 0
+                    && (x as usize) < w
+                    && (y as usize) < h
+                    && px[y as usize * w + x as usize] == FREE
+            })
+            .count();
+        hits as f64 / free.len() as f64
+    }
+
+    #[test]
+    fn a_k_wing_plan_turns_onto_itself_by_a_whole_wing_and_not_by_half_of_one() {
+        for kind in SymmetricKind::suite() {
+            let k = f64::from(kind.wings);
+            let whole = agree(kind, 360.0 / k);
+            let half = agree(kind, 180.0 / k);
+            if kind.extra_room {
+                // The extra room breaks it, a little.
+                assert!(whole > 0.9 && whole < 0.995, "{kind:?}: {whole}");
+            } else {
+                assert!(whole > 0.98, "{kind:?}: {whole}");
+            }
+            assert!(half < 0.75, "{kind:?}: {half}");
+        }
+    }
+}
