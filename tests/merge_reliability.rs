@@ -303,7 +303,7 @@ fn names_reach_standard_output_and_tables_escaped() {
     // Its maps and their preparation are counted before the first is read.
     refused(
         &ogm(&["--max-memory", "1M", "merge-eval", s(&pairs)]),
-        "the 1 maps of the pair file and their preparation needs about",
+        "the pair file's maps held at once (1) and their preparation needs about",
     );
     let o = ogm(&["merge-eval", s(&pairs)]);
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));

@@ -483,7 +483,7 @@ fn check_set_memory(set: &PairSet, maps: &std::path::Path, budget: &Budget) -> R
     };
     let (peak, held) = eval::peak_held(set, &bytes)?;
     budget.check(
-        format_args!("the {held} maps of the pair file held at once and their preparation"),
+        format_args!("the pair file's maps held at once ({held}) and their preparation"),
         peak,
     )
 }
