@@ -33,6 +33,7 @@ mod refine;
 pub mod report;
 pub mod resample;
 mod score;
+pub mod symmetry;
 pub mod synthetic;
 pub mod transform;
 
