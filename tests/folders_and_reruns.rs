@@ -176,7 +176,7 @@ fn saved_synthetic_pairs_run_again_from_their_pair_file() {
     let d = tmp();
     robots(d.path());
     let sp = d.path().join("sp");
-    let o = ogm(&[
+    let first = ogm_json(&[
         "merge-eval",
         "--synthetic",
         s(&d.path().join("robot-1.yaml")),
@@ -187,11 +187,7 @@ fn saved_synthetic_pairs_run_again_from_their_pair_file() {
         "--format",
         "json",
     ]);
-    assert!(o.status.success(), "{}", stderr(&o));
-    let first: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
-    let o = ogm(&["merge-eval", s(&sp.join("pairs.json")), "--format", "json"]);
-    assert!(o.status.success(), "{}", stderr(&o));
-    let again: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    let again = ogm_json(&["merge-eval", s(&sp.join("pairs.json")), "--format", "json"]);
     let n = |v: &serde_json::Value| v.as_array().unwrap().len();
     assert_eq!(n(&first), n(&again));
     // A map the pair file names that is not there: every file looked for is named.

@@ -195,9 +195,7 @@ fn saved_set_runs_again(maps: &[&std::path::Path], building: &str) {
     let pairs = set["pairs"].as_array().unwrap();
     assert_eq!(pairs.len(), labels.len());
     assert!(pairs.iter().all(|p| p["building"] == building), "{set}");
-    let o = ogm(&["merge-eval", s(&sp.join("pairs.json")), "--format", "json"]);
-    assert!(o.status.success(), "{}", stderr(&o));
-    let again: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    let again = ogm_json(&["merge-eval", s(&sp.join("pairs.json")), "--format", "json"]);
     let verdicts = |v: &serde_json::Value| -> Vec<(bool, bool)> {
         v.as_array()
             .unwrap()
@@ -270,7 +268,7 @@ fn cross_validation_takes_several_pair_files_and_reports_each_building() {
         s(&sp),
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
-    let o = ogm(&[
+    let rows = ogm_json(&[
         "merge-eval",
         "--cross-validate",
         s(&halmstad.join("pairs.json")),
@@ -280,8 +278,6 @@ fn cross_validation_takes_several_pair_files_and_reports_each_building() {
         "--format",
         "json",
     ]);
-    assert!(o.status.success(), "{}", stderr(&o));
-    let rows: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
     let rows = rows.as_array().unwrap();
     let names: Vec<&str> = rows
         .iter()

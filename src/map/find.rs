@@ -64,12 +64,12 @@ pub fn find_maps(inputs: &[PathBuf]) -> FoundMaps {
         for y in files.iter().filter(|p| super::is_yaml(p)) {
             let dir = y.parent().unwrap_or(Path::new(""));
             match read_map_yaml(y) {
-                YamlFound::Map(image) if own.left_out(y) => {
+                YamlFound::Map { image, mark } => {
                     named.extend(FileId::of(&dir.join(image)));
-                }
-                YamlFound::Map(image) => {
-                    named.extend(FileId::of(&dir.join(image)));
-                    found.maps.push(y.clone());
+                    match mark {
+                        Some(kind) => own.count(y, kind),
+                        None => found.maps.push(y.clone()),
+                    }
                 }
                 YamlFound::NotAMap(why) => found
                     .notes
@@ -77,7 +77,7 @@ pub fn find_maps(inputs: &[PathBuf]) -> FoundMaps {
                 // A broken or unreadable map yaml is an error, and the image it names (or, when it
                 // cannot say, the image of its own name beside it) is not read as a bare image either:
                 // that would detect with the wrong thresholds and place the map with no georeference.
-                YamlFound::Broken { image, why } => {
+                YamlFound::Broken { image, problem } => {
                     for p in image
                         .map(|i| dir.join(i))
                         .into_iter()
@@ -85,18 +85,19 @@ pub fn find_maps(inputs: &[PathBuf]) -> FoundMaps {
                     {
                         named.extend(FileId::of(&p));
                     }
-                    found
-                        .problems
-                        .push(format!("skipped {}: {why}", y.display()));
+                    found.problems.push(format!("skipped {problem}"));
                 }
             }
         }
         for p in &files {
-            if matches!(ext(p).as_str(), "pgm" | "png")
-                && !FileId::of(p).is_some_and(|id| named.contains(&id))
-                && !own.left_out(p)
+            if !matches!(ext(p).as_str(), "pgm" | "png")
+                || FileId::of(p).is_some_and(|id| named.contains(&id))
             {
-                found.maps.push(p.clone());
+                continue;
+            }
+            match marks::written_by_tool(p) {
+                Some(kind) => own.count(p, kind),
+                None => found.maps.push(p.clone()),
             }
         }
         found.notes.extend(own.note(input));
@@ -112,12 +113,19 @@ pub fn find_maps(inputs: &[PathBuf]) -> FoundMaps {
 
 /// What a yaml in a searched folder is.
 enum YamlFound {
-    /// A map yaml naming this image.
-    Map(String),
+    /// A map yaml naming this image, and the tool's mark when the tool wrote it (a merged map).
+    Map {
+        image: String,
+        mark: Option<Written>,
+    },
     /// Some other yaml (ROS packages keep parameter files beside their maps), with why.
     NotAMap(String),
-    /// A map yaml that cannot be read or parsed, with the image it means when that can be made out.
-    Broken { image: Option<String>, why: String },
+    /// A map yaml that cannot be read or parsed, with the image it means when that can be made out, and
+    /// the problem (naming the file).
+    Broken {
+        image: Option<String>,
+        problem: String,
+    },
 }
 
 fn read_map_yaml(y: &Path) -> YamlFound {
@@ -125,23 +133,22 @@ fn read_map_yaml(y: &Path) -> YamlFound {
         Ok(t) => t,
         Err(e) if e.to_string().contains("too large") => return YamlFound::NotAMap(e.to_string()),
         Err(e) => {
-            let why = e.to_string();
-            // The error names the file already.
-            let why = why
-                .strip_prefix(&format!("{}: ", y.display()))
-                .unwrap_or(&why);
             return YamlFound::Broken {
                 image: None,
-                why: why.to_string(),
-            };
+                problem: e.to_string(),
+            }
         }
     };
     match MapYaml::parse(&text) {
-        Ok(meta) => YamlFound::Map(meta.image),
+        // The mark from the text already read, not the file again.
+        Ok(meta) => YamlFound::Map {
+            image: meta.image,
+            mark: marks::mark_in(text.as_bytes()),
+        },
         Err(why) => match MapYaml::meant_image(&text) {
             Some(image) => YamlFound::Broken {
                 image: Some(image),
-                why,
+                problem: format!("{}: {why}", y.display()),
             },
             None => YamlFound::NotAMap(why),
         },
@@ -164,14 +171,10 @@ struct OwnOutputs {
 }
 
 impl OwnOutputs {
-    /// Whether `p` carries the tool's mark (and so is left out).
-    fn left_out(&mut self, p: &Path) -> bool {
-        let Some(kind) = marks::written_by_tool(p) else {
-            return false;
-        };
+    /// `p`, which the tool wrote as `kind`, left out.
+    fn count(&mut self, p: &Path, kind: Written) {
         self.count += 1;
         self.first.get_or_insert_with(|| (p.to_path_buf(), kind));
-        true
     }
 
     fn note(&self, dir: &Path) -> Option<String> {

@@ -191,7 +191,21 @@ pub fn write_pgm_header(
     width: u32,
     height: u32,
 ) -> std::io::Result<()> {
-    write!(out, "P5\n{width} {height}\n255\n")
+    write_pgm_header_with(out, width, height, None)
+}
+
+/// [`write_pgm_header`] with a comment line after the magic number (which every PGM reader skips).
+pub fn write_pgm_header_with(
+    out: &mut dyn std::io::Write,
+    width: u32,
+    height: u32,
+    comment: Option<&str>,
+) -> std::io::Result<()> {
+    out.write_all(b"P5\n")?;
+    if let Some(c) = comment {
+        writeln!(out, "# {c}")?;
+    }
+    write!(out, "{width} {height}\n255\n")
 }
 
 /// Refuses a zero-size map or a pixel count other than `width * height`.

@@ -57,12 +57,11 @@ pub fn write_merged_pgm_to(
     out: &mut dyn std::io::Write,
 ) -> std::io::Result<()> {
     let image = &map.image;
-    write!(
+    super::write_pgm_header_with(
         out,
-        "P5\n# {}\n{} {}\n255\n",
-        crate::marks::MERGED_MAP,
         image.width(),
-        image.height()
+        image.height(),
+        Some(crate::marks::MERGED_MAP),
     )?;
     out.write_all(image.pixels())
 }

@@ -18,6 +18,7 @@ use rustfft::FftPlanner;
 
 use super::fft::{padded, Fft2, FINE_FFT};
 use super::prepare::{Coarse, Prepared};
+use super::transform::signed_deg as signed;
 
 /// The sweep's step, degrees.
 pub const SWEEP_DEG: f64 = 2.0;
@@ -75,16 +76,6 @@ pub fn self_turns(p: &Prepared) -> Vec<SelfTurn> {
 
 /// The most turns kept (and refined): the best local maxima of the sweep.
 pub const MAX_TURNS: usize = 12;
-
-/// An angle in degrees brought into (-180, 180].
-fn signed(deg: f64) -> f64 {
-    let d = deg.rem_euclid(360.0);
-    if d > 180.0 {
-        d - 360.0
-    } else {
-        d
-    }
-}
 
 /// The finest coarse level whose turned correlation fits [`FINE_FFT`] cells a side, else the coarsest.
 fn level(p: &Prepared) -> Option<&Coarse> {

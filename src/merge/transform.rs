@@ -85,12 +85,8 @@ impl Rigid {
 
     /// The angle in (-180, 180].
     pub fn normalized(&self) -> Rigid {
-        let mut t = self.theta_deg.rem_euclid(360.0);
-        if t > 180.0 {
-            t -= 360.0;
-        }
         Rigid {
-            theta_deg: t,
+            theta_deg: signed_deg(self.theta_deg),
             ..*self
         }
     }
@@ -169,6 +165,16 @@ pub fn to_world(t: &Rigid, a: &GeoRef, ha: u32, b: &GeoRef, hb: u32) -> WorldRig
         yaw,
         x: wa0.0 - (c * wb0.0 - s * wb0.1),
         y: wa0.1 - (s * wb0.0 + c * wb0.1),
+    }
+}
+
+/// An angle in degrees brought into (-180, 180].
+pub fn signed_deg(deg: f64) -> f64 {
+    let t = deg.rem_euclid(360.0);
+    if t > 180.0 {
+        t - 360.0
+    } else {
+        t
     }
 }
 

@@ -96,3 +96,11 @@ pub fn is_root() -> bool {
     let o = Command::new("id").arg("-u").output().unwrap();
     String::from_utf8_lossy(&o.stdout).trim() == "0"
 }
+
+/// Runs the tool with `args`, asserts that it succeeded, and parses its standard output as JSON.
+#[track_caller]
+pub fn ogm_json(args: &[&str]) -> serde_json::Value {
+    let o = ogm(args);
+    assert!(o.status.success(), "{}", stderr(&o));
+    serde_json::from_str(&stdout(&o)).unwrap()
+}

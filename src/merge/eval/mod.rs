@@ -98,9 +98,11 @@ pub fn run_with(
     run_cached(set, maps, options, on_pair, None)
 }
 
-/// A map of a pair set while its pairs run: prepared only when some pair of it is not in the cache.
+/// A map of a pair set while its pairs run: its content id when there is a cache (hashed once, not per
+/// pair), and prepared only when some pair of it is not in the cache.
 struct Held {
     map: OccupancyMap,
+    id: Option<super::global::ContentId>,
     prepared: Option<Prepared>,
 }
 
@@ -122,18 +124,21 @@ pub fn run_cached(
         for name in [src, dst] {
             if !held.contains_key(name) {
                 let map = OccupancyMap::load(map_path(maps, name)?)?;
+                let id = cache.is_some().then(|| super::global::content_id(&map));
                 held.insert(
                     name.to_string(),
                     Held {
                         map,
+                        id,
                         prepared: None,
                     },
                 );
             }
         }
-        let key = cache
-            .as_deref()
-            .map(|c| c.key_of(&held[dst].map, &held[src].map, options));
+        let key = match (cache.as_deref(), held[dst].id, held[src].id) {
+            (Some(c), Some(a), Some(b)) => Some(c.key(a, b, options)),
+            _ => None,
+        };
         let found = match (&mut cache, &key) {
             (Some(c), Some(key)) => c.get(key),
             _ => None,
