@@ -353,6 +353,30 @@ def test_a_merged_map_topic_that_is_a_robots_map_topic_is_warned_about(env, tmp_
     assert "merged_map_topic /robot1/map is robot /robot1's map topic" in text, text[-3000:]
 
 
+def test_a_signal_while_the_node_is_being_built_is_a_clean_stop(env, monkeypatch):
+    """SIGINT can come after the node's first warnings but before its spin loop (the test above sends it
+    as soon as the warning is out): main used to build the node outside its try, so the interrupt
+    escaped as a traceback and exit status -2. Here the node's construction is interrupted for sure."""
+    from ogm_corners.ros import node as node_module
+
+    warned = []
+
+    class Interrupted(node_module.MapMerge):
+        def _warn_merged_topic(self):
+            # Where CI's signal landed: just after this warning, in the import of tf2_ros that follows.
+            super()._warn_merged_topic()
+            warned.append(self)
+            raise KeyboardInterrupt
+
+    monkeypatch.setattr(node_module, "MapMerge", Interrupted)
+    before = signal.getsignal(signal.SIGTERM)
+    try:
+        assert node_module.main(["map_merge"]) == 0
+    finally:
+        signal.signal(signal.SIGTERM, before)
+    assert warned and not rclpy.ok()
+
+
 def test_sigint_during_an_estimation_stops_the_node_without_rosout_errors(env, tmp_path):
     """SIGINT as the node starts estimating three robots' poses (its debug line says when; the estimation
     takes tenths of a second, the signal's delivery milliseconds): rclpy used to shut the context

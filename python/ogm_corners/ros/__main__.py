@@ -5,6 +5,13 @@ import sys
 
 def run() -> int:
     try:
+        return _run()
+    except KeyboardInterrupt:
+        return 0  # Ctrl-C while the node is still loading: a clean stop, as it is once running
+
+
+def _run() -> int:
+    try:
         from .node import main
     except ImportError as e:
         print(

@@ -481,26 +481,37 @@ def main(args: Optional[list] = None) -> int:
     # loop, and the context is shut down once the node is closed.
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     signal.signal(signal.SIGTERM, _terminated)
+    node: Optional[MapMerge] = None
+    executor: Optional[SingleThreadedExecutor] = None
     try:
-        node = MapMerge()
-    except ConfigError as e:
-        print(f"map_merge: {e}", file=sys.stderr)
-        rclpy.try_shutdown()
-        return 2
-    executor = SingleThreadedExecutor()
-    executor.add_node(node)
-    try:
+        # A signal may come while the node is still being built (its warnings already out): that is a
+        # clean stop too, so the node is built inside the same try.
+        try:
+            node = MapMerge()
+        except ConfigError as e:
+            print(f"map_merge: {e}", file=sys.stderr)
+            return 2
+        executor = SingleThreadedExecutor()
+        executor.add_node(node)
         # Short waits: a signal's handler runs between them (nothing wakes a wait otherwise).
         while rclpy.ok():
             executor.spin_once(timeout_sec=0.1)
     except (KeyboardInterrupt, rclpy.executors.ExternalShutdownException):
         pass
     finally:
+        _close(node, executor)
+    return 0
+
+
+def _close(node: Optional["MapMerge"], executor: Optional[SingleThreadedExecutor]) -> None:
+    """The node's workers stopped, then the executor, the node and rclpy's context, whichever exist."""
+    if node is not None:
         try:
             node.close()
         except KeyboardInterrupt:
             pass  # a second Ctrl-C: no waiting for the workers (daemons, whose logging is off by now)
+    if executor is not None:
         executor.shutdown()
+    if node is not None:
         node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    rclpy.try_shutdown()
