@@ -13,12 +13,14 @@ pub const MAX_FINE_CONFLICT: f64 = 0.55;
 /// arenas of the synthetic suite 0.43-0.79 (those under the limit are the suite's wrong accepts).
 pub const MAX_SELF_SYMMETRY: f64 = 0.55;
 
-/// Whatever the rule says, a merge is ambiguous when the maps fit about as well at another pose that one
-/// map's own symmetry offers (a shift by a period of equal rooms or racks, a turn of a symmetric hall):
-/// the evidence of that alternative ([`Features::alias`]) at this share of the chosen pose's or more.
-/// A right pose of a building with a repeat has its repeat contradicted where the period breaks (walls
-/// on free space at the ends, at a missing wall): a share well under 1; a wrong pose among equals has
-/// alternatives as good as itself.
+/// Whatever the rule says, a merge is ambiguous when the maps fit about as well at another pose: one
+/// that a map's own symmetry offers (a shift by a period of equal rooms or racks, a turn of a symmetric
+/// hall by a whole wing, at any angle) or another of the search's candidates (a turn of the overlap
+/// alone): the evidence of that alternative ([`Features::alias`]) at this share of the chosen pose's or
+/// more. Evidence is the wall pixels that agree with the other map after a few px of local shift, so
+/// the share is in units of the pair's own walls, whatever the building. A right pose of a building with a repeat has its repeat
+/// contradicted where the period breaks (walls on free space at the ends, at a missing wall): a share
+/// well under 1; a wrong pose among equals has alternatives as good as itself.
 pub const MAX_ALIAS: f64 = 0.75;
 /// Whatever the rule says, a merge rests on at least this many wall pixels (both maps together) within
 /// 5 px of the other map's walls ([`Features::support`]): two small partial maps (windows of 120 px) hold
@@ -75,7 +77,7 @@ pub fn decline(features: &Features, rule_value: f64) -> Option<Decline> {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum Decline {
-    /// Another pose a map's repeat offers fits almost as well ([`MAX_ALIAS`]).
+    /// Another pose (a map's repeat or turn, or another candidate) fits nearly as well ([`MAX_ALIAS`]).
     Repeat,
     /// Too few wall pixels match ([`MIN_SUPPORT`]).
     LittleSupport,
@@ -206,10 +208,11 @@ pub struct Features {
     pub free_inside: f64,
     /// Of the free pixels landing in the other's known area, the share on its free pixels.
     pub free_agree: f64,
-    /// The support of the best alternative pose that is hardly more contradicted than the chosen one
-    /// (wall pixels within 5 px of the other map's walls, both ways), over the chosen one's; the
-    /// alternatives are the chosen pose moved by either map's self-transforms ([`MAX_ALIAS`]; measured
-    /// with the self-match, 0 otherwise).
+    /// The evidence of the best alternative pose that is hardly more contradicted than the chosen one,
+    /// over the chosen one's: evidence is the wall pixels (both maps into each other) within 1.5 px of
+    /// the other's walls after their 48 px tile's best shift of up to 6 px. The alternatives are the chosen pose moved by either map's self-transforms
+    /// (its repeats and its turns onto itself at any angle) and the search's other distinct candidates
+    /// ([`MAX_ALIAS`]; measured with the self-match, 0 otherwise). Above 1 when an alternative has more.
     pub alias: f64,
     /// The larger of the two maps' `self_symmetry` (the aligner's), measured for the chosen candidate when the rule
     /// value is at least -1 (0 otherwise).

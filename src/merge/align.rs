@@ -23,14 +23,16 @@ pub use super::accept::{
     accepts, contradiction, decline, not_contradicted, Acceptance, Decline, Features, MAX_ALIAS,
     MAX_CONTRADICTION, MAX_FINE_CONFLICT, MAX_SELF_SYMMETRY, MIN_SUPPORT,
 };
+pub(super) use super::alias::alias;
+use super::alias::{add_turns, ambiguous_why};
+pub use super::alias::{ALIAS_EXTRA_CONFLICT, ALIAS_SELF_MATCH};
 use super::coarse::{coarse_hypotheses, screen, CoarseSet, Crop};
 pub use super::fft::FINE_FFT;
 use super::hypotheses::Hypotheses;
 use super::local::{local_both, local_fit};
 pub use super::prepare::{kept_bytes, prepared_bytes, Prepared, Symmetry, CELLS};
 use super::refine::{crop_to_map, icp, map_to_crop, polish, verify};
-use super::score::{score_both, Probe};
-use super::transform::Rigid;
+use super::transform::{transform_distance, Rigid, DISTINCT_PX};
 use crate::backend::Backend;
 use crate::cpu::CpuBackend;
 use crate::error::{Error, Result};
@@ -38,13 +40,6 @@ use crate::map::OccupancyMap;
 
 /// The rule value from which the self-symmetry is measured: the operating curve's lowest offset.
 const SYMMETRY_FROM: f64 = -8.0;
-/// A self-transform of a map offers an alternative pose ([`Features::alias`]) when the map matches itself
-/// under it at least this well ([`self_symmetry`]'s measure): a repeat over a good part of the map.
-pub const ALIAS_SELF_MATCH: f64 = 0.2;
-/// An alternative pose is as consistent as the chosen one when its residual conflict (the share of wall
-/// pixels over 3 px deep in the other map's free space after each tile's best shift of a few px) exceeds
-/// the chosen pose's by at most this.
-pub const ALIAS_EXTRA_CONFLICT: f64 = 0.05;
 
 /// The polish's step scales (1: a quarter pixel and 0.1 degree) and rounds at each, at most.
 const POLISH_SCALES: [f64; 3] = [4.0, 2.0, 1.0];
@@ -56,9 +51,6 @@ const STRICT: usize = 4;
 pub(crate) const NO_WALLS: &str = "no walls next to free space";
 /// The most candidates an alignment refines (so the most a pair's record may carry).
 pub const MAX_CANDIDATES: usize = REFINED + STRICT;
-/// Two candidates are distinct when they move B's reference points (wall bounding box corners and
-/// centroid) by more than this RMS, pixels.
-const DISTINCT_PX: f64 = 40.0;
 /// The coarse ratio's cap: no distinct alternative at all counts as this.
 pub const MAX_RATIO: f64 = 10.0;
 /// How to align.
@@ -224,7 +216,7 @@ pub fn align_prepared_with(
     let refined: Vec<(f64, Rigid, Features)> = icped
         .iter()
         .zip(verified)
-        .zip(locals)
+        .zip(locals.iter().copied())
         .map(|((&(score, t), mut f), (local, residual, _))| {
             f.coarse = score;
             f.local = local;
@@ -276,23 +268,17 @@ pub fn align_prepared_with(
             self_symmetry_with(b, backend)?,
         );
         features.self_match = sa.value.max(sb.value);
-        (features.alias, alternative) = alias(src, dst, &best, sa, sb, backend)?;
+        // The search's own candidates turned from the chosen pose are poses too (a turn of the overlap
+        // that neither map's symmetry offers), measured already; shifts are the maps' repeats' to offer.
+        let found: Vec<(Rigid, (f64, f64, f64))> = order
+            .iter()
+            .map(|&i| (to_full(&crops[i]), locals[i]))
+            .collect();
+        (features.alias, alternative) = alias(src, dst, &best, (sa, sb), &found, backend)?;
     }
     let accepted = accepts(&features, score);
     let reason = decline(&features, score).map(|why| match why {
-        Decline::Repeat => {
-            let alt = alternative.unwrap_or(best);
-            let d = transform_distance(&alt, &best);
-            format!(
-                "ambiguous: the maps fit almost as well ({:.0}% of the evidence) at another pose that a \
-                 map's repeat offers, {d:.0} px away (theta {:.1} deg, t ({:.0}, {:.0})), so it could be \
-                 merged more than one way",
-                100.0 * features.alias,
-                alt.theta_deg,
-                alt.tx,
-                alt.ty
-            )
-        }
+        Decline::Repeat => ambiguous_why(&best, &alternative.unwrap_or(best), features.alias),
         Decline::LittleSupport => format!(
             "too little to go on: {:.0} wall pixels of the two maps match each other (at least \
              {MIN_SUPPORT:.0} are needed to tell a right pose from a wrong one)",
@@ -375,8 +361,9 @@ impl Alignment {
         if self.accepted {
             format!(
                 "rule value {:.2} over its threshold; the choice stands {:.2}x and the consistent coarse \
-                 score {:.2}x above the best distinct alternative ({runner}); a pose a map's repeat offers \
-                 has {:.0}% of its support (ambiguous from {:.0}%); {:.0} wall pixels match",
+                 score {:.2}x above the best distinct alternative ({runner}); the best other pose (a map's repeat or \
+                 turn, or another candidate) has {:.0}% of its evidence (ambiguous from {:.0}%); {:.0} wall \
+                 pixels match",
                 self.score,
                 f.choice_ratio,
                 f.coarse_ratio,
@@ -505,12 +492,6 @@ pub(super) fn overlap_centre(a: &Prepared, b: &Prepared, t: &Rigid) -> (f64, f64
     (sx / n as f64 + b.off.0, sy / n as f64 + b.off.1)
 }
 
-/// How far apart two transforms are: their translations' distance plus 10 px a degree of turn.
-fn transform_distance(x: &Rigid, y: &Rigid) -> f64 {
-    let d = (x.theta_deg - y.theta_deg + 180.0).rem_euclid(360.0) - 180.0;
-    (x.tx - y.tx).hypot(x.ty - y.ty) + 10.0 * d.abs()
-}
-
 /// How well `p` matches itself under its best transform other than the identity: its local agreement
 /// times the share of the map's wall pixels it was measured on. A map that looks the same turned or
 /// shifted (a symmetric arena) can be merged either way; [`MAX_SELF_SYMMETRY`] declines it.
@@ -545,66 +526,7 @@ pub(super) fn self_symmetry_with<'p>(
             out.transforms.push(c.transform);
         }
     }
+    add_turns(p, &mut out);
     out.ms = start.elapsed().as_secs_f64() * 1e3;
     Ok(p.symmetry.get_or_init(|| out))
-}
-
-/// The best alternative to `best` (B's pixels to A's) that the maps' self-transforms offer: each of
-/// them (and its inverse) applied on A's side or on B's; among those whose residual conflict is hardly
-/// above `best`'s ([`ALIAS_EXTRA_CONFLICT`]), the one with most wall pixels agreeing locally (both
-/// ways): its count over `best`'s ([`Features::alias`], 0 without one) and the pose.
-pub(super) fn alias(
-    src: &Prepared,
-    dst: &Prepared,
-    best: &Rigid,
-    sa: &Symmetry,
-    sb: &Symmetry,
-    backend: &mut dyn Backend,
-) -> Result<(f64, Option<Rigid>)> {
-    let mut poses = vec![*best];
-    for s in &sa.transforms {
-        poses.push(s.after(best));
-        poses.push(s.inverse().after(best));
-    }
-    for s in &sb.transforms {
-        poses.push(best.after(s));
-        poses.push(best.after(&s.inverse()));
-    }
-    poses.retain(|t| t == best || transform_distance(t, best) > DISTINCT_PX);
-    if poses.len() < 2 {
-        return Ok((0.0, None));
-    }
-    let crops: Vec<Rigid> = poses.iter().map(|t| map_to_crop(src, dst, t)).collect();
-    // A cheap screen first (the kernel's counts): alternatives with under a quarter of the chosen pose's
-    // walls near the other's walls are no rival.
-    let (walls_d, walls_s) = score_both(src, dst, &crops, Probe::Walls, backend)?;
-    let near = |i: usize| f64::from(walls_d[i][1] + walls_s[i][1]);
-    let rivals: Vec<usize> = (1..poses.len())
-        .filter(|&i| near(i) >= 0.25 * near(0))
-        .collect();
-    if rivals.is_empty() {
-        return Ok((0.0, None));
-    }
-    let fits: Vec<(f64, f64, f64)> = {
-        use rayon::prelude::*;
-        std::iter::once(0)
-            .chain(rivals.iter().copied())
-            .collect::<Vec<_>>()
-            .par_iter()
-            .map(|&i| local_both(src, dst, &crops[i]))
-            .collect()
-    };
-    let (share0, residual0, n0) = fits[0];
-    let support0 = (share0 * n0).max(1.0);
-    let (mut top, mut pose) = (0.0, None);
-    for (&i, &(share, residual, n)) in rivals.iter().zip(&fits[1..]) {
-        // As consistent: once each tile of the overlap has had its few px of shift (bending), hardly
-        // more walls on free space than the chosen pose (a few per hundred: what a missing wall or a
-        // building's end adds). Its support may be smaller (a wrong pose among equal rooms often
-        // overlaps more than the true one): it is reported as it is.
-        if residual <= residual0 + ALIAS_EXTRA_CONFLICT && share * n / support0 > top {
-            (top, pose) = (share * n / support0, Some(poses[i]));
-        }
-    }
-    Ok((top, pose))
 }

@@ -13,6 +13,7 @@
 //! - [`hypotheses`]: where the aligner's hypotheses come from (dense correlation, corners, both).
 
 mod accept;
+mod alias;
 pub mod align;
 mod coarse;
 pub mod codec;

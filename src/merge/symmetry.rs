@@ -18,7 +18,7 @@ use rustfft::FftPlanner;
 
 use super::fft::{padded, Fft2, FINE_FFT};
 use super::prepare::{Coarse, Prepared};
-use super::transform::signed_deg as signed;
+use super::transform::{signed_deg as signed, Rigid};
 
 /// The sweep's step, degrees.
 pub const SWEEP_DEG: f64 = 2.0;
@@ -34,6 +34,10 @@ pub struct SelfTurn {
     /// The share of the map's wall cells that land on its walls (dilated by a cell) turned by it, less
     /// the share that land on its free cells, at the best shift: 1 for the identity.
     pub score: f64,
+    /// The turn with its best shift, as a transform of the map's crop pixels (its known area's box,
+    /// `Prepared::off` from the map's origin) onto its own: good to the coarse cell it was found at
+    /// (4 to 16 px), for a fine fit to finish.
+    pub crop: Rigid,
 }
 
 /// The best local maxima of the turn score away from the identity (at most [`MAX_TURNS`]), best first,
@@ -144,6 +148,11 @@ impl<'a> Sweep<'a> {
 
     /// The turn score of `theta` degrees.
     fn score(&self, theta: f64) -> f64 {
+        self.peak(theta).0
+    }
+
+    /// The turn score of `theta` degrees and the correlation's index where it peaks (the shift).
+    fn peak(&self, theta: f64) -> (f64, usize) {
         let (c, n, diag) = (self.c, self.n, self.diag);
         let (s, co) = theta.to_radians().sin_cos();
         let centre = ((c.cw as f64 - 1.0) / 2.0, (c.ch as f64 - 1.0) / 2.0);
@@ -166,33 +175,67 @@ impl<'a> Sweep<'a> {
             }
         }
         if kept == 0.0 {
-            return 0.0;
+            return (0.0, 0);
         }
         self.fwd.run(&mut z);
         for (v, t) in z.iter_mut().zip(&self.target) {
             *v *= t;
         }
         self.inv.run(&mut z);
-        let peak = z.iter().map(|v| v.re).fold(0.0f32, f32::max);
+        let (at, peak) =
+            z.iter().enumerate().fold(
+                (0, 0.0f32),
+                |b, (i, v)| if v.re > b.1 { (i, v.re) } else { b },
+            );
         // The inverse FFT is unnormalised; a turn lands each wall cell on at most one, so the share is
         // of the cells turned (the nearest-cell turn may drop or repeat a few).
-        (f64::from(peak) / (n * n) as f64 / kept).min(1.0)
+        ((f64::from(peak) / (n * n) as f64 / kept).min(1.0), at)
+    }
+
+    /// The turn of `theta` degrees at the shift of correlation index `at`, in crop pixels. The
+    /// correlation at shift k is the sum over q of the target at q times the turned walls at q + k: a
+    /// map cell p lands on the canvas at R (p - centre) + mid, and from there on the map cell k less.
+    fn transform(&self, theta: f64, at: usize) -> Rigid {
+        let (c, n, diag) = (self.c, self.n, self.diag);
+        // A shift in (-(map side), diag): the canvas holds the turned map, the map is what it lands on.
+        let wrap = |v: usize| {
+            if v < diag {
+                v as f64
+            } else {
+                v as f64 - n as f64
+            }
+        };
+        let (k, mid) = ((wrap(at % n), wrap(at / n)), (diag as f64 - 1.0) / 2.0);
+        let centre = ((c.cw as f64 - 1.0) / 2.0, (c.ch as f64 - 1.0) / 2.0);
+        let (s, co) = theta.to_radians().sin_cos();
+        // In cells: p -> R p + tc; in pixels (a cell's centre at cell * p + half): P -> R P + t.
+        let tc = (
+            mid - (co * centre.0 - s * centre.1) - k.0,
+            mid - (s * centre.0 + co * centre.1) - k.1,
+        );
+        let (cell, half) = (c.cell as f64, (c.cell as f64 - 1.0) / 2.0);
+        Rigid {
+            theta_deg: signed(theta),
+            tx: cell * tc.0 + half - (co * half - s * half),
+            ty: cell * tc.1 + half - (s * half + co * half),
+        }
     }
 
     /// The best turn within a sweep step of `theta`, to a quarter degree.
     fn refine(&self, theta: f64) -> SelfTurn {
-        let (mut best, mut top) = (theta, self.score(theta));
+        let (mut best, (mut top, mut at)) = (theta, self.peak(theta));
         let mut t = theta - SWEEP_DEG;
         while t <= theta + SWEEP_DEG {
-            let v = self.score(t);
+            let (v, i) = self.peak(t);
             if v > top {
-                (best, top) = (t, v);
+                (best, top, at) = (t, v, i);
             }
             t += 0.25;
         }
         SelfTurn {
             theta_deg: signed(best),
             score: top,
+            crop: self.transform(best, at),
         }
     }
 }
@@ -217,8 +260,10 @@ mod tests {
                 mirrored: k % 2 == 0,
                 extra_room: false,
             };
-            let (img, _) = symmetric_plan(kind, u64::from(k)).unwrap();
-            let turns = turns_of(img);
+            let (img, hall) = symmetric_plan(kind, u64::from(k)).unwrap();
+            let p = Prepared::new(&OccupancyMap::from_image(img));
+            let turns = self_turns(&p);
+            let cell = level(&p).unwrap().cell as f64;
             let step = 360.0 / f64::from(k);
             let near = |t: &SelfTurn, a: f64| signed(t.theta_deg - a).abs() <= 2.0;
             for m in 1..k {
@@ -228,6 +273,14 @@ mod tests {
                     .find(|t| near(t, a))
                     .unwrap_or_else(|| panic!("{k} wings: no turn near {a}: {turns:?}"));
                 assert!(t.score > 0.85, "{k} wings, {a} deg: {t:?}");
+                // The turn is about the hall's centre: its transform keeps it in place, to a cell or so.
+                let c = (hall.0 - p.off.0, hall.1 - p.off.1);
+                let moved = t.crop.apply(c);
+                let off = (moved.0 - c.0).hypot(moved.1 - c.1);
+                assert!(
+                    off <= 1.5 * cell,
+                    "{k} wings, {a} deg: the centre moves {off:.1} px"
+                );
             }
             // Nothing between the wings' turns scores like them.
             let between = turns

@@ -178,6 +178,16 @@ pub fn signed_deg(deg: f64) -> f64 {
     }
 }
 
+/// Two candidates are distinct when they move B's reference points (wall bounding box corners and
+/// centroid) by more than this RMS, pixels; two poses when [`transform_distance`] says so.
+pub(super) const DISTINCT_PX: f64 = 40.0;
+
+/// How far apart two transforms are: their translations' distance plus 10 px a degree of turn.
+pub(super) fn transform_distance(x: &Rigid, y: &Rigid) -> f64 {
+    let d = (x.theta_deg - y.theta_deg + 180.0).rem_euclid(360.0) - 180.0;
+    (x.tx - y.tx).hypot(x.ty - y.ty) + 10.0 * d.abs()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -161,7 +161,7 @@ fn accepted_holds(
             self_symmetry_with(pb, &mut backend)?,
         );
         f.self_match = sa.value.max(sb.value);
-        f.alias = alias(pb, pa, t, sa, sb, &mut backend)?.0;
+        f.alias = alias(pb, pa, t, (sa, sb), &[], &mut backend)?.0;
     }
     Ok((!accepts(&f, score)).then(|| {
         format!(
