@@ -9,13 +9,13 @@ use super::prepare::{Prepared, Symmetry};
 use super::refine::{crop_to_map, icp, map_to_crop};
 use super::score::{score_both, Probe};
 use super::symmetry::{self_turns, NEAR_IDENTITY_DEG};
-use super::transform::Rigid;
-use super::transform::{transform_distance, DISTINCT_PX};
+use super::transform::{transform_distance, Rigid, DISTINCT_PX};
 use crate::backend::Backend;
 use crate::error::Result;
 
-/// A self-transform of a map offers an alternative pose ([`Features::alias`](super::accept::Features::alias)) when the map matches itself
-/// under it at least this well (the aligner's `self_symmetry` measure): a repeat over a good part of the map.
+/// A self-transform of a map offers an alternative pose
+/// ([`Features::alias`](super::accept::Features::alias)) when the map matches itself under it at least
+/// this well (the aligner's `self_symmetry` measure): a repeat over a good part of the map.
 pub const ALIAS_SELF_MATCH: f64 = 0.2;
 /// An alternative pose is as consistent as the chosen one when its residual conflict (the share of wall
 /// pixels over 3 px deep in the other map's free space after each tile's best shift of a few px) exceeds
@@ -54,8 +54,8 @@ pub(super) fn add_turns(p: &Prepared, out: &mut Symmetry) {
 /// them and its inverse applied on A's side or on B's) or the search found (`found`: the refined
 /// candidates turned from it, with their [`local_both`] fits): among those distinct from `best` whose
 /// residual conflict is hardly above its own ([`ALIAS_EXTRA_CONFLICT`]), the one with the most evidence
-/// (wall pixels agreeing locally, both ways): its evidence over `best`'s ([`Features::alias`](super::accept::Features::alias), 0
-/// without one) and the pose.
+/// (wall pixels agreeing locally, both ways): its evidence over `best`'s
+/// ([`Features::alias`](super::accept::Features::alias), 0 without one) and the pose.
 pub(super) fn alias(
     src: &Prepared,
     dst: &Prepared,
