@@ -9,7 +9,7 @@ use super::prepare::{Prepared, Symmetry};
 use super::refine::{crop_to_map, icp, map_to_crop};
 use super::score::{score_both, Probe};
 use super::symmetry::{self_turns, NEAR_IDENTITY_DEG};
-use super::transform::{transform_distance, Rigid, DISTINCT_PX};
+use super::transform::{signed_deg, transform_distance, Rigid, DISTINCT_PX};
 use crate::backend::Backend;
 use crate::error::Result;
 
@@ -74,14 +74,29 @@ pub(super) fn alias(
         poses.push(best.after(&s.inverse()));
     }
     poses.retain(|t| t == best || transform_distance(t, best) > DISTINCT_PX);
+    let turned: Vec<(Rigid, (f64, f64, f64))> = found
+        .iter()
+        .filter(|(t, _)| signed_deg(t.theta_deg - best.theta_deg).abs() > NEAR_IDENTITY_DEG)
+        .copied()
+        .collect();
+    if poses.len() < 2 && turned.is_empty() {
+        return Ok((0.0, None));
+    }
     let crops: Vec<Rigid> = poses.iter().map(|t| map_to_crop(src, dst, t)).collect();
     // A cheap screen first (the kernel's counts): alternatives with under a quarter of the chosen pose's
     // walls near the other's walls are no rival.
-    let (walls_d, walls_s) = score_both(src, dst, &crops, Probe::Walls, backend)?;
-    let near = |i: usize| f64::from(walls_d[i][1] + walls_s[i][1]);
-    let screened: Vec<usize> = (1..poses.len())
-        .filter(|&i| near(i) >= 0.25 * near(0))
-        .collect();
+    let screened: Vec<usize> = if poses.len() < 2 {
+        Vec::new()
+    } else {
+        let (walls_d, walls_s) = score_both(src, dst, &crops, Probe::Walls, backend)?;
+        let near = |i: usize| f64::from(walls_d[i][1] + walls_s[i][1]);
+        (1..poses.len())
+            .filter(|&i| near(i) >= 0.25 * near(0))
+            .collect()
+    };
+    if screened.is_empty() && turned.is_empty() {
+        return Ok((0.0, None));
+    }
     let fits: Vec<(f64, f64, f64)> = {
         use rayon::prelude::*;
         std::iter::once(0)
@@ -95,15 +110,7 @@ pub(super) fn alias(
         .iter()
         .map(|&i| poses[i])
         .zip(fits[1..].iter().copied())
-        .chain(
-            found
-                .iter()
-                .filter(|(t, _)| {
-                    super::transform::signed_deg(t.theta_deg - best.theta_deg).abs()
-                        > NEAR_IDENTITY_DEG
-                })
-                .copied(),
-        );
+        .chain(turned);
     // Each pose's evidence, measured the same way for both: the wall pixels (both maps into each other)
     // that agree with the other map once each tile has had its few px of shift. (Less those still deep
     // in free space, it declined 20 right Halmstad pairs: their true poses keep 20-30% of their walls
@@ -128,7 +135,7 @@ pub(super) fn alias(
 /// `best`'s evidence: how the alternative differs from it (a turn, or a shift when it turns less than a
 /// degree), in the units the test compares.
 pub(super) fn ambiguous_why(best: &Rigid, alt: &Rigid, ratio: f64) -> String {
-    let turn = super::transform::signed_deg(alt.theta_deg - best.theta_deg);
+    let turn = signed_deg(alt.theta_deg - best.theta_deg);
     let how = if turn.abs() >= 1.0 {
         format!("turned by {turn:.0} deg")
     } else {

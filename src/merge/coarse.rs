@@ -27,6 +27,18 @@ pub(super) fn cs(deg: f64) -> (f64, f64) {
     (c, s)
 }
 
+/// A transform of coarse cells (`p -> R(theta) p + tc`, cells of `cell` px) as one of crop pixels: a cell's
+/// centre is at `cell * p + half` px, so `P -> R P + cell * tc + half - R half`.
+pub(super) fn cells_to_crop(theta: f64, tc: (f64, f64), cell: usize) -> Rigid {
+    let (c, s) = cs(theta);
+    let (cell, half) = (cell as f64, (cell as f64 - 1.0) / 2.0);
+    Rigid {
+        theta_deg: theta,
+        tx: cell * tc.0 + half - (c * half - s * half),
+        ty: cell * tc.1 + half - (s * half + c * half),
+    }
+}
+
 /// A rigid transform in crop coordinates, as (theta, tx, ty).
 #[derive(Clone, Copy, Debug)]
 pub(super) struct Crop(pub(super) Rigid);
@@ -167,18 +179,7 @@ pub(super) fn coarse_hypotheses(
                         cr.0 - (c * ca.0 - s * ca.1) + signed(sx),
                         cr.1 - (s * ca.0 + c * ca.1) + signed(sy),
                     );
-                    let t = (
-                        cell as f64 * tc.0 + half - (c * half - s * half),
-                        cell as f64 * tc.1 + half - (s * half + c * half),
-                    );
-                    peaks_found.push((
-                        f64::from(best),
-                        Crop(Rigid {
-                            theta_deg: *theta,
-                            tx: t.0,
-                            ty: t.1,
-                        }),
-                    ));
+                    peaks_found.push((f64::from(best), Crop(cells_to_crop(*theta, tc, cell))));
                 }
                 if want_corners {
                     maps.push(vals);

@@ -16,6 +16,7 @@
 use rustfft::num_complex::Complex32;
 use rustfft::FftPlanner;
 
+use super::coarse::cells_to_crop;
 use super::fft::{padded, Fft2, FINE_FFT};
 use super::prepare::{Coarse, Prepared};
 use super::transform::{signed_deg as signed, Rigid};
@@ -208,17 +209,12 @@ impl<'a> Sweep<'a> {
         let (k, mid) = ((wrap(at % n), wrap(at / n)), (diag as f64 - 1.0) / 2.0);
         let centre = ((c.cw as f64 - 1.0) / 2.0, (c.ch as f64 - 1.0) / 2.0);
         let (s, co) = theta.to_radians().sin_cos();
-        // In cells: p -> R p + tc; in pixels (a cell's centre at cell * p + half): P -> R P + t.
+        // In cells: p -> R p + tc.
         let tc = (
             mid - (co * centre.0 - s * centre.1) - k.0,
             mid - (s * centre.0 + co * centre.1) - k.1,
         );
-        let (cell, half) = (c.cell as f64, (c.cell as f64 - 1.0) / 2.0);
-        Rigid {
-            theta_deg: signed(theta),
-            tx: cell * tc.0 + half - (co * half - s * half),
-            ty: cell * tc.1 + half - (s * half + co * half),
-        }
+        cells_to_crop(theta, tc, c.cell).normalized()
     }
 
     /// The best turn within a sweep step of `theta`, to a quarter degree.

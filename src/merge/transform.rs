@@ -184,8 +184,7 @@ pub(super) const DISTINCT_PX: f64 = 40.0;
 
 /// How far apart two transforms are: their translations' distance plus 10 px a degree of turn.
 pub(super) fn transform_distance(x: &Rigid, y: &Rigid) -> f64 {
-    let d = (x.theta_deg - y.theta_deg + 180.0).rem_euclid(360.0) - 180.0;
-    (x.tx - y.tx).hypot(x.ty - y.ty) + 10.0 * d.abs()
+    (x.tx - y.tx).hypot(x.ty - y.ty) + 10.0 * signed_deg(x.theta_deg - y.theta_deg).abs()
 }
 
 #[cfg(test)]
