@@ -448,3 +448,45 @@ fn a_symmetric_halls_pairs_have_exact_truths() {
         assert!(wrong < share - 0.1, "{kind:?}: {wrong:.3} vs {share:.3}");
     }
 }
+
+/// The symmetric family's pairs drawn until both windows hold the extra room: they do (the room's
+/// centre and corners free in A, and in B where the truth puts them), their truths are exact, and the
+/// family's plain draws do not always (so the test that tells them apart is not always true).
+#[test]
+fn a_hall_pair_holding_its_room_holds_it_in_both_windows() {
+    use ogm_corners::merge::synthetic::{
+        extra_room_in_both, extra_room_points, hall_pair, hall_pair_holding_room, symmetric_plan,
+        SymmetricKind,
+    };
+    let plain = SymmetricKind {
+        wings: 4,
+        mirrored: true,
+        extra_room: false,
+    };
+    assert!(hall_pair_holding_room(plain, 1).is_none());
+    for kind in SymmetricKind::suite().into_iter().filter(|k| k.extra_room) {
+        for seed in 1..=3u64 {
+            let (pair, s) = hall_pair_holding_room(kind, seed).unwrap();
+            assert!(extra_room_in_both(kind, s, &pair), "{kind:?} {seed}");
+            let (_, hall) = symmetric_plan(kind, s).unwrap();
+            for (u, v) in extra_room_points(kind, s).unwrap() {
+                let a = (hall.0 + u - pair.a_origin.0, hall.1 + v - pair.a_origin.1);
+                let b = pair.truth.inverse().apply(a);
+                assert_eq!(
+                    pair.a.image.get(a.0.round() as u32, a.1.round() as u32),
+                    FREE
+                );
+                assert_eq!(
+                    pair.b.image.get(b.0.round() as u32, b.1.round() as u32),
+                    FREE
+                );
+            }
+            let (share, _) = walls_on_walls(&pair.b.image, &pair.a.image, &pair.truth);
+            assert!(share > 0.97, "{kind:?} {seed}: {share:.3}");
+        }
+        let held = (1..=16u64)
+            .filter(|&s| hall_pair(kind, s).is_some_and(|p| extra_room_in_both(kind, s, &p)))
+            .count();
+        assert!(held < 16, "{kind:?}: every plain draw holds the room");
+    }
+}

@@ -1,14 +1,15 @@
 //! Symmetric buildings are never merged at their alias: a hall of k identical wings turns onto itself
 //! by every whole wing, at any angle, and a pair cut from it fits nearly as well turned by a wing as at
 //! its true pose. The property over the symmetric family (random k, mirrored or not, extra room or not,
-//! random windows and turn), the five-fold halls the merger used to place a wing off, and the half turn
-//! of an office whose wrong pose laid a third of its walls across rooms.
+//! random windows and turn), the five-fold halls the merger used to place a wing off, the half turn
+//! of an office whose wrong pose laid a third of its walls across rooms, and a hall whose one extra
+//! room, in both windows, decides its turn.
 
 mod common;
 
 use ogm_corners::merge::align::{align, Alignment, MergeOptions};
 use ogm_corners::merge::synthetic::{
-    hall_pair, synthetic_pair, SymmetricKind, SyntheticPair, SyntheticSpec,
+    extra_room_in_both, hall_pair, synthetic_pair, SymmetricKind, SyntheticPair, SyntheticSpec,
 };
 use ogm_corners::merge::transform::signed_deg;
 use ogm_corners::OccupancyMap;
@@ -96,4 +97,43 @@ fn a_contradicted_half_turn_is_declined_for_the_clean_pose_half_a_turn_away() {
 fn turned_by(why: &str) -> Option<f64> {
     let rest = why.split("turned by ").nth(1)?;
     rest.split(' ').next()?.parse().ok()
+}
+
+/// A four-wing hall with one extra room at the end of a wing, both windows holding the room (the
+/// family's `4 wings, one extra room, in both windows` pair 5, seed 1): every turn by a wing lays the
+/// room's door on the other map's closed end wall, so no turn is left to make the pair ambiguous; what
+/// declines it is the repeat of the wings' rooms (a shift, which a detail never tells apart: it is one
+/// step of a lattice). The same windows of the same hall without the room are declined for a turn.
+/// With turns judged pose by pose (`MergeOptions::judge_turns`, not yet the default).
+#[test]
+fn a_halls_extra_room_in_both_windows_tells_its_turns_apart() {
+    let judged = MergeOptions {
+        judge_turns: true,
+        ..MergeOptions::default()
+    };
+    let aligned = |pair: &SyntheticPair| align(&pair.a, &pair.b, &judged).unwrap();
+    let room = SymmetricKind {
+        wings: 4,
+        mirrored: true,
+        extra_room: true,
+    };
+    let seed = 613 + 5 * 17 + 4;
+    let pair = hall_pair(room, seed).unwrap();
+    assert!(extra_room_in_both(room, seed, &pair));
+    let al = aligned(&pair);
+    assert!(pair.accurate(&al.transform), "{}", al.explain());
+    let why = al.reason.clone().unwrap_or_default();
+    assert!(
+        al.accepted || (why.starts_with("ambiguous") && turned_by(&why).is_none()),
+        "{why}"
+    );
+    let plain = SymmetricKind {
+        extra_room: false,
+        ..room
+    };
+    let pair = hall_pair(plain, seed).unwrap();
+    let al = aligned(&pair);
+    assert!(!al.accepted, "{}", al.explain());
+    let why = al.reason.clone().unwrap_or_default();
+    assert!(turned_by(&why).is_some_and(|t| t.abs() > 80.0), "{why}");
 }

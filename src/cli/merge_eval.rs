@@ -36,9 +36,15 @@ pub(super) struct MergeEvalArgs {
     /// offices cut in two, with negatives), grid-rooms, warehouse, doors (repetitive layouts at 50, 30 and
     /// 20% overlap), bent (offices with heading drift, speckle and unexplored rooms), crops (windows of 120,
     /// 250 and 400 px overlapping or apart), symmetric (a hall with 2 to 8 identical wings, mirrored or
-    /// not, or one extra room, cut into two windows that both hold the hall), or all (the default).
+    /// not, or one extra room, cut into two windows that both hold the hall; the extra-room halls also
+    /// cut until both windows hold the room), or all (the default).
     #[arg(long, value_delimiter = ',', value_name = "FAMILY")]
     family: Vec<String>,
+    /// Judge a map that turns onto itself pose by pose (measured, not yet the default): a turned
+    /// alternative pose that a detail of the overlap contradicts is no rival, and the map's self-match
+    /// under a turn declines only while an alternative keeps a quarter of the evidence
+    #[arg(long)]
+    judge_turns: bool,
     /// With --synthetic MAPS: a map `NAME_furnished` given beside `NAME` is its furnished copy (the same
     /// place in the same frame with furniture drawn in, as in the maps-more data): not cut on its own,
     /// but --per-map plan-vs-furnished pairs, A a window of `NAME` and B one of the copy, each 36-64% of
@@ -178,7 +184,7 @@ pub(super) fn run(a: MergeEvalArgs, budget: &Budget) -> Result<()> {
             let done = eval::run_cached(
                 &set,
                 &maps,
-                &MergeOptions::default(),
+                &a.merge_options(),
                 &mut on_pair,
                 cache.as_mut(),
             )?;
@@ -224,7 +230,7 @@ pub(super) fn run(a: MergeEvalArgs, budget: &Budget) -> Result<()> {
                 furnished,
                 save: a.save_pairs.clone(),
             };
-            let options = MergeOptions::default();
+            let options = a.merge_options();
             let (mut rows, mut costs) = if office {
                 eval::run_synthetic_with(&sources, &run, &options, &mut on_pair)?
             } else {
@@ -306,6 +312,14 @@ fn say_cache_use(cache: Option<&eval::cache::RecordCache>) {
 }
 
 impl MergeEvalArgs {
+    /// The pair test's options: the default, turns judged pose by pose with `--judge-turns`.
+    fn merge_options(&self) -> MergeOptions {
+        MergeOptions {
+            judge_turns: self.judge_turns,
+            ..MergeOptions::default()
+        }
+    }
+
     /// The cache of measured alignments the options ask for (none with --no-cache, or when no folder
     /// can be told).
     fn record_cache(&self) -> Option<eval::cache::RecordCache> {
@@ -340,7 +354,7 @@ fn cross_validate(a: &MergeEvalArgs, budget: &Budget) -> Result<()> {
     }
     let options = MergeOptions {
         always_verify: true,
-        ..MergeOptions::default()
+        ..a.merge_options()
     };
     let keep = |n: &str| a.only.is_empty() || a.only.iter().any(|p| n.starts_with(p.as_str()));
     // Every file read and checked before the first pair is run.

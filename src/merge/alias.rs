@@ -4,7 +4,7 @@
 //! ([`alias`]): a merge is ambiguous when one of them fits nearly as well
 //! ([`super::accept::MAX_ALIAS`]).
 
-use super::local::{local_both, local_fit};
+use super::local::{deep_conflicts, local_both, local_fit};
 use super::prepare::{Prepared, Symmetry};
 use super::refine::{crop_to_map, icp, map_to_crop};
 use super::score::{score_both, Probe};
@@ -21,6 +21,23 @@ pub const ALIAS_SELF_MATCH: f64 = 0.2;
 /// pixels over 3 px deep in the other map's free space after each tile's best shift of a few px) exceeds
 /// the chosen pose's by at most this.
 pub const ALIAS_EXTRA_CONFLICT: f64 = 0.05;
+
+/// An alternative is told apart from the chosen pose when it lays at least this many times as many wall
+/// pixels deep on the other map's free space ([`deep_conflicts`]: both ways, every wall pixel, no
+/// shift)...
+pub const ALIAS_TOLD_RATIO: f64 = 2.0;
+/// ... and more by this many standard deviations of a count (the square root of the two counts
+/// together): on clean maps a door's worth of pixels (a dozen or more) against none, on a cluttered map
+/// a difference far above what its clutter puts on free space at any pose.
+pub const ALIAS_TOLD_SIGMAS: f64 = 3.0;
+
+/// Whether an alternative pose with `alt` contradicting wall pixels is told apart from a chosen pose with
+/// `chosen` ([`ALIAS_TOLD_RATIO`], [`ALIAS_TOLD_SIGMAS`]): the overlap holds a detail that only the
+/// chosen pose fits.
+pub(super) fn told_apart(chosen: usize, alt: usize) -> bool {
+    let (c0, c1) = (chosen as f64, alt as f64);
+    c1 > c0 && c1 >= ALIAS_TOLD_RATIO * c0 && c1 - c0 >= ALIAS_TOLD_SIGMAS * (c0 + c1).sqrt()
+}
 
 /// Adds to `out` the map's turns onto itself at any angle ([`self_turns`]) that the self-alignment did
 /// not find (its hypotheses are the quarter turns of the dominant wall direction: a building of three or
@@ -53,7 +70,9 @@ pub(super) fn add_turns(p: &Prepared, out: &mut Symmetry) {
 /// The best alternative to `best` (B's pixels to A's) that the maps' self-transforms offer (each of
 /// them and its inverse applied on A's side or on B's) or the search found (`found`: the refined
 /// candidates turned from it, with their [`local_both`] fits): among those distinct from `best` whose
-/// residual conflict is hardly above its own ([`ALIAS_EXTRA_CONFLICT`]), the one with the most evidence
+/// residual conflict is hardly above its own ([`ALIAS_EXTRA_CONFLICT`]) and which, when they turn from
+/// it and `tell_turns_apart`, no detail of the overlap tells apart from it ([`told_apart`]), the one
+/// with the most evidence
 /// (wall pixels agreeing locally, both ways): its evidence over `best`'s
 /// ([`Features::alias`](super::accept::Features::alias), 0 without one) and the pose.
 pub(super) fn alias(
@@ -62,6 +81,7 @@ pub(super) fn alias(
     best: &Rigid,
     (sa, sb): (&Symmetry, &Symmetry),
     found: &[(Rigid, (f64, f64, f64))],
+    tell_turns_apart: bool,
     backend: &mut dyn Backend,
 ) -> Result<(f64, Option<Rigid>)> {
     let mut poses = vec![*best];
@@ -118,15 +138,36 @@ pub(super) fn alias(
     let evidence = |(share, _residual, n): (f64, f64, f64)| share * n;
     let (_, residual0, _) = fits[0];
     let evidence0 = evidence(fits[0]).max(1.0);
+    // The chosen pose's contradictions, counted once and only when a rival needs them.
+    let conflicts0 = std::cell::OnceCell::new();
     let (mut top, mut pose) = (0.0, None);
     for (t, fit) in rivals {
         // As consistent: once each tile of the overlap has had its few px of shift (bending), hardly
         // more walls on free space than the chosen pose (a few per hundred: what a missing wall or a
         // building's end adds). Its evidence may be smaller (a wrong pose among equal rooms often
         // overlaps more than the true one): it is reported as it is.
-        if fit.1 <= residual0 + ALIAS_EXTRA_CONFLICT && evidence(fit) / evidence0 > top {
-            (top, pose) = (evidence(fit) / evidence0, Some(t));
+        let ratio = evidence(fit) / evidence0;
+        if fit.1 > residual0 + ALIAS_EXTRA_CONFLICT || ratio <= top {
+            continue;
         }
+        // Unless it is a turn that a detail of the overlap tells apart: walls it lays deep on free
+        // space that the chosen pose does not (a door of one map on the other's closed wall), counted
+        // once it is fitted as finely as the chosen pose (a composed pose is a px or two off, and thin
+        // walls a px or two off lie on free space). Never a shift: a repeat is one step of a lattice
+        // whose other steps no search lists, so one contradicted step says nothing of the next (told
+        // apart, the warehouse family's shifts let poses a period off through).
+        let turned = signed_deg(t.theta_deg - best.theta_deg).abs() > NEAR_IDENTITY_DEG;
+        if !turned || !tell_turns_apart {
+            (top, pose) = (ratio, Some(t));
+            continue;
+        }
+        let c0 = *conflicts0.get_or_init(|| deep_conflicts(src, dst, &crops[0]));
+        let fitted = icp(src, dst, map_to_crop(src, dst, &t));
+        let c1 = deep_conflicts(src, dst, &fitted);
+        if told_apart(c0, c1) {
+            continue;
+        }
+        (top, pose) = (ratio, Some(t));
     }
     Ok((top, pose))
 }
@@ -135,6 +176,44 @@ pub(super) fn alias(
 /// `best`'s evidence: how the alternative differs from it (a turn, or a shift when it turns less than a
 /// degree), in the units the test compares.
 pub(super) fn ambiguous_why(best: &Rigid, alt: &Rigid, ratio: f64) -> String {
+    let how = how_it_differs(best, alt);
+    if ratio >= 1.0 {
+        format!(
+            "ambiguous: B fits A better {how} ({ratio:.2} of its evidence: walls that agree after a few \
+             px of local shift), so it could be merged more than one way"
+        )
+    } else {
+        format!(
+            "ambiguous: B fits A {how} nearly as well ({ratio:.2} of its evidence: walls that agree \
+             after a few px of local shift), so it could be merged more than one way"
+        )
+    }
+}
+
+/// The `why:` line of a pair declined because a map matches itself (`self_match`, over
+/// [`super::accept::MAX_SELF_SYMMETRY`]) and the alternative pose `alt` it offers keeps `ratio` of the
+/// chosen pose `best`'s evidence, hardly more contradicted.
+pub(super) fn self_match_why(
+    best: &Rigid,
+    alt: Option<&Rigid>,
+    self_match: f64,
+    ratio: f64,
+) -> String {
+    let limit = super::accept::MAX_SELF_SYMMETRY;
+    let alt = alt.map_or_else(
+        || "at another pose".to_string(),
+        |alt| how_it_differs(best, alt),
+    );
+    format!(
+        "ambiguous: a map matches itself turned or shifted (self-match {self_match:.2} over {limit}), \
+         and B fits A {alt} with {ratio:.2} of the evidence and hardly more walls on free space, so it \
+         could be merged more than one way"
+    )
+}
+
+/// How `alt` differs from `best`: "turned by 120 deg from the chosen pose (theta .., t (.., ..))", or
+/// "shifted by .. px ..." when it turns less than a degree.
+fn how_it_differs(best: &Rigid, alt: &Rigid) -> String {
     let turn = signed_deg(alt.theta_deg - best.theta_deg);
     let how = if turn.abs() >= 1.0 {
         format!("turned by {turn:.0} deg")
@@ -146,19 +225,27 @@ pub(super) fn ambiguous_why(best: &Rigid, alt: &Rigid, ratio: f64) -> String {
         )
     };
     let alt = alt.normalized();
-    let place = format!(
-        "(theta {:.1} deg, t ({:.0}, {:.0}))",
+    format!(
+        "{how} from the chosen pose (theta {:.1} deg, t ({:.0}, {:.0}))",
         alt.theta_deg, alt.tx, alt.ty
-    );
-    if ratio >= 1.0 {
-        format!(
-            "ambiguous: B fits A better {how} from the chosen pose {place} ({ratio:.2} of its \
-             evidence: walls that agree after a few px of local shift), so it could be merged more than one way"
-        )
-    } else {
-        format!(
-            "ambiguous: B fits A {how} from the chosen pose {place} nearly as well ({ratio:.2} of its \
-             evidence: walls that agree after a few px of local shift), so it could be merged more than one way"
-        )
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::told_apart;
+
+    #[test]
+    fn a_pose_is_told_apart_by_a_few_contradictions_on_clean_maps_and_many_on_cluttered_ones() {
+        // Clean maps: a door's worth of walls on free space against none.
+        assert!(told_apart(0, 12));
+        assert!(!told_apart(0, 8));
+        assert!(!told_apart(0, 0));
+        // A cluttered map: a few hundred more is clutter, twice as many and far beyond it is a detail.
+        assert!(!told_apart(3000, 3200));
+        assert!(!told_apart(3000, 5900));
+        assert!(told_apart(3000, 6100));
+        // Never the other way.
+        assert!(!told_apart(20, 0));
     }
 }

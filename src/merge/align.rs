@@ -24,7 +24,7 @@ pub use super::accept::{
     MAX_CONTRADICTION, MAX_FINE_CONFLICT, MAX_SELF_SYMMETRY, MIN_SUPPORT,
 };
 pub(super) use super::alias::alias;
-use super::alias::{add_turns, ambiguous_why};
+use super::alias::{add_turns, ambiguous_why, self_match_why};
 pub use super::alias::{ALIAS_EXTRA_CONFLICT, ALIAS_SELF_MATCH};
 use super::coarse::{coarse_hypotheses, screen, CoarseSet, Crop};
 pub use super::fft::FINE_FFT;
@@ -32,7 +32,8 @@ use super::hypotheses::Hypotheses;
 use super::local::{local_both, local_fit};
 pub use super::prepare::{kept_bytes, prepared_bytes, Prepared, Symmetry, CELLS};
 use super::refine::{crop_to_map, icp, map_to_crop, polish, verify};
-use super::transform::{transform_distance, Rigid, DISTINCT_PX};
+use super::symmetry::NEAR_IDENTITY_DEG;
+use super::transform::{signed_deg, transform_distance, Rigid, DISTINCT_PX};
 use crate::backend::Backend;
 use crate::cpu::CpuBackend;
 use crate::error::{Error, Result};
@@ -66,6 +67,12 @@ pub struct MergeOptions {
     /// only for what the rule could accept otherwise): what refitting the rule needs
     /// (`merge-eval --cross-validate`).
     pub always_verify: bool,
+    /// Judge a map that turns onto itself pose by pose (measured, not yet the default: see
+    /// `docs/design/acceptance-rule.md`): a turned alternative that a detail of the overlap tells apart
+    /// ([`told_apart`](super::alias)) is no rival, and the map's self-match under a turn declines a merge
+    /// only while an alternative keeps [`SELF_SYMMETRY_ALIAS`] of the evidence. Off: the self-match
+    /// declines whatever the alternatives show.
+    pub judge_turns: bool,
 }
 
 impl Default for MergeOptions {
@@ -75,6 +82,7 @@ impl Default for MergeOptions {
             hypotheses: Hypotheses::default(),
             check_symmetry: true,
             always_verify: false,
+            judge_turns: false,
         }
     }
 }
@@ -268,13 +276,27 @@ pub fn align_prepared_with(
             self_symmetry_with(b, backend)?,
         );
         features.self_match = sa.value.max(sb.value);
+        // The self-match the veto holds whatever the alternatives show: a repeat's, or all of it.
+        features.self_match_held = if options.judge_turns {
+            sa.repeat.max(sb.repeat)
+        } else {
+            features.self_match
+        };
         // The search's own candidates turned from the chosen pose are poses too (a turn of the overlap
         // that neither map's symmetry offers), measured already; shifts are the maps' repeats' to offer.
         let found: Vec<(Rigid, (f64, f64, f64))> = order
             .iter()
             .map(|&i| (to_full(&crops[i]), locals[i]))
             .collect();
-        (features.alias, alternative) = alias(src, dst, &best, (sa, sb), &found, backend)?;
+        (features.alias, alternative) = alias(
+            src,
+            dst,
+            &best,
+            (sa, sb),
+            &found,
+            options.judge_turns,
+            backend,
+        )?;
     }
     let accepted = accepts(&features, score);
     let reason = decline(&features, score).map(|why| match why {
@@ -284,10 +306,21 @@ pub fn align_prepared_with(
              {MIN_SUPPORT:.0} are needed to tell a right pose from a wrong one)",
             features.support
         ),
-        Decline::SelfMatch => format!(
-            "ambiguous: a map matches itself turned or shifted (self-match {:.2} over \
-             {MAX_SELF_SYMMETRY}), so it could be merged more than one way",
-            features.self_match
+        Decline::SelfMatch if features.self_match_held > MAX_SELF_SYMMETRY => format!(
+            "ambiguous: a map matches itself {} (self-match {:.2} over {MAX_SELF_SYMMETRY}), so it \
+             could be merged more than one way",
+            if options.judge_turns {
+                "shifted"
+            } else {
+                "turned or shifted"
+            },
+            features.self_match_held
+        ),
+        Decline::SelfMatch => self_match_why(
+            &best,
+            alternative.as_ref(),
+            features.self_match,
+            features.alias,
         ),
         Decline::Contradicted if contradiction(&features) > MAX_CONTRADICTION => format!(
             "contradicted: {:.0}% of the walls that fall in the other map lie inside its free space, \
@@ -522,6 +555,9 @@ pub(super) fn self_symmetry_with<'p>(
         let l = local_fit(p, p, &map_to_crop(p, p, &c.transform));
         let matched = l.share * l.coverage;
         out.value = out.value.max(matched);
+        if signed_deg(c.transform.theta_deg).abs() <= NEAR_IDENTITY_DEG {
+            out.repeat = out.repeat.max(matched);
+        }
         if matched >= ALIAS_SELF_MATCH {
             out.transforms.push(c.transform);
         }

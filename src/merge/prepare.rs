@@ -137,6 +137,8 @@ pub struct Prepared {
 pub struct Symmetry {
     /// the aligner's `self_symmetry`.
     pub value: f64,
+    /// Its best self-match under a shift (turned by under 10 degrees): how well the map repeats itself.
+    pub repeat: f64,
     /// Self-transforms with a self-match of at least the aligner's `ALIAS_SELF_MATCH`.
     pub transforms: Vec<super::transform::Rigid>,
     /// Time its measurement took, milliseconds: `merge-eval` reports it per map, apart from the time

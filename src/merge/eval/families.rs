@@ -2,7 +2,9 @@
 //! generators: repetitive layouts (a grid of equal rooms, warehouse aisles, a corridor of identical
 //! doors) at 50, 30 and 20% overlap; bent maps (heading drift, speckle, unexplored rooms); small partial
 //! maps (windows of 120 to 400 px, overlapping or apart); symmetric halls (2 to 8 identical wings,
-//! mirrored or not, one with an extra room) cut into two windows that both hold the hall.
+//! mirrored or not, one with an extra room) cut into two windows that both hold the hall. The halls with
+//! an extra room are reported by whether both windows hold the room (the one detail that tells their
+//! turns apart), with as many pairs again drawn until both do.
 //!
 //! A repetitive pair is reported in its own row when nothing in its overlap breaks the period
 //! ([`SyntheticPair::alias_contradiction`] under [`MIN_ALIAS_CONTRADICTION`]): no merger can tell its
@@ -14,8 +16,9 @@ use crate::error::{Error, Result};
 use crate::map::OccupancyMap;
 use crate::merge::align::MergeOptions;
 use crate::merge::synthetic::{
-    hall_pair, synthetic_crops, synthetic_pair_with, CropSpec, LayoutKind, PairShape,
-    SymmetricKind, SyntheticPair, SyntheticSpec, MIN_ALIAS_CONTRADICTION,
+    extra_room_in_both, hall_pair, hall_pair_holding_room, synthetic_crops, synthetic_pair_with,
+    CropSpec, LayoutKind, PairShape, SymmetricKind, SyntheticPair, SyntheticSpec,
+    MIN_ALIAS_CONTRADICTION,
 };
 
 /// A family of synthetic pairs.
@@ -220,7 +223,13 @@ pub fn run_families(
                         let Some(pair) = hall_pair(kind, s) else {
                             continue;
                         };
-                        let what = kind.name();
+                        // The extra-room pairs apart by whether the one detail that tells the
+                        // turns apart lies in both windows.
+                        let what = match (kind.extra_room, extra_room_in_both(kind, s, &pair)) {
+                            (false, _) => kind.name(),
+                            (true, true) => format!("{}, in both windows", kind.name()),
+                            (true, false) => format!("{}, not in both", kind.name()),
+                        };
                         push(
                             format!("{name}/{}/{k}", what.replace(", ", "-").replace(' ', "-")),
                             format!("{name}: {what}"),
@@ -228,6 +237,20 @@ pub fn run_families(
                             pair,
                             &mut out,
                         )?;
+                        // As many again whose windows were drawn until both hold the room.
+                        if let Some((pair, _)) = hall_pair_holding_room(kind, s ^ 0x600d_4004) {
+                            let what = format!("{}, in both windows", kind.name());
+                            push(
+                                format!(
+                                    "{name}/{}/held-{k}",
+                                    what.replace(", ", "-").replace(' ', "-")
+                                ),
+                                format!("{name}: {what}"),
+                                false,
+                                pair,
+                                &mut out,
+                            )?;
+                        }
                     }
                 }
             }

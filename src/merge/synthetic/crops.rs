@@ -111,6 +111,7 @@ pub fn synthetic_crops(source: &OccupancyMap, spec: &CropSpec, seed: u64) -> Opt
             true_points,
             rms_limit_px: SYNTHETIC_RMS_LIMIT_PX,
             alias_contradiction: None,
+            a_origin: (x0 as f64, y0 as f64),
         });
     }
     None

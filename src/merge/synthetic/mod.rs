@@ -16,7 +16,7 @@ mod symmetric;
 pub use crops::{synthetic_crops, CropSpec};
 pub use explore::{explore, Exploration};
 pub use layouts::{doors, grid_rooms, warehouse, Layout, LayoutKind};
-pub use symmetric::{symmetric_plan, SymmetricKind};
+pub use symmetric::{extra_room_points, symmetric_plan, SymmetricKind};
 
 use super::pairs::TruePair;
 use super::transform::Rigid;
@@ -53,6 +53,9 @@ pub struct SyntheticPair {
     /// free space) when B is misplaced by a shift of the lattice: 0 when nothing in the overlap breaks
     /// the period, so no merger can tell the true pose from a wrong one.
     pub alias_contradiction: Option<u64>,
+    /// Where A's pixel (0, 0) lies in the map the pair was cut from: a point of the source is at
+    /// `p - a_origin` in A, and at `truth`'s inverse of that in B.
+    pub a_origin: (f64, f64),
 }
 
 /// How a pair is shaped beyond its cut ([`synthetic_pair_with`]).
@@ -304,6 +307,7 @@ pub fn synthetic_pair_from(
         true_points,
         rms_limit_px,
         alias_contradiction,
+        a_origin: (ax0 as f64, ay0 as f64),
     })
 }
 
@@ -379,6 +383,46 @@ pub fn hall_pair(kind: SymmetricKind, seed: u64) -> Option<SyntheticPair> {
         noise: 0.0,
     };
     synthetic_pair_with(&plan, &spec, &shape, seed)
+}
+
+/// A [`hall_pair`] of a plan with an extra room whose two windows both hold the room whole
+/// ([`extra_room_in_both`]): the first of the seeds drawn from `seed` that gives one (a few dozen at
+/// most), with the seed it was drawn with. `None` without an extra room or when none of them does.
+pub fn hall_pair_holding_room(kind: SymmetricKind, seed: u64) -> Option<(SyntheticPair, u64)> {
+    if !kind.extra_room {
+        return None;
+    }
+    (0..64u64)
+        .map(|i| seed.wrapping_add(i.wrapping_mul(0x9e37_79b9)))
+        .find_map(|s| {
+            hall_pair(kind, s)
+                .filter(|p| extra_room_in_both(kind, s, p))
+                .map(|p| (p, s))
+        })
+}
+
+/// Whether both windows of `pair`, a [`hall_pair`] of `kind` and `seed`, hold the plan's extra room
+/// whole ([`extra_room_points`] all free in A and in B): the pairs whose one asymmetric detail lies in
+/// the overlap, which a merger can tell from their turns. `false` without an extra room.
+pub fn extra_room_in_both(kind: SymmetricKind, seed: u64, pair: &SyntheticPair) -> bool {
+    let (Some(points), Ok((_, hall))) = (extra_room_points(kind, seed), symmetric_plan(kind, seed))
+    else {
+        return false;
+    };
+    let to_b = pair.truth.inverse();
+    let free = |m: &OccupancyMap, (x, y): (f64, f64)| {
+        let (x, y) = (x.round(), y.round());
+        x >= 0.0
+            && y >= 0.0
+            && x < f64::from(m.image.width())
+            && y < f64::from(m.image.height())
+            && ClassTable::new(&m.thresholds).state(m.image.get(x as u32, y as u32))
+                == CellState::Free
+    };
+    points.iter().all(|&(u, v)| {
+        let in_a = (hall.0 + u - pair.a_origin.0, hall.1 + v - pair.a_origin.1);
+        free(&pair.a, in_a) && free(&pair.b, to_b.apply(in_a))
+    })
 }
 
 /// The projections bounding `win`'s two windows: `[a_lo, a_hi, b_lo, b_hi]`, from the known pixels'

@@ -112,57 +112,111 @@ fn wing(
     }
 }
 
+/// The drawn sizes of a plan, from its seed.
+struct Sizes {
+    corridor: f64,
+    depth: f64,
+    rooms: usize,
+    len: f64,
+    turn0: f64,
+    radius: f64,
+}
+
+impl Sizes {
+    fn draw(kind: SymmetricKind, seed: u64) -> Sizes {
+        let mut rng = Rng::new(seed);
+        let corridor = f64::from(rng.range(18, 28));
+        let depth = f64::from(rng.range(40, 64));
+        let rooms = rng.range(3, 6) as usize;
+        let len = rooms as f64 * f64::from(rng.range(48, 64));
+        let turn0 = f64::from(rng.range(0, 360)).to_radians();
+        // A hall wide enough that neighbouring wings' rooms do not meet (a square one for two wings).
+        let corners = hall_corners(kind);
+        let reach = corridor / 2.0 + 2.0 * WALL + depth;
+        let radius = reach / (std::f64::consts::PI / corners as f64).tan() + 2.0 * WALL;
+        Sizes {
+            corridor,
+            depth,
+            rooms,
+            len,
+            turn0,
+            radius,
+        }
+    }
+
+    /// The extra room's centre along the first wing (from the hall's centre).
+    fn room_at(&self) -> f64 {
+        self.radius * 0.9 + self.len + 2.0 * WALL + self.depth / 2.0
+    }
+}
+
+/// The hall's corners: one a wing, four for two wings.
+fn hall_corners(kind: SymmetricKind) -> usize {
+    let n = usize::from(kind.wings.clamp(2, 8));
+    if n < 3 {
+        4
+    } else {
+        n
+    }
+}
+
 /// The plan of `kind` for `seed` (map_server values), a few hundred px a side, and the hall's centre in
 /// its pixels.
 pub fn symmetric_plan(kind: SymmetricKind, seed: u64) -> Result<(MapImage, (f64, f64))> {
-    let mut rng = Rng::new(seed);
-    let corridor = f64::from(rng.range(18, 28));
-    let depth = f64::from(rng.range(40, 64));
-    let rooms = rng.range(3, 6) as usize;
-    let len = rooms as f64 * f64::from(rng.range(48, 64));
-    let turn0 = f64::from(rng.range(0, 360)).to_radians();
+    let z = Sizes::draw(kind, seed);
     let n = usize::from(kind.wings.clamp(2, 8));
     let sides: &[f64] = if kind.mirrored { &[-1.0, 1.0] } else { &[1.0] };
-    // A hall wide enough that neighbouring wings' rooms do not meet (a square one for two wings).
-    let corners = if n < 3 { 4 } else { n };
-    let reach = corridor / 2.0 + 2.0 * WALL + depth;
-    let radius = reach / (std::f64::consts::PI / corners as f64).tan() + 2.0 * WALL;
     let mut rects = Vec::new();
     for k in 0..n {
-        let a = turn0 + std::f64::consts::TAU * k as f64 / n as f64;
+        let a = z.turn0 + std::f64::consts::TAU * k as f64 / n as f64;
         wing(
             &mut rects,
             (0.0, 0.0),
             a,
-            radius * 0.9,
-            len,
-            corridor,
-            rooms,
-            depth,
+            z.radius * 0.9,
+            z.len,
+            z.corridor,
+            z.rooms,
+            z.depth,
             sides,
         );
     }
     if kind.extra_room {
         // One more room at the end of the first wing, with its door.
-        let (s, c) = turn0.sin_cos();
-        let u = radius * 0.9 + len + 2.0 * WALL + depth / 2.0;
+        let (s, c) = z.turn0.sin_cos();
+        let u = z.room_at();
         rects.push(Rect {
             cx: c * u,
             cy: s * u,
-            hx: depth / 2.0,
-            hy: depth / 2.0,
-            angle: turn0,
+            hx: z.depth / 2.0,
+            hy: z.depth / 2.0,
+            angle: z.turn0,
         });
         rects.push(Rect {
-            cx: c * (u - depth / 2.0 - WALL),
-            cy: s * (u - depth / 2.0 - WALL),
+            cx: c * (u - z.depth / 2.0 - WALL),
+            cy: s * (u - z.depth / 2.0 - WALL),
             hx: WALL + 1.0,
             hy: 6.0,
-            angle: turn0,
+            angle: z.turn0,
         });
     }
     // The hall's polygon turned with the wings, so that the whole plan turns onto itself.
-    draw(&rects, (corners, radius, turn0))
+    draw(&rects, (hall_corners(kind), z.radius, z.turn0))
+}
+
+/// Points of the extra room of `kind`'s plan for `seed` (`None` without one), from the hall's centre
+/// (add the hall's pixel that [`symmetric_plan`] returns): its centre and four points a few px inside
+/// its corners, so that a window holding all five holds the whole room.
+pub fn extra_room_points(kind: SymmetricKind, seed: u64) -> Option<[(f64, f64); 5]> {
+    if !kind.extra_room {
+        return None;
+    }
+    let z = Sizes::draw(kind, seed);
+    let (s, c) = z.turn0.sin_cos();
+    let u = z.room_at();
+    let r = z.depth / 2.0 - 2.0;
+    let at = |du: f64, dv: f64| (c * (u + du) - s * dv, s * (u + du) + c * dv);
+    Some([at(0.0, 0.0), at(-r, -r), at(-r, r), at(r, -r), at(r, r)])
 }
 
 /// The free union of `rects` and a regular polygon (corners, circumradius, turn) about the origin, walls
