@@ -9,9 +9,10 @@ use serde::Serialize;
 /// of the synthetic suite have 0.6-0.7.
 pub const MAX_FINE_CONFLICT: f64 = 0.55;
 /// Whatever the rule says, a merge is ambiguous when either map matches itself under another transform
-/// this well (the aligner's `self_symmetry`) and an alternative pose keeps [`SELF_SYMMETRY_ALIAS`] of the
-/// chosen pose's evidence: the real maps have 0.49 at most, parts of the symmetric arenas of the
-/// synthetic suite 0.43-0.79 (those under the limit are the suite's wrong accepts).
+/// this well (the aligner's `self_symmetry`; with `MergeOptions::judge_turns`, a self-match under a turn
+/// only while an alternative pose keeps `SELF_SYMMETRY_ALIAS` of the chosen pose's evidence): the real
+/// maps have 0.49 at most, parts of the symmetric arenas of the synthetic suite 0.43-0.79 (those under
+/// the limit are the suite's wrong accepts).
 pub const MAX_SELF_SYMMETRY: f64 = 0.55;
 /// A map that matches itself over [`MAX_SELF_SYMMETRY`] declines a merge only while some alternative
 /// pose, no more contradicted than the chosen one ([`Features::alias`]), keeps this share of its
@@ -239,7 +240,7 @@ pub struct Features {
     /// The larger of the two maps' `self_symmetry` (the aligner's), measured for the chosen candidate when the rule
     /// value is at least -1 (0 otherwise).
     pub self_match: f64,
-    /// The self-match the veto holds whatever the alternative poses show ([`self_match_vetoes`]): all
+    /// The self-match the veto holds whatever the alternative poses show (`accept::self_match_vetoes`): all
     /// of [`Features::self_match`], or with `MergeOptions::judge_turns` its part under a shift (a map
     /// that repeats itself).
     #[serde(default)]

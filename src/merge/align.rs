@@ -69,8 +69,8 @@ pub struct MergeOptions {
     pub always_verify: bool,
     /// Judge a map that turns onto itself pose by pose (measured, not yet the default: see
     /// `docs/design/acceptance-rule.md`): a turned alternative that a detail of the overlap tells apart
-    /// ([`told_apart`](super::alias)) is no rival, and the map's self-match under a turn declines a merge
-    /// only while an alternative keeps [`SELF_SYMMETRY_ALIAS`] of the evidence. Off: the self-match
+    /// (`alias::told_apart`) is no rival, and the map's self-match under a turn declines a merge
+    /// only while an alternative keeps `accept::SELF_SYMMETRY_ALIAS` of the evidence. Off: the self-match
     /// declines whatever the alternatives show.
     pub judge_turns: bool,
 }
