@@ -4,7 +4,7 @@
 //! ([`alias`]): a merge is ambiguous when one of them fits nearly as well
 //! ([`super::accept::MAX_ALIAS`]).
 
-use super::local::{deep_conflicts, local_both, local_fit};
+use super::local::{local_both, local_fit};
 use super::prepare::{Prepared, Symmetry};
 use super::refine::{crop_to_map, icp, map_to_crop};
 use super::score::{score_both, Probe};
@@ -23,8 +23,8 @@ pub const ALIAS_SELF_MATCH: f64 = 0.2;
 pub const ALIAS_EXTRA_CONFLICT: f64 = 0.05;
 
 /// An alternative is told apart from the chosen pose when it lays at least this many times as many wall
-/// pixels deep on the other map's free space ([`deep_conflicts`]: both ways, every wall pixel, no
-/// shift)...
+/// pixels over 3 px deep on the other map's free space (the scoring kernel's fine probe: both ways,
+/// every wall pixel, no local shift)...
 pub const ALIAS_TOLD_RATIO: f64 = 2.0;
 /// ... and more by this many standard deviations of a count (the square root of the two counts
 /// together): on clean maps a door's worth of pixels (a dozen or more) against none, on a cluttered map
@@ -139,7 +139,7 @@ pub(super) fn alias(
     let (_, residual0, _) = fits[0];
     let evidence0 = evidence(fits[0]).max(1.0);
     // The chosen pose's contradictions, counted once and only when a rival needs them.
-    let conflicts0 = std::cell::OnceCell::new();
+    let mut conflicts0 = None;
     let (mut top, mut pose) = (0.0, None);
     for (t, fit) in rivals {
         // As consistent: once each tile of the overlap has had its few px of shift (bending), hardly
@@ -161,15 +161,31 @@ pub(super) fn alias(
             (top, pose) = (ratio, Some(t));
             continue;
         }
-        let c0 = *conflicts0.get_or_init(|| deep_conflicts(src, dst, &crops[0]));
+        let c0 = match conflicts0 {
+            Some(c) => c,
+            None => *conflicts0.insert(deep_conflicts(src, dst, &crops[0], backend)?),
+        };
         let fitted = icp(src, dst, map_to_crop(src, dst, &t));
-        let c1 = deep_conflicts(src, dst, &fitted);
-        if told_apart(c0, c1) {
+        if told_apart(c0, deep_conflicts(src, dst, &fitted, backend)?) {
             continue;
         }
         (top, pose) = (ratio, Some(t));
     }
     Ok((top, pose))
+}
+
+/// The wall pixels of both maps (every one) over 3 px deep in the other map's free space at `t` (B's
+/// crop pixels to A's), with no local shift: the scoring kernel's fine probe, as the fine conflict
+/// counts them. (After the local fit's tile shifts, a tile with a few walls shifted to fit them pushes
+/// others onto free space: tens of pixels on clean maps, as many as a door makes.)
+fn deep_conflicts(
+    src: &Prepared,
+    dst: &Prepared,
+    t: &Rigid,
+    backend: &mut dyn Backend,
+) -> Result<usize> {
+    let (d, s) = score_both(src, dst, &[*t], Probe::Fine, backend)?;
+    Ok((d[0][2] + s[0][2]) as usize)
 }
 
 /// The `why:` line of a pair declined for an alternative pose `alt` with `ratio` of the chosen pose

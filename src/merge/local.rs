@@ -100,22 +100,3 @@ pub(super) fn local_both(src: &Prepared, dst: &Prepared, t: &Rigid) -> (f64, f64
         a.measured + b.measured,
     )
 }
-
-/// The wall pixels of both maps (every one) that lie over 3 px deep in the other map's free space at
-/// `t` (B's crop pixels to A's), with no local shift: the contradictions a pose makes, counted whole.
-/// (After [`local_fit`]'s tile shifts, a tile with a few walls shifted to fit them pushes others onto
-/// free space: tens of pixels on clean maps, as many as a door makes.)
-pub(super) fn deep_conflicts(src: &Prepared, dst: &Prepared, t: &Rigid) -> usize {
-    let one_way = |from: &Prepared, to: &Prepared, t: &Rigid| {
-        let apply = t.applier();
-        from.walls
-            .iter()
-            .filter(|&&p| {
-                let q = apply.apply(p);
-                to.index(q.0, q.1)
-                    .is_some_and(|i| to.flags_fine.flags[i] & FLAG_DEEP != 0)
-            })
-            .count()
-    };
-    one_way(src, dst, t) + one_way(dst, src, &t.inverse())
-}
