@@ -514,7 +514,10 @@ fn run_global(a: &MergeEvalArgs, budget: &Budget) -> Result<()> {
         bar.set_length(n as u64);
         bar.set_position(k as u64);
     };
-    let options = GlobalOptions::with_partners(a.partners as usize);
+    let options = GlobalOptions {
+        pair: a.merge_options(),
+        ..GlobalOptions::with_partners(a.partners as usize)
+    };
     let size = a.set_size as usize;
     let buildings = a.buildings as usize;
     if buildings > size {

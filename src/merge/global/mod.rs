@@ -287,6 +287,20 @@ pub fn place(
         first
     };
     let mut placement = graph::place(pairwise, maps, images, &ev, &level, options, backend)?;
+    let kept: Vec<posegraph::Kept> = placement
+        .kept
+        .iter()
+        .map(|&i| posegraph::Kept {
+            u: pairwise.edges[i].a,
+            v: pairwise.edges[i].b,
+            accepted: pairwise.edges[i].accepted,
+            weight: ev[i].vote(),
+        })
+        .collect();
+    placement.kept = posegraph::rests_on(maps.len(), &kept)
+        .into_iter()
+        .map(|k| placement.kept[k])
+        .collect();
     let start: Vec<Rigid> = placement.maps.iter().map(|m| m.pose).collect();
     for members in &placement.groups {
         let constraints: Vec<posegraph::Constraint> = placement

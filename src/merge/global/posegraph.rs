@@ -21,6 +21,53 @@ pub struct Constraint {
     pub weight: f64,
 }
 
+/// One kept edge as the pose graph sees it: its two maps, whether the pair test accepted it, and its
+/// weight.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Kept {
+    /// The reference map.
+    pub u: usize,
+    /// The moved map.
+    pub v: usize,
+    /// Accepted by the pair test (a measurement), or a weak candidate that cycles confirm (a vote).
+    pub accepted: bool,
+    /// Its vote.
+    pub weight: f64,
+}
+
+/// Which of `kept` (over maps `0..n`) the pose graph rests on, by index: every accepted edge, and of the
+/// others only those that join what the accepted ones leave apart, heaviest first. A weak candidate
+/// agrees with the placement only within the loop tolerance; where accepted pairs already measure the
+/// same two maps, it can add nothing but its error (in a set of alike rooms, a shift by one room that
+/// passes the tolerance pulls every pose of the group towards it).
+pub fn rests_on(n: usize, kept: &[Kept]) -> Vec<usize> {
+    let mut root: Vec<usize> = (0..n).collect();
+    fn find(root: &mut [usize], mut m: usize) -> usize {
+        while root[m] != m {
+            root[m] = root[root[m]];
+            m = root[m];
+        }
+        m
+    }
+    // Whether `k` joins two components (and joins them).
+    fn join(root: &mut [usize], k: &Kept) -> bool {
+        let (a, b) = (find(root, k.u), find(root, k.v));
+        root[a.max(b)] = a.min(b);
+        a != b
+    }
+    let mut used = vec![false; kept.len()];
+    for (i, k) in kept.iter().enumerate().filter(|(_, k)| k.accepted) {
+        join(&mut root, k);
+        used[i] = true;
+    }
+    let mut weak: Vec<usize> = (0..kept.len()).filter(|&i| !kept[i].accepted).collect();
+    weak.sort_by(|&x, &y| kept[y].weight.total_cmp(&kept[x].weight).then(x.cmp(&y)));
+    for i in weak {
+        used[i] = join(&mut root, &kept[i]);
+    }
+    (0..kept.len()).filter(|&i| used[i]).collect()
+}
+
 /// Gauss-Newton iterations at most.
 const ITERATIONS: usize = 20;
 
@@ -179,6 +226,32 @@ mod tests {
         for (g, t) in got.iter().zip(&truth) {
             assert!(close(g, t), "{g:?} vs {t:?}");
         }
+    }
+
+    #[test]
+    fn a_weak_edge_is_used_only_where_accepted_ones_leave_maps_apart() {
+        let k = |u, v, accepted, weight| Kept {
+            u,
+            v,
+            accepted,
+            weight,
+        };
+        // 0-1 and 1-2 accepted: the weak 0-2 is redundant; of the two weak edges to 3, the heavier.
+        let kept = [
+            k(0, 1, true, 1.0),
+            k(0, 2, false, 9.0),
+            k(1, 2, true, 0.5),
+            k(2, 3, false, 1.0),
+            k(3, 0, false, 2.0),
+        ];
+        assert_eq!(rests_on(4, &kept), vec![0, 2, 4]);
+        // Weak edges alone: a spanning tree, heaviest first.
+        let weak = [
+            k(0, 1, false, 1.0),
+            k(1, 2, false, 3.0),
+            k(0, 2, false, 2.0),
+        ];
+        assert_eq!(rests_on(3, &weak), vec![1, 2]);
     }
 
     #[test]
