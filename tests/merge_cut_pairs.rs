@@ -458,11 +458,7 @@ fn a_hall_pair_holding_its_room_holds_it_in_both_windows() {
         extra_room_in_both, extra_room_points, hall_pair, hall_pair_holding_room, symmetric_plan,
         SymmetricKind,
     };
-    let plain = SymmetricKind {
-        wings: 4,
-        mirrored: true,
-        extra_room: false,
-    };
+    let plain = SymmetricKind::plain(4);
     assert!(hall_pair_holding_room(plain, 1).is_none());
     for kind in SymmetricKind::suite().into_iter().filter(|k| k.extra_room) {
         for seed in 1..=3u64 {

@@ -40,11 +40,6 @@ pub(super) struct MergeEvalArgs {
     /// cut until both windows hold the room), or all (the default).
     #[arg(long, value_delimiter = ',', value_name = "FAMILY")]
     family: Vec<String>,
-    /// Judge a map that turns onto itself pose by pose (measured, not yet the default): a turned
-    /// alternative pose that a detail of the overlap contradicts is no rival, and the map's self-match
-    /// under a turn declines only while an alternative keeps a quarter of the evidence
-    #[arg(long)]
-    judge_turns: bool,
     /// With --synthetic MAPS: a map `NAME_furnished` given beside `NAME` is its furnished copy (the same
     /// place in the same frame with furniture drawn in, as in the maps-more data): not cut on its own,
     /// but --per-map plan-vs-furnished pairs, A a window of `NAME` and B one of the copy, each 36-64% of
@@ -184,7 +179,7 @@ pub(super) fn run(a: MergeEvalArgs, budget: &Budget) -> Result<()> {
             let done = eval::run_cached(
                 &set,
                 &maps,
-                &a.merge_options(),
+                &MergeOptions::default(),
                 &mut on_pair,
                 cache.as_mut(),
             )?;
@@ -230,7 +225,7 @@ pub(super) fn run(a: MergeEvalArgs, budget: &Budget) -> Result<()> {
                 furnished,
                 save: a.save_pairs.clone(),
             };
-            let options = a.merge_options();
+            let options = MergeOptions::default();
             let (mut rows, mut costs) = if office {
                 eval::run_synthetic_with(&sources, &run, &options, &mut on_pair)?
             } else {
@@ -312,14 +307,6 @@ fn say_cache_use(cache: Option<&eval::cache::RecordCache>) {
 }
 
 impl MergeEvalArgs {
-    /// The pair test's options: the default, turns judged pose by pose with `--judge-turns`.
-    fn merge_options(&self) -> MergeOptions {
-        MergeOptions {
-            judge_turns: self.judge_turns,
-            ..MergeOptions::default()
-        }
-    }
-
     /// The cache of measured alignments the options ask for (none with --no-cache, or when no folder
     /// can be told).
     fn record_cache(&self) -> Option<eval::cache::RecordCache> {
@@ -354,7 +341,7 @@ fn cross_validate(a: &MergeEvalArgs, budget: &Budget) -> Result<()> {
     }
     let options = MergeOptions {
         always_verify: true,
-        ..a.merge_options()
+        ..MergeOptions::default()
     };
     let keep = |n: &str| a.only.is_empty() || a.only.iter().any(|p| n.starts_with(p.as_str()));
     // Every file read and checked before the first pair is run.
@@ -514,10 +501,7 @@ fn run_global(a: &MergeEvalArgs, budget: &Budget) -> Result<()> {
         bar.set_length(n as u64);
         bar.set_position(k as u64);
     };
-    let options = GlobalOptions {
-        pair: a.merge_options(),
-        ..GlobalOptions::with_partners(a.partners as usize)
-    };
+    let options = GlobalOptions::with_partners(a.partners as usize);
     let size = a.set_size as usize;
     let buildings = a.buildings as usize;
     if buildings > size {

@@ -9,8 +9,8 @@ use serde::Serialize;
 /// of the synthetic suite have 0.6-0.7.
 pub const MAX_FINE_CONFLICT: f64 = 0.55;
 /// Whatever the rule says, a merge is ambiguous when either map matches itself under another transform
-/// this well (the aligner's `self_symmetry`; with `MergeOptions::judge_turns`, a self-match under a turn
-/// only while an alternative pose keeps `SELF_SYMMETRY_ALIAS` of the chosen pose's evidence): the real
+/// this well (the aligner's `self_symmetry`; a self-match under a turn only while an alternative pose
+/// keeps `SELF_SYMMETRY_ALIAS` of the chosen pose's evidence): the real
 /// maps have 0.49 at most, parts of the symmetric arenas of the synthetic suite 0.43-0.79 (those under
 /// the limit are the suite's wrong accepts).
 pub const MAX_SELF_SYMMETRY: f64 = 0.55;
@@ -122,13 +122,12 @@ impl Decline {
     }
 }
 
-/// Whether a map's self-match declines an alignment: its held part ([`Features::self_match_held`]: all
-/// of it, or with `MergeOptions::judge_turns` a repeat's) over [`MAX_SELF_SYMMETRY`], or the rest over it
-/// while an alternative pose keeps [`SELF_SYMMETRY_ALIAS`] of its evidence. A building turns onto itself by a few turns, all of which the alternative-pose test
-/// measures; a repeat is one step of a lattice whose other steps and combinations no search lists, so
+/// Whether a map's self-match declines an alignment: its held part ([`Features::self_match_held`], a
+/// repeat's) over [`MAX_SELF_SYMMETRY`], or the rest over it while an alternative pose keeps
+/// [`SELF_SYMMETRY_ALIAS`] of its evidence. A building turns onto itself by a few turns, all of which
+/// the alternative-pose test measures; a repeat is one step of a lattice whose other steps and combinations no search lists, so
 /// the steps it does list being contradicted says nothing of the rest (measured: judged pose by pose,
-/// the warehouse family's repeats let 15 poses a period off through, and a set of small alike rooms
-/// placed 8 of 17 maps wrongly).
+/// the warehouse family's repeats let 15 poses a period off through).
 pub fn self_match_vetoes(features: &Features) -> bool {
     features.self_match_held > MAX_SELF_SYMMETRY
         || (features.self_match > MAX_SELF_SYMMETRY && features.alias >= SELF_SYMMETRY_ALIAS)
@@ -240,9 +239,8 @@ pub struct Features {
     /// The larger of the two maps' `self_symmetry` (the aligner's), measured for the chosen candidate when the rule
     /// value is at least -1 (0 otherwise).
     pub self_match: f64,
-    /// The self-match the veto holds whatever the alternative poses show (`accept::self_match_vetoes`): all
-    /// of [`Features::self_match`], or with `MergeOptions::judge_turns` its part under a shift (a map
-    /// that repeats itself).
+    /// The self-match the veto holds whatever the alternative poses show (`self_match_vetoes`): the
+    /// part of [`Features::self_match`] under a shift (a map that repeats itself).
     #[serde(default)]
     pub self_match_held: f64,
 }

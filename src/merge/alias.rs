@@ -71,7 +71,7 @@ pub(super) fn add_turns(p: &Prepared, out: &mut Symmetry) {
 /// them and its inverse applied on A's side or on B's) or the search found (`found`: the refined
 /// candidates turned from it, with their [`local_both`] fits): among those distinct from `best` whose
 /// residual conflict is hardly above its own ([`ALIAS_EXTRA_CONFLICT`]) and which, when they turn from
-/// it and `tell_turns_apart`, no detail of the overlap tells apart from it ([`told_apart`]), the one
+/// it, no detail of the overlap tells apart from it ([`told_apart`]), the one
 /// with the most evidence
 /// (wall pixels agreeing locally, both ways): its evidence over `best`'s
 /// ([`Features::alias`](super::accept::Features::alias), 0 without one) and the pose.
@@ -81,7 +81,6 @@ pub(super) fn alias(
     best: &Rigid,
     (sa, sb): (&Symmetry, &Symmetry),
     found: &[(Rigid, (f64, f64, f64))],
-    tell_turns_apart: bool,
     backend: &mut dyn Backend,
 ) -> Result<(f64, Option<Rigid>)> {
     let mut poses = vec![*best];
@@ -157,7 +156,7 @@ pub(super) fn alias(
         // whose other steps no search lists, so one contradicted step says nothing of the next (told
         // apart, the warehouse family's shifts let poses a period off through).
         let turned = signed_deg(t.theta_deg - best.theta_deg).abs() > NEAR_IDENTITY_DEG;
-        if !turned || !tell_turns_apart {
+        if !turned {
             (top, pose) = (ratio, Some(t));
             continue;
         }
@@ -221,7 +220,7 @@ pub(super) fn self_match_why(
         |alt| how_it_differs(best, alt),
     );
     format!(
-        "ambiguous: a map matches itself turned or shifted (self-match {self_match:.2} over {limit}), \
+        "ambiguous: a map matches itself turned (self-match {self_match:.2} over {limit}), \
          and B fits A {alt} with {ratio:.2} of the evidence and hardly more walls on free space, so it \
          could be merged more than one way"
     )

@@ -67,12 +67,6 @@ pub struct MergeOptions {
     /// only for what the rule could accept otherwise): what refitting the rule needs
     /// (`merge-eval --cross-validate`).
     pub always_verify: bool,
-    /// Judge a map that turns onto itself pose by pose (measured, not yet the default: see
-    /// `docs/design/acceptance-rule.md`): a turned alternative that a detail of the overlap tells apart
-    /// (`alias::told_apart`) is no rival, and the map's self-match under a turn declines a merge
-    /// only while an alternative keeps `accept::SELF_SYMMETRY_ALIAS` of the evidence. Off: the self-match
-    /// declines whatever the alternatives show.
-    pub judge_turns: bool,
 }
 
 impl Default for MergeOptions {
@@ -82,7 +76,6 @@ impl Default for MergeOptions {
             hypotheses: Hypotheses::default(),
             check_symmetry: true,
             always_verify: false,
-            judge_turns: false,
         }
     }
 }
@@ -276,27 +269,16 @@ pub fn align_prepared_with(
             self_symmetry_with(b, backend)?,
         );
         features.self_match = sa.value.max(sb.value);
-        // The self-match the veto holds whatever the alternatives show: a repeat's, or all of it.
-        features.self_match_held = if options.judge_turns {
-            sa.repeat.max(sb.repeat)
-        } else {
-            features.self_match
-        };
+        // The self-match the veto holds whatever the alternatives show: a repeat's (a turn is judged
+        // pose by pose).
+        features.self_match_held = sa.repeat.max(sb.repeat);
         // The search's own candidates turned from the chosen pose are poses too (a turn of the overlap
         // that neither map's symmetry offers), measured already; shifts are the maps' repeats' to offer.
         let found: Vec<(Rigid, (f64, f64, f64))> = order
             .iter()
             .map(|&i| (to_full(&crops[i]), locals[i]))
             .collect();
-        (features.alias, alternative) = alias(
-            src,
-            dst,
-            &best,
-            (sa, sb),
-            &found,
-            options.judge_turns,
-            backend,
-        )?;
+        (features.alias, alternative) = alias(src, dst, &best, (sa, sb), &found, backend)?;
     }
     let accepted = accepts(&features, score);
     let reason = decline(&features, score).map(|why| match why {
@@ -307,13 +289,8 @@ pub fn align_prepared_with(
             features.support
         ),
         Decline::SelfMatch if features.self_match_held > MAX_SELF_SYMMETRY => format!(
-            "ambiguous: a map matches itself {} (self-match {:.2} over {MAX_SELF_SYMMETRY}), so it \
-             could be merged more than one way",
-            if options.judge_turns {
-                "shifted"
-            } else {
-                "turned or shifted"
-            },
+            "ambiguous: a map matches itself shifted (self-match {:.2} over {MAX_SELF_SYMMETRY}), so \
+             it could be merged more than one way",
             features.self_match_held
         ),
         Decline::SelfMatch => self_match_why(

@@ -252,9 +252,8 @@ mod tests {
     fn a_k_wing_hall_turns_onto_itself_by_each_whole_wing() {
         for k in 3..=8u8 {
             let kind = SymmetricKind {
-                wings: k,
                 mirrored: k % 2 == 0,
-                extra_room: false,
+                ..SymmetricKind::plain(k)
             };
             let (img, hall) = symmetric_plan(kind, u64::from(k)).unwrap();
             let p = Prepared::new(&OccupancyMap::from_image(img));

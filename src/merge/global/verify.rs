@@ -161,8 +161,8 @@ fn accepted_holds(
             self_symmetry_with(pb, &mut backend)?,
         );
         f.self_match = sa.value.max(sb.value);
-        f.self_match_held = f.self_match;
-        f.alias = alias(pb, pa, t, (sa, sb), &[], false, &mut backend)?.0;
+        f.self_match_held = sa.repeat.max(sb.repeat);
+        f.alias = alias(pb, pa, t, (sa, sb), &[], &mut backend)?.0;
     }
     Ok((!accepts(&f, score)).then(|| {
         format!(
