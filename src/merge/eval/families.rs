@@ -87,8 +87,11 @@ fn overlap_group(name: &str, o: f64) -> String {
     format!("{name}, {:.0}% overlap", 100.0 * o)
 }
 
+/// What a family's draw hands on for each pair: its label, its group, whether it is a negative, the pair.
+type Push<'a> = dyn FnMut(String, String, bool, SyntheticPair) -> Result<()> + 'a;
+
 /// Runs `per` pairs of each of `families` and each of its overlaps, deterministic in `seed`; the mean
-/// preparation time of a map, ms.
+/// preparation time of a map, ms. Each pair is drawn, aligned and let go before the next is drawn.
 pub fn run_families(
     families: &[Family],
     per: usize,
@@ -104,157 +107,168 @@ pub fn run_families(
                 .map(OccupancyMap::from_image)
         })
         .collect::<Result<_>>()?;
-    let mut push = |label: String,
-                    group: String,
-                    negative: bool,
-                    pair: SyntheticPair,
-                    out: &mut Vec<PairRecord>|
-     -> Result<()> {
-        let truth = pair.true_pair(&label, &label, &group);
-        let r = synthetic_record(label, &group, negative, &pair, &truth, options, &mut prep);
-        on_pair(out.len(), &r, &pair.a, &pair.b, Some(truth.truth()))?;
-        out.push(r);
-        Ok(())
-    };
+    let mut push =
+        |label: String, group: String, negative: bool, pair: SyntheticPair| -> Result<()> {
+            let truth = pair.true_pair(&label, &label, &group);
+            let r = synthetic_record(label, &group, negative, &pair, &truth, options, &mut prep);
+            on_pair(out.len(), &r, &pair.a, &pair.b, Some(truth.truth()))?;
+            out.push(r);
+            Ok(())
+        };
     for &family in families {
         let name = family.name();
         match family {
-            Family::Layout(kind) => {
-                for &o in &LAYOUT_OVERLAPS {
-                    for k in 0..per {
-                        let s = seed.wrapping_mul(7919).wrapping_add(k as u64);
-                        let layout = kind.make(s)?;
-                        let map = OccupancyMap::from_image(layout.image);
-                        let shape = PairShape {
-                            lattice: layout.lattice,
-                            ..PairShape::default()
-                        };
-                        let spec = SyntheticSpec {
-                            overlap: o,
-                            noise: 0.0,
-                        };
-                        let Some(pair) =
-                            synthetic_pair_with(&map, &spec, &shape, s ^ (o * 1e4) as u64)
-                        else {
-                            continue;
-                        };
-                        let breaks =
-                            pair.alias_contradiction.unwrap_or(u64::MAX) >= MIN_ALIAS_CONTRADICTION;
-                        let group = if breaks {
-                            overlap_group(name, o)
-                        } else {
-                            format!("{}, nothing breaks the period", overlap_group(name, o))
-                        };
-                        push(synthetic_label(name, o, k), group, false, pair, &mut out)?;
-                    }
-                }
-            }
-            Family::Bent => {
-                for &o in &BENT_OVERLAPS {
-                    for (k, map) in offices.iter().enumerate() {
-                        let shape = PairShape {
-                            bend_deg_per_kpx: BENT_DRIFT,
-                            unexplored: BENT_UNEXPLORED,
-                            ..PairShape::default()
-                        };
-                        let spec = SyntheticSpec {
-                            overlap: o,
-                            noise: BENT_NOISE,
-                        };
-                        let s = seed
-                            .wrapping_mul(31)
-                            .wrapping_add(k as u64 * 101 + (o * 1e4) as u64);
-                        let Some(pair) = synthetic_pair_with(map, &spec, &shape, s) else {
-                            continue;
-                        };
-                        push(
-                            synthetic_label(name, o, k),
-                            overlap_group(name, o),
-                            false,
-                            pair,
-                            &mut out,
-                        )?;
-                    }
-                }
-            }
-            Family::Crops => {
-                for &side in &CROP_SIDES {
-                    for &o in &CROP_OVERLAPS {
-                        for (k, map) in offices.iter().enumerate() {
-                            let spec = CropSpec {
-                                side,
-                                overlap: o,
-                                noise: 0.0,
-                            };
-                            let s = seed
-                                .wrapping_mul(131)
-                                .wrapping_add(k as u64 * 1009 + u64::from(side))
-                                .wrapping_add(o.map_or(7, |o| (o * 1e4) as u64));
-                            let Some(pair) = synthetic_crops(map, &spec, s) else {
-                                continue;
-                            };
-                            let (group, what) = match o {
-                                Some(o) => (
-                                    format!("{name} {side} px, {:.0}% overlap", 100.0 * o),
-                                    format!("{:.0}", 100.0 * o),
-                                ),
-                                None => (
-                                    format!("{name} {side} px, apart (negative)"),
-                                    "apart".to_string(),
-                                ),
-                            };
-                            push(
-                                format!("{name}/{side}/{what}/{k}"),
-                                group,
-                                o.is_none(),
-                                pair,
-                                &mut out,
-                            )?;
-                        }
-                    }
-                }
-            }
-            Family::Symmetric => {
-                for kind in SymmetricKind::suite() {
-                    for k in 0..per {
-                        let s = seed
-                            .wrapping_mul(613)
-                            .wrapping_add(k as u64 * 17 + u64::from(kind.wings));
-                        let Some(pair) = hall_pair(kind, s) else {
-                            continue;
-                        };
-                        // The extra-room pairs apart by whether the one detail that tells the
-                        // turns apart lies in both windows.
-                        let what = match (kind.extra_room, extra_room_in_both(kind, s, &pair)) {
-                            (false, _) => kind.name(),
-                            (true, true) => format!("{}, in both windows", kind.name()),
-                            (true, false) => format!("{}, not in both", kind.name()),
-                        };
-                        push(
-                            format!("{name}/{}/{k}", what.replace(", ", "-").replace(' ', "-")),
-                            format!("{name}: {what}"),
-                            false,
-                            pair,
-                            &mut out,
-                        )?;
-                        // As many again whose windows were drawn until both hold the room.
-                        if let Some((pair, _)) = hall_pair_holding_room(kind, s ^ 0x600d_4004) {
-                            let what = format!("{}, in both windows", kind.name());
-                            push(
-                                format!(
-                                    "{name}/{}/held-{k}",
-                                    what.replace(", ", "-").replace(' ', "-")
-                                ),
-                                format!("{name}: {what}"),
-                                false,
-                                pair,
-                                &mut out,
-                            )?;
-                        }
-                    }
-                }
-            }
+            Family::Layout(kind) => layout_pairs(name, kind, per, seed, &mut push)?,
+            Family::Bent => bent_pairs(name, &offices, seed, &mut push)?,
+            Family::Crops => crop_pairs(name, &offices, seed, &mut push)?,
+            Family::Symmetric => symmetric_pairs(name, per, seed, &mut push)?,
         }
     }
     Ok((out, prep.costs()))
+}
+
+/// A layout family's pairs: `per` layouts at each overlap, grouped by whether the overlap breaks the
+/// layout's period.
+fn layout_pairs(
+    name: &str,
+    kind: LayoutKind,
+    per: usize,
+    seed: u64,
+    push: &mut Push,
+) -> Result<()> {
+    for &o in &LAYOUT_OVERLAPS {
+        for k in 0..per {
+            let s = seed.wrapping_mul(7919).wrapping_add(k as u64);
+            let layout = kind.make(s)?;
+            let map = OccupancyMap::from_image(layout.image);
+            let shape = PairShape {
+                lattice: layout.lattice,
+                ..PairShape::default()
+            };
+            let spec = SyntheticSpec {
+                overlap: o,
+                noise: 0.0,
+            };
+            let Some(pair) = synthetic_pair_with(&map, &spec, &shape, s ^ (o * 1e4) as u64) else {
+                continue;
+            };
+            let breaks = pair.alias_contradiction.unwrap_or(u64::MAX) >= MIN_ALIAS_CONTRADICTION;
+            let group = if breaks {
+                overlap_group(name, o)
+            } else {
+                format!("{}, nothing breaks the period", overlap_group(name, o))
+            };
+            push(synthetic_label(name, o, k), group, false, pair)?;
+        }
+    }
+    Ok(())
+}
+
+/// The bent family's pairs: each office at each overlap, bent, speckled and partly unexplored.
+fn bent_pairs(name: &str, offices: &[OccupancyMap], seed: u64, push: &mut Push) -> Result<()> {
+    for &o in &BENT_OVERLAPS {
+        for (k, map) in offices.iter().enumerate() {
+            let shape = PairShape {
+                bend_deg_per_kpx: BENT_DRIFT,
+                unexplored: BENT_UNEXPLORED,
+                ..PairShape::default()
+            };
+            let spec = SyntheticSpec {
+                overlap: o,
+                noise: BENT_NOISE,
+            };
+            let s = seed
+                .wrapping_mul(31)
+                .wrapping_add(k as u64 * 101 + (o * 1e4) as u64);
+            let Some(pair) = synthetic_pair_with(map, &spec, &shape, s) else {
+                continue;
+            };
+            push(
+                synthetic_label(name, o, k),
+                overlap_group(name, o),
+                false,
+                pair,
+            )?;
+        }
+    }
+    Ok(())
+}
+
+/// The crops family's pairs: square windows of each side, overlapping or apart (negatives).
+fn crop_pairs(name: &str, offices: &[OccupancyMap], seed: u64, push: &mut Push) -> Result<()> {
+    for &side in &CROP_SIDES {
+        for &o in &CROP_OVERLAPS {
+            for (k, map) in offices.iter().enumerate() {
+                let spec = CropSpec {
+                    side,
+                    overlap: o,
+                    noise: 0.0,
+                };
+                let s = seed
+                    .wrapping_mul(131)
+                    .wrapping_add(k as u64 * 1009 + u64::from(side))
+                    .wrapping_add(o.map_or(7, |o| (o * 1e4) as u64));
+                let Some(pair) = synthetic_crops(map, &spec, s) else {
+                    continue;
+                };
+                let (group, what) = match o {
+                    Some(o) => (
+                        format!("{name} {side} px, {:.0}% overlap", 100.0 * o),
+                        format!("{:.0}", 100.0 * o),
+                    ),
+                    None => (
+                        format!("{name} {side} px, apart (negative)"),
+                        "apart".to_string(),
+                    ),
+                };
+                push(
+                    format!("{name}/{side}/{what}/{k}"),
+                    group,
+                    o.is_none(),
+                    pair,
+                )?;
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The symmetric family's pairs: `per` halls of each kind, the extra-room ones grouped by whether both
+/// windows hold the room, and as many again drawn until both do.
+fn symmetric_pairs(name: &str, per: usize, seed: u64, push: &mut Push) -> Result<()> {
+    let label =
+        |what: &str, k: String| format!("{name}/{}/{k}", what.replace(", ", "-").replace(' ', "-"));
+    for kind in SymmetricKind::suite() {
+        for k in 0..per {
+            let s = seed
+                .wrapping_mul(613)
+                .wrapping_add(k as u64 * 17 + u64::from(kind.wings));
+            let Some(pair) = hall_pair(kind, s) else {
+                continue;
+            };
+            // The extra-room pairs apart by whether the one detail that tells the turns apart lies in
+            // both windows.
+            let what = match (kind.extra_room, extra_room_in_both(kind, s, &pair)) {
+                (false, _) => kind.name(),
+                (true, true) => format!("{}, in both windows", kind.name()),
+                (true, false) => format!("{}, not in both", kind.name()),
+            };
+            push(
+                label(&what, k.to_string()),
+                format!("{name}: {what}"),
+                false,
+                pair,
+            )?;
+            if let Some((pair, _)) = hall_pair_holding_room(kind, s ^ 0x600d_4004) {
+                let what = format!("{}, in both windows", kind.name());
+                push(
+                    label(&what, format!("held-{k}")),
+                    format!("{name}: {what}"),
+                    false,
+                    pair,
+                )?;
+            }
+        }
+    }
+    Ok(())
 }

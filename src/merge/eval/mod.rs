@@ -351,32 +351,7 @@ pub fn run_synthetic_with(
         }
         // Negatives: A of one map against B of the next.
         if negatives && cuts.len() >= 2 {
-            for i in 0..cuts.len() {
-                let (na, a) = (&cuts[i].0, &cuts[i].1.a);
-                let (nb, b) = (
-                    &cuts[(i + 1) % cuts.len()].0,
-                    &cuts[(i + 1) % cuts.len()].1.b,
-                );
-                let (pa, pb) = (prep.prepare(a), prep.prepare(b));
-                let (alignment, ms) = prep.align(&pa, &pb, options);
-                let alignment =
-                    alignment.unwrap_or_else(|e| super::align::declined(&format!("refused: {e}")));
-                let record = PairRecord {
-                    src: format!("{nb}/{:.0}/b", 100.0 * overlap),
-                    dst: format!("{na}/{:.0}/a", 100.0 * overlap),
-                    building: "negative".to_string(),
-                    negative: true,
-                    accepted: alignment.accepted,
-                    accurate: false,
-                    rot_err_deg: 0.0,
-                    rms_px: 0.0,
-                    alignment,
-                    ms,
-                    accurate_candidates: Vec::new(),
-                };
-                on_pair(out.len(), &record, a, b, None)?;
-                out.push(record);
-            }
+            run_negatives(&cuts, overlap, options, &mut prep, on_pair, &mut out)?;
         }
     }
     // Each plan against its furnished copy: A a window of the plan, B one of the copy.
@@ -401,16 +376,59 @@ pub fn run_synthetic_with(
         }
     }
     if let Some(dir) = save {
-        // Its maps beside it, as it says: `merge-eval DIR/pairs.json` finds them.
-        let set = serde_json::json!({ "pairs": saved, "negatives": [], "maps": "." });
-        let text = serde_json::to_string_pretty(&set)
-            .map_err(|e| crate::error::Error::Internal(e.to_string()))?;
-        crate::files::write_atomic(&dir.join("pairs.json"), |w| {
-            w.write_all(text.as_bytes())?;
-            writeln!(w)
-        })?;
+        write_pair_file(dir, &saved)?;
     }
     Ok((out, prep.costs()))
+}
+
+/// The negatives of one overlap: A of each cut against B of the next map's, run, shown and kept.
+fn run_negatives(
+    cuts: &[(String, SyntheticPair)],
+    overlap: f64,
+    options: &MergeOptions,
+    prep: &mut PrepTimer,
+    on_pair: &mut OnPair,
+    out: &mut Vec<PairRecord>,
+) -> Result<()> {
+    for i in 0..cuts.len() {
+        let (na, a) = (&cuts[i].0, &cuts[i].1.a);
+        let (nb, b) = (
+            &cuts[(i + 1) % cuts.len()].0,
+            &cuts[(i + 1) % cuts.len()].1.b,
+        );
+        let (pa, pb) = (prep.prepare(a), prep.prepare(b));
+        let (alignment, ms) = prep.align(&pa, &pb, options);
+        let alignment =
+            alignment.unwrap_or_else(|e| super::align::declined(&format!("refused: {e}")));
+        let record = PairRecord {
+            src: format!("{nb}/{:.0}/b", 100.0 * overlap),
+            dst: format!("{na}/{:.0}/a", 100.0 * overlap),
+            building: "negative".to_string(),
+            negative: true,
+            accepted: alignment.accepted,
+            accurate: false,
+            rot_err_deg: 0.0,
+            rms_px: 0.0,
+            alignment,
+            ms,
+            accurate_candidates: Vec::new(),
+        };
+        on_pair(out.len(), &record, a, b, None)?;
+        out.push(record);
+    }
+    Ok(())
+}
+
+/// The saved pairs' truths as a pair file in `dir`, its maps beside it, as it says: `merge-eval
+/// DIR/pairs.json` finds them.
+fn write_pair_file(dir: &std::path::Path, saved: &[TruePair]) -> Result<()> {
+    let set = serde_json::json!({ "pairs": saved, "negatives": [], "maps": "." });
+    let text = serde_json::to_string_pretty(&set)
+        .map_err(|e| crate::error::Error::Internal(e.to_string()))?;
+    crate::files::write_atomic(&dir.join("pairs.json"), |w| {
+        w.write_all(text.as_bytes())?;
+        writeln!(w)
+    })
 }
 
 /// Maps prepared for the merger, timed: the synthetic runs prepare both maps of every pair anew.
