@@ -455,8 +455,8 @@ fn a_symmetric_halls_pairs_have_exact_truths() {
 #[test]
 fn a_hall_pair_holding_its_room_holds_it_in_both_windows() {
     use ogm_corners::merge::synthetic::{
-        extra_room_in_both, extra_room_points, hall_pair, hall_pair_holding_room, symmetric_plan,
-        SymmetricKind,
+        extra_room_in_both, extra_room_points, hall_pair, hall_pair_holding_room, hall_pixel,
+        symmetric_plan, SymmetricKind,
     };
     let plain = SymmetricKind::plain(4);
     assert!(hall_pair_holding_room(plain, 1).is_none());
@@ -465,6 +465,7 @@ fn a_hall_pair_holding_its_room_holds_it_in_both_windows() {
             let (pair, s) = hall_pair_holding_room(kind, seed).unwrap();
             assert!(extra_room_in_both(kind, s, &pair), "{kind:?} {seed}");
             let (_, hall) = symmetric_plan(kind, s).unwrap();
+            assert_eq!(hall_pixel(kind, s), hall, "{kind:?} {seed}");
             for (u, v) in extra_room_points(kind, s).unwrap() {
                 let a = (hall.0 + u - pair.a_origin.0, hall.1 + v - pair.a_origin.1);
                 let b = pair.truth.inverse().apply(a);

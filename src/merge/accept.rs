@@ -10,9 +10,9 @@ use serde::Serialize;
 pub const MAX_FINE_CONFLICT: f64 = 0.55;
 /// Whatever the rule says, a merge is ambiguous when either map matches itself under another transform
 /// this well (the aligner's `self_symmetry`; a self-match under a turn only while an alternative pose
-/// keeps `SELF_SYMMETRY_ALIAS` of the chosen pose's evidence): the real
-/// maps have 0.49 at most, parts of the symmetric arenas of the synthetic suite 0.43-0.79 (those under
-/// the limit are the suite's wrong accepts).
+/// keeps `SELF_SYMMETRY_ALIAS` of the chosen pose's evidence): the real maps have 0.49 at most, parts
+/// of the symmetric arenas of the synthetic suite 0.43-0.79 (those under the limit are the suite's wrong
+/// accepts).
 pub const MAX_SELF_SYMMETRY: f64 = 0.55;
 /// A map that matches itself over [`MAX_SELF_SYMMETRY`] declines a merge only while some alternative
 /// pose, no more contradicted than the chosen one ([`Features::alias`]), keeps this share of its
@@ -125,9 +125,9 @@ impl Decline {
 /// Whether a map's self-match declines an alignment: its held part ([`Features::self_match_held`], a
 /// repeat's) over [`MAX_SELF_SYMMETRY`], or the rest over it while an alternative pose keeps
 /// [`SELF_SYMMETRY_ALIAS`] of its evidence. A building turns onto itself by a few turns, all of which
-/// the alternative-pose test measures; a repeat is one step of a lattice whose other steps and combinations no search lists, so
-/// the steps it does list being contradicted says nothing of the rest (measured: judged pose by pose,
-/// the warehouse family's repeats let 15 poses a period off through).
+/// the alternative-pose test measures; a repeat is one step of a lattice whose other steps and
+/// combinations no search lists, so the steps it does list being contradicted says nothing of the rest
+/// (measured: judged pose by pose, the warehouse family's repeats let 15 poses a period off through).
 pub fn self_match_vetoes(features: &Features) -> bool {
     features.self_match_held > MAX_SELF_SYMMETRY
         || (features.self_match > MAX_SELF_SYMMETRY && features.alias >= SELF_SYMMETRY_ALIAS)
@@ -294,7 +294,8 @@ mod tests {
             ..symmetric
         };
         assert!(accepts(&judged, 10.0));
-        // Without judging turns the whole self-match is held: declined whatever the alternatives.
+        // A map that repeats itself (its self-match under a shift held): declined whatever the
+        // alternatives.
         assert!(!accepts(
             &Features {
                 self_match_held: 0.6,

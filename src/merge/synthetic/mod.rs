@@ -16,7 +16,7 @@ mod symmetric;
 pub use crops::{synthetic_crops, CropSpec};
 pub use explore::{explore, Exploration};
 pub use layouts::{doors, grid_rooms, warehouse, Layout, LayoutKind};
-pub use symmetric::{extra_room_points, symmetric_plan, SymmetricKind};
+pub use symmetric::{extra_room_points, hall_pixel, symmetric_plan, SymmetricKind};
 
 use super::pairs::TruePair;
 use super::transform::Rigid;
@@ -405,10 +405,10 @@ pub fn hall_pair_holding_room(kind: SymmetricKind, seed: u64) -> Option<(Synthet
 /// whole ([`extra_room_points`] all free in A and in B): the pairs whose one asymmetric detail lies in
 /// the overlap, which a merger can tell from their turns. `false` without an extra room.
 pub fn extra_room_in_both(kind: SymmetricKind, seed: u64, pair: &SyntheticPair) -> bool {
-    let (Some(points), Ok((_, hall))) = (extra_room_points(kind, seed), symmetric_plan(kind, seed))
-    else {
+    let Some(points) = extra_room_points(kind, seed) else {
         return false;
     };
+    let hall = hall_pixel(kind, seed);
     let to_b = pair.truth.inverse();
     let free = |m: &OccupancyMap, (x, y): (f64, f64)| {
         let (x, y) = (x.round(), y.round());

@@ -63,11 +63,6 @@ impl SymmetricKind {
             .collect()
     }
 
-    /// How far apart its wings lie, degrees: 360 / wings less the bend.
-    pub fn wing_step_deg(self) -> f64 {
-        360.0 / f64::from(self.wings.clamp(2, 8)) - f64::from(self.bend_deg)
-    }
-
     /// Its name in reports: `5 wings`, `3 wings, not mirrored`, `4 wings, one extra room`, `2 wings,
     /// bent 7 deg`.
     pub fn name(self) -> String {
@@ -191,6 +186,19 @@ fn hall_corners(kind: SymmetricKind) -> usize {
 /// The plan of `kind` for `seed` (map_server values), a few hundred px a side, and the hall's centre in
 /// its pixels.
 pub fn symmetric_plan(kind: SymmetricKind, seed: u64) -> Result<(MapImage, (f64, f64))> {
+    let (rects, hub) = plan_rects(kind, seed);
+    draw(&rects, hub)
+}
+
+/// Where [`symmetric_plan`] puts the hall's centre in its pixels, without drawing the plan.
+pub fn hall_pixel(kind: SymmetricKind, seed: u64) -> (f64, f64) {
+    let (rects, (_, r, _)) = plan_rects(kind, seed);
+    let (x0, y0, _, _) = canvas(&rects, r);
+    (-x0 - 0.5, -y0 - 0.5)
+}
+
+/// The plan's free rectangles and its hall (corners, circumradius, turn), about the hall's centre.
+fn plan_rects(kind: SymmetricKind, seed: u64) -> (Vec<Rect>, (usize, f64, f64)) {
     let z = Sizes::draw(kind, seed);
     let n = usize::from(kind.wings.clamp(2, 8));
     let sides: &[f64] = if kind.mirrored { &[-1.0, 1.0] } else { &[1.0] };
@@ -230,11 +238,11 @@ pub fn symmetric_plan(kind: SymmetricKind, seed: u64) -> Result<(MapImage, (f64,
         });
     }
     // The hall's polygon turned with the wings, so that the whole plan turns onto itself.
-    draw(&rects, (hall_corners(kind), z.radius, z.turn0))
+    (rects, (hall_corners(kind), z.radius, z.turn0))
 }
 
 /// Points of the extra room of `kind`'s plan for `seed` (`None` without one), from the hall's centre
-/// (add the hall's pixel that [`symmetric_plan`] returns): its centre and four points a few px inside
+/// (add the hall's pixel, [`hall_pixel`]): its centre and four points a few px inside
 /// its corners, so that a window holding all five holds the whole room.
 pub fn extra_room_points(kind: SymmetricKind, seed: u64) -> Option<[(f64, f64); 5]> {
     if !kind.extra_room {
@@ -248,6 +256,25 @@ pub fn extra_room_points(kind: SymmetricKind, seed: u64) -> Option<[(f64, f64); 
     Some([at(0.0, 0.0), at(-r, -r), at(-r, r), at(r, -r), at(r, r)])
 }
 
+/// The canvas that holds `rects` and a hall of circumradius `r` about the origin with a margin: where
+/// its pixel (0, 0) lies (its corner, in plan coordinates) and its size.
+fn canvas(rects: &[Rect], r: f64) -> (f64, f64, usize, usize) {
+    // The extent: every rectangle's corners and the hall.
+    let (mut lo, mut hi) = ((-r, -r), (r, r));
+    for r in rects {
+        let reach = r.hx.hypot(r.hy);
+        lo = (lo.0.min(r.cx - reach), lo.1.min(r.cy - reach));
+        hi = (hi.0.max(r.cx + reach), hi.1.max(r.cy + reach));
+    }
+    let pad = MARGIN + WALL + 2.0;
+    (
+        lo.0 - pad,
+        lo.1 - pad,
+        (hi.0 - lo.0 + 2.0 * pad).ceil() as usize,
+        (hi.1 - lo.1 + 2.0 * pad).ceil() as usize,
+    )
+}
+
 /// The free union of `rects` and a regular polygon (corners, circumradius, turn) about the origin, walls
 /// around, unknown beyond, on a canvas that holds it with a margin; with the origin in its pixels.
 fn draw(rects: &[Rect], (n, r, turn): (usize, f64, f64)) -> Result<(MapImage, (f64, f64))> {
@@ -258,19 +285,7 @@ fn draw(rects: &[Rect], (n, r, turn): (usize, f64, f64)) -> Result<(MapImage, (f
         })
     };
     let free_at = |x: f64, y: f64| in_hub(x, y) || rects.iter().any(|r| r.contains(x, y));
-    // The extent: every rectangle's corners and the hall.
-    let (mut lo, mut hi) = ((-r, -r), (r, r));
-    for r in rects {
-        let reach = r.hx.hypot(r.hy);
-        lo = (lo.0.min(r.cx - reach), lo.1.min(r.cy - reach));
-        hi = (hi.0.max(r.cx + reach), hi.1.max(r.cy + reach));
-    }
-    let pad = MARGIN + WALL + 2.0;
-    let (x0, y0) = (lo.0 - pad, lo.1 - pad);
-    let (w, h) = (
-        (hi.0 - lo.0 + 2.0 * pad).ceil() as usize,
-        (hi.1 - lo.1 + 2.0 * pad).ceil() as usize,
-    );
+    let (x0, y0, w, h) = canvas(rects, r);
     let mut free = vec![false; w * h];
     for (i, f) in free.iter_mut().enumerate() {
         let (x, y) = ((i % w) as f64 + x0 + 0.5, (i / w) as f64 + y0 + 0.5);
@@ -364,7 +379,7 @@ mod tests {
             if kind.bend_deg > 0 {
                 // Bent: the plan turns onto itself neither by the whole wing nor by the wings' angle
                 // apart, though each lays most of it on itself (the hall, or the wings): 0.74 and 0.80.
-                for deg in [360.0 / k, kind.wing_step_deg()] {
+                for deg in [360.0 / k, 360.0 / k - f64::from(kind.bend_deg)] {
                     let share = agree(kind, deg);
                     assert!(share > 0.6 && share < 0.9, "{kind:?}, {deg} deg: {share}");
                 }
