@@ -11,8 +11,9 @@ use ogm_corners::merge::synthetic::{
 };
 use ogm_corners::OccupancyMap;
 
-/// Repetitive layouts at 30% overlap: whatever is accepted is the true pose. Before the alternative-pose
-/// test, the warehouse's racks were merged a half turn or a period off with every wall matching.
+/// Repetitive layouts at 30% overlap: whatever is accepted is the true pose, with a repeat held as
+/// ambiguous (the default) and judged pose by pose. Before the alternative-pose test, the warehouse's
+/// racks were merged a half turn or a period off with every wall matching.
 #[test]
 fn repetitive_layouts_are_never_merged_wrongly() {
     let mut identifiable = 0;
@@ -33,15 +34,21 @@ fn repetitive_layouts_are_never_merged_wrongly() {
             };
             let breaks = pair.alias_contradiction.unwrap() >= MIN_ALIAS_CONTRADICTION;
             identifiable += usize::from(breaks);
-            let al = align(&pair.a, &pair.b, &MergeOptions::default()).unwrap();
-            assert!(
-                !al.accepted || pair.accurate(&al.transform),
-                "{} seed {seed}: wrong merge {:?} (truth {:?}); {}",
-                kind.name(),
-                al.transform,
-                pair.truth,
-                al.explain()
-            );
+            for judge_repeats in [false, true] {
+                let options = MergeOptions {
+                    judge_repeats,
+                    ..MergeOptions::default()
+                };
+                let al = align(&pair.a, &pair.b, &options).unwrap();
+                assert!(
+                    !al.accepted || pair.accurate(&al.transform),
+                    "{} seed {seed} (repeats judged: {judge_repeats}): wrong merge {:?} (truth {:?}); {}",
+                    kind.name(),
+                    al.transform,
+                    pair.truth,
+                    al.explain()
+                );
+            }
         }
     }
     // The oracle sees both kinds of pairs: some whose overlap breaks the period.
@@ -69,6 +76,41 @@ fn a_warehouse_misplaced_by_its_repeat_is_declined_as_ambiguous() {
     if al.score >= 0.0 && !al.accepted {
         let why = al.reason.clone().unwrap();
         assert!(why.contains("ambiguous"), "{why}");
+    }
+}
+
+/// A warehouse at 20% overlap whose best pose is a half turn and a period of racks off (the family's
+/// `warehouse/20/1` and `/20/2`, seed 1), with every wall matching. Judging the repeat pose by pose,
+/// the steps listed from the chosen pose alone did not reach the truth, and the pair was merged wrong;
+/// the steps from each of the pose's turns do, and the pair is declined or placed right.
+#[test]
+fn a_warehouse_a_half_turn_and_a_period_off_is_never_merged_with_repeats_judged() {
+    let options = MergeOptions {
+        judge_repeats: true,
+        ..MergeOptions::default()
+    };
+    for k in [1u64, 2] {
+        // The family's seed for its k-th warehouse (run seed 1), and its pair seed at 20% overlap.
+        let s = 7919 + k;
+        let layout = LayoutKind::Warehouse.make(s).unwrap();
+        let map = OccupancyMap::from_image(layout.image);
+        let shape = PairShape {
+            lattice: layout.lattice,
+            ..PairShape::default()
+        };
+        let spec = SyntheticSpec {
+            overlap: 0.2,
+            noise: 0.0,
+        };
+        let pair = synthetic_pair_with(&map, &spec, &shape, s ^ 2000).unwrap();
+        let al = align(&pair.a, &pair.b, &options).unwrap();
+        assert!(
+            !al.accepted || pair.accurate(&al.transform),
+            "warehouse/20/{k}: wrong merge {:?} (truth {:?}); {}",
+            al.transform,
+            pair.truth,
+            al.explain()
+        );
     }
 }
 

@@ -9,7 +9,8 @@ mod common;
 
 use ogm_corners::merge::align::{align, Alignment, MergeOptions};
 use ogm_corners::merge::synthetic::{
-    extra_room_in_both, hall_pair, synthetic_pair, SymmetricKind, SyntheticPair, SyntheticSpec,
+    extra_room_in_both, extra_room_turns_seen, hall_pair, synthetic_pair, SymmetricKind,
+    SyntheticPair, SyntheticSpec,
 };
 use ogm_corners::merge::transform::signed_deg;
 use ogm_corners::OccupancyMap;
@@ -99,10 +100,13 @@ fn turned_by(why: &str) -> Option<f64> {
 }
 
 /// A four-wing hall with one extra room at the end of a wing, both windows holding the room (the
-/// family's `4 wings, one extra room, in both windows` pair 5, seed 1): every turn by a wing lays the
-/// room's door on the other map's closed end wall, so no turn is left to make the pair ambiguous; what
+/// family's `4 wings, one extra room, in both windows` pair 5, seed 1): the half turn lays the room's
+/// door on the other map's closed end wall, and the quarter turns, which lay it where neither window
+/// has seen (`extra_room_turns_seen` is false), keep too little of the evidence to be rivals; what
 /// declines it is the repeat of the wings' rooms (a shift, which a detail never tells apart: it is one
-/// step of a lattice). The same windows of the same hall without the room are declined for a turn.
+/// step of a lattice), unless every step of the lattice is listed and measured
+/// ([`MergeOptions::judge_repeats`]): then it is merged. The same windows of the same hall without the
+/// room are declined for a turn.
 #[test]
 fn a_halls_extra_room_in_both_windows_tells_its_turns_apart() {
     let aligned = |pair: &SyntheticPair| align(&pair.a, &pair.b, &MergeOptions::default()).unwrap();
@@ -113,12 +117,25 @@ fn a_halls_extra_room_in_both_windows_tells_its_turns_apart() {
     let seed = 613 + 5 * 17 + 4;
     let pair = hall_pair(room, seed).unwrap();
     assert!(extra_room_in_both(room, seed, &pair));
+    assert!(!extra_room_turns_seen(room, seed, &pair));
     let al = aligned(&pair);
     assert!(pair.accurate(&al.transform), "{}", al.explain());
     let why = al.reason.clone().unwrap_or_default();
     assert!(
         al.accepted || (why.starts_with("ambiguous") && turned_by(&why).is_none()),
         "{why}"
+    );
+    // With the repeat judged pose by pose, every step of the wings' rooms is measured, none keeps the
+    // evidence, and the pair is merged.
+    let options = MergeOptions {
+        judge_repeats: true,
+        ..MergeOptions::default()
+    };
+    let al = align(&pair.a, &pair.b, &options).unwrap();
+    assert!(
+        al.accepted && pair.accurate(&al.transform),
+        "{}",
+        al.explain()
     );
     let plain = SymmetricKind {
         extra_room: false,

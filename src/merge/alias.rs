@@ -4,6 +4,7 @@
 //! ([`alias`]): a merge is ambiguous when one of them fits nearly as well
 //! ([`super::accept::MAX_ALIAS`]).
 
+use super::accept::MAX_SELF_SYMMETRY;
 use super::local::{local_both, local_fit};
 use super::prepare::{Prepared, Symmetry};
 use super::refine::{crop_to_map, icp, map_to_crop};
@@ -30,6 +31,15 @@ pub const ALIAS_TOLD_RATIO: f64 = 2.0;
 /// together): on clean maps a door's worth of pixels (a dozen or more) against none, on a cluttered map
 /// a difference far above what its clutter puts on free space at any pose.
 pub const ALIAS_TOLD_SIGMAS: f64 = 3.0;
+
+/// A map's repeat is listed step by step ([`lattice_poses`]) up to this many poses tried for each map:
+/// a long corridor of equal rooms is a few dozen, a warehouse's racks in two directions can be
+/// hundreds (then the repeat stays held, as it is without the listing).
+pub const LATTICE_POSES: usize = 256;
+
+/// Poses composed two ways that land within this of each other are one pose (the distance of
+/// [`transform_distance`]: px, and 10 px a degree).
+const SAME_POSE_PX: f64 = 4.0;
 
 /// Whether an alternative pose with `alt` contradicting wall pixels is told apart from a chosen pose with
 /// `chosen` ([`ALIAS_TOLD_RATIO`], [`ALIAS_TOLD_SIGMAS`]): the overlap holds a detail that only the
@@ -81,8 +91,9 @@ pub(super) fn alias(
     best: &Rigid,
     (sa, sb): (&Symmetry, &Symmetry),
     found: &[(Rigid, (f64, f64, f64))],
+    repeats: Repeats,
     backend: &mut dyn Backend,
-) -> Result<(f64, Option<Rigid>)> {
+) -> Result<Alias> {
     let mut poses = vec![*best];
     for s in &sa.transforms {
         poses.push(s.after(best));
@@ -92,14 +103,57 @@ pub(super) fn alias(
         poses.push(best.after(s));
         poses.push(best.after(&s.inverse()));
     }
+    // A repeat strong enough to be held is judged pose by pose only when every step of its lattice
+    // that could still lay the maps on each other is listed.
+    let held = sa.repeat.max(sb.repeat) > MAX_SELF_SYMMETRY;
+    let mut repeats_listed = false;
+    if repeats == Repeats::List && held {
+        // Every step from the chosen pose and from each of its turns (a turn of a building that
+        // repeats is a turn and a step of the repeat away from the truth as often as not), the
+        // search's turned candidates among them.
+        let bases: Vec<Rigid> = std::iter::once(*best)
+            .chain(
+                poses
+                    .iter()
+                    .copied()
+                    .chain(found.iter().map(|f| f.0))
+                    .filter(|t| signed_deg(t.theta_deg - best.theta_deg).abs() > NEAR_IDENTITY_DEG),
+            )
+            .collect();
+        if let Some(steps) = lattice_poses(src, dst, best, &bases, (sa, sb), backend)? {
+            poses.extend(steps);
+            repeats_listed = true;
+        }
+    }
     poses.retain(|t| t == best || transform_distance(t, best) > DISTINCT_PX);
+    // Shifts are told apart as turns are where the lattice was listed, and on the screen that asks
+    // whether listing it could matter.
+    let judge_shifts = repeats_listed || repeats == Repeats::Screen;
+    // A lattice's steps reached by each map's repeat are mostly one pose twice.
+    if repeats_listed {
+        let mut kept: Vec<Rigid> = Vec::with_capacity(poses.len());
+        for t in poses {
+            if !kept
+                .iter()
+                .any(|k| transform_distance(k, &t) <= SAME_POSE_PX)
+            {
+                kept.push(t);
+            }
+        }
+        poses = kept;
+    }
     let turned: Vec<(Rigid, (f64, f64, f64))> = found
         .iter()
         .filter(|(t, _)| signed_deg(t.theta_deg - best.theta_deg).abs() > NEAR_IDENTITY_DEG)
         .copied()
         .collect();
+    let none = Alias {
+        ratio: 0.0,
+        pose: None,
+        repeats_listed,
+    };
     if poses.len() < 2 && turned.is_empty() {
-        return Ok((0.0, None));
+        return Ok(none);
     }
     let crops: Vec<Rigid> = poses.iter().map(|t| map_to_crop(src, dst, t)).collect();
     // A cheap screen first (the kernel's counts): alternatives with under a quarter of the chosen pose's
@@ -114,7 +168,7 @@ pub(super) fn alias(
             .collect()
     };
     if screened.is_empty() && turned.is_empty() {
-        return Ok((0.0, None));
+        return Ok(none);
     }
     let fits: Vec<(f64, f64, f64)> = {
         use rayon::prelude::*;
@@ -155,8 +209,9 @@ pub(super) fn alias(
         // walls a px or two off lie on free space). Never a shift: a repeat is one step of a lattice
         // whose other steps no search lists, so one contradicted step says nothing of the next (told
         // apart, the warehouse family's shifts let poses a period off through).
+        // (A shift is told apart only when its whole lattice was listed, [`lattice_poses`].)
         let turned = signed_deg(t.theta_deg - best.theta_deg).abs() > NEAR_IDENTITY_DEG;
-        if !turned {
+        if !turned && !judge_shifts {
             (top, pose) = (ratio, Some(t));
             continue;
         }
@@ -170,7 +225,153 @@ pub(super) fn alias(
         }
         (top, pose) = (ratio, Some(t));
     }
-    Ok((top, pose))
+    Ok(Alias {
+        ratio: top,
+        pose,
+        repeats_listed,
+    })
+}
+
+/// How [`alias`] treats a map's repeat (a self-match under a shift over [`MAX_SELF_SYMMETRY`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum Repeats {
+    /// Held: its steps are alternatives, never told apart (the pair test's default).
+    Held,
+    /// The screen before listing: the self-transforms' steps told apart as turns are, nothing listed;
+    /// the alternative is a lower bound of what [`Repeats::List`] finds, so a pair this declines
+    /// needs no listing.
+    Screen,
+    /// Every step of the lattice listed ([`lattice_poses`]) and judged pose by pose; held as
+    /// [`Repeats::Held`] where the lattice is too large to list.
+    List,
+}
+
+/// The best alternative pose [`alias`] found, and how the maps' repeats were judged.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct Alias {
+    /// Its evidence over the chosen pose's ([`Features::alias`](super::accept::Features::alias)), 0
+    /// without one.
+    pub(super) ratio: f64,
+    /// The pose, B's pixels to A's.
+    pub(super) pose: Option<Rigid>,
+    /// Whether a repeat over [`MAX_SELF_SYMMETRY`] had every step of its lattice listed and judged
+    /// pose by pose ([`lattice_poses`]): then nothing of the self-match needs holding whatever the
+    /// alternatives show.
+    pub(super) repeats_listed: bool,
+}
+
+/// Every step of the maps' repeats that could misplace the pair: the shifts among each map's
+/// self-transforms (turned by under [`NEAR_IDENTITY_DEG`], taken as the translations they make at the
+/// map's centre) composed with one another, breadth first from the chosen pose, a step kept and grown
+/// from while it lays at least a quarter of the chosen pose's walls near the other map's (the screen
+/// [`alias`] applies; a repeat that ends lays fewer walls with every step on, so a step that fails it
+/// ends its line). `None` when a map's lattice reaches past [`LATTICE_POSES`] poses tried: its steps are
+/// then not all listed, and the repeat stays held.
+fn lattice_poses(
+    src: &Prepared,
+    dst: &Prepared,
+    best: &Rigid,
+    bases: &[Rigid],
+    (sa, sb): (&Symmetry, &Symmetry),
+    backend: &mut dyn Backend,
+) -> Result<Option<Vec<Rigid>>> {
+    let crop0 = map_to_crop(src, dst, best);
+    let (d0, s0) = score_both(src, dst, &[crop0], Probe::Walls, backend)?;
+    let near0 = f64::from(d0[0][1] + s0[0][1]);
+    let mut out = Vec::new();
+    // A's steps act on A's side of the pose (after it), B's on B's side (before it).
+    for (map, sym, on_a) in [(dst, sa, true), (src, sb, false)] {
+        let steps = repeat_steps(map, sym);
+        if steps.is_empty() {
+            continue;
+        }
+        for base in bases {
+            let pose = |(x, y): (f64, f64)| {
+                let shift = Rigid {
+                    theta_deg: 0.0,
+                    tx: x,
+                    ty: y,
+                };
+                if on_a {
+                    shift.after(base)
+                } else {
+                    base.after(&shift)
+                }
+            };
+            let Some(reached) = walk_lattice(src, dst, &steps, &pose, near0, backend)? else {
+                return Ok(None);
+            };
+            out.extend(reached);
+        }
+    }
+    Ok(Some(out))
+}
+
+/// The poses `pose` makes of the lattice `steps` span, breadth first from its origin, a step kept and
+/// grown from while it lays at least a quarter of `near0` walls (the chosen pose's) near the other
+/// map's; `None` past [`LATTICE_POSES`] steps tried.
+fn walk_lattice(
+    src: &Prepared,
+    dst: &Prepared,
+    steps: &[(f64, f64)],
+    pose: &dyn Fn((f64, f64)) -> Rigid,
+    near0: f64,
+    backend: &mut dyn Backend,
+) -> Result<Option<Vec<Rigid>>> {
+    // Steps closer than half the shortest one are the same step reached two ways.
+    let same = 0.5
+        * steps
+            .iter()
+            .map(|v| v.0.hypot(v.1))
+            .fold(f64::MAX, f64::min);
+    let mut tried: Vec<(f64, f64)> = vec![(0.0, 0.0)];
+    let mut frontier: Vec<(f64, f64)> = vec![(0.0, 0.0)];
+    let mut out = Vec::new();
+    while !frontier.is_empty() {
+        let mut next: Vec<(f64, f64)> = Vec::new();
+        for f in &frontier {
+            for v in steps {
+                let x = (f.0 + v.0, f.1 + v.1);
+                let seen = |y: &(f64, f64)| (x.0 - y.0).hypot(x.1 - y.1) < same;
+                if !tried.iter().any(seen) && !next.iter().any(seen) {
+                    next.push(x);
+                }
+            }
+        }
+        if next.is_empty() {
+            break;
+        }
+        if tried.len() + next.len() > LATTICE_POSES {
+            return Ok(None);
+        }
+        let crops: Vec<Rigid> = next
+            .iter()
+            .map(|&x| map_to_crop(src, dst, &pose(x)))
+            .collect();
+        let (walls_d, walls_s) = score_both(src, dst, &crops, Probe::Walls, backend)?;
+        tried.extend(next.iter().copied());
+        frontier = (0..next.len())
+            .filter(|&i| f64::from(walls_d[i][1] + walls_s[i][1]) >= 0.25 * near0)
+            .map(|i| next[i])
+            .collect();
+        out.extend(frontier.iter().map(|&x| pose(x)));
+    }
+    Ok(Some(out))
+}
+
+/// A map's repeat's steps: its self-transforms turned by under [`NEAR_IDENTITY_DEG`], each as the
+/// translation it makes at the centre of the map's crop (a building repeats by translation; the few
+/// tenths of a degree a fit leaves would grow with every step composed), both ways.
+fn repeat_steps(p: &Prepared, sym: &Symmetry) -> Vec<(f64, f64)> {
+    let c = (p.off.0 + p.w as f64 / 2.0, p.off.1 + p.h as f64 / 2.0);
+    sym.transforms
+        .iter()
+        .filter(|s| signed_deg(s.theta_deg).abs() <= NEAR_IDENTITY_DEG)
+        .flat_map(|s| {
+            let (x, y) = s.apply(c);
+            [(x - c.0, y - c.1), (c.0 - x, c.1 - y)]
+        })
+        .collect()
 }
 
 /// The wall pixels of both maps (every one) over 3 px deep in the other map's free space at `t` (B's
@@ -220,7 +421,7 @@ pub(super) fn self_match_why(
         |alt| how_it_differs(best, alt),
     );
     format!(
-        "ambiguous: a map matches itself turned (self-match {self_match:.2} over {limit}), \
+        "ambiguous: a map matches itself (self-match {self_match:.2} over {limit}), \
          and B fits A {alt} with {ratio:.2} of the evidence and hardly more walls on free space, so it \
          could be merged more than one way"
     )

@@ -23,8 +23,8 @@ pub use super::accept::{
     accepts, contradiction, decline, not_contradicted, Acceptance, Decline, Features, MAX_ALIAS,
     MAX_CONTRADICTION, MAX_FINE_CONFLICT, MAX_SELF_SYMMETRY, MIN_SUPPORT,
 };
-pub(super) use super::alias::alias;
 use super::alias::{add_turns, ambiguous_why, self_match_why};
+pub(super) use super::alias::{alias, Repeats};
 pub use super::alias::{ALIAS_EXTRA_CONFLICT, ALIAS_SELF_MATCH};
 use super::coarse::{coarse_hypotheses, screen, CoarseSet, Crop};
 pub use super::fft::FINE_FFT;
@@ -67,6 +67,12 @@ pub struct MergeOptions {
     /// only for what the rule could accept otherwise): what refitting the rule needs
     /// (`merge-eval --cross-validate`).
     pub always_verify: bool,
+    /// Judge a map that repeats itself (a row of equal rooms) pose by pose, as a turn is (measured,
+    /// not yet the default): every step of its lattice that could still lay the maps on each other
+    /// is listed, a step a detail of the overlap contradicts is no rival, and the repeat declines only
+    /// while a step keeps a quarter of the evidence. Off: a repeat over the self-match limit always
+    /// declines.
+    pub judge_repeats: bool,
 }
 
 impl Default for MergeOptions {
@@ -76,6 +82,7 @@ impl Default for MergeOptions {
             hypotheses: Hypotheses::default(),
             check_symmetry: true,
             always_verify: false,
+            judge_repeats: false,
         }
     }
 }
@@ -278,7 +285,30 @@ pub fn align_prepared_with(
             .iter()
             .map(|&i| (to_full(&crops[i]), locals[i]))
             .collect();
-        (features.alias, alternative) = alias(src, dst, &best, (sa, sb), &found, backend)?;
+        let judged = options.judge_repeats && features.self_match_held > MAX_SELF_SYMMETRY;
+        let mode = if judged {
+            Repeats::Screen
+        } else {
+            Repeats::Held
+        };
+        let mut alt = alias(src, dst, &best, (sa, sb), &found, mode, backend)?;
+        if judged {
+            // Listing a repeat's lattice costs a few alignments' scoring: only for a pair the screen
+            // (a lower bound of the listed alternative) leaves to be merged.
+            let unheld = Features {
+                alias: alt.ratio,
+                self_match_held: 0.0,
+                ..features
+            };
+            if accepts(&unheld, score) {
+                alt = alias(src, dst, &best, (sa, sb), &found, Repeats::List, backend)?;
+            }
+        }
+        (features.alias, alternative) = (alt.ratio, alt.pose);
+        if alt.repeats_listed {
+            // Every step of the repeat measured: nothing of it needs holding.
+            features.self_match_held = 0.0;
+        }
     }
     let accepted = accepts(&features, score);
     let reason = decline(&features, score).map(|why| match why {

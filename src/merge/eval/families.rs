@@ -16,9 +16,9 @@ use crate::error::{Error, Result};
 use crate::map::OccupancyMap;
 use crate::merge::align::MergeOptions;
 use crate::merge::synthetic::{
-    extra_room_in_both, hall_pair, hall_pair_holding_room, synthetic_crops, synthetic_pair_with,
-    CropSpec, LayoutKind, PairShape, SymmetricKind, SyntheticPair, SyntheticSpec,
-    MIN_ALIAS_CONTRADICTION,
+    extra_room_in_both, extra_room_turns_seen, hall_pair, hall_pair_holding_room, synthetic_crops,
+    synthetic_pair_with, CropSpec, LayoutKind, PairShape, SymmetricKind, SyntheticPair,
+    SyntheticSpec, MIN_ALIAS_CONTRADICTION,
 };
 
 /// A family of synthetic pairs.
@@ -233,6 +233,17 @@ fn crop_pairs(name: &str, offices: &[OccupancyMap], seed: u64, push: &mut Push) 
     Ok(())
 }
 
+/// The group of a pair whose windows both hold the extra room: apart by whether the other window has
+/// seen where each turn by a whole wing would lay the room's door ([`extra_room_turns_seen`]), the
+/// pairs a merger can tell from their turns at all.
+fn in_both(kind: SymmetricKind, seed: u64, pair: &SyntheticPair) -> String {
+    if extra_room_turns_seen(kind, seed, pair) {
+        format!("{}, in both windows, its turns seen", kind.name())
+    } else {
+        format!("{}, in both windows, a turn unseen", kind.name())
+    }
+}
+
 /// The symmetric family's pairs: `per` halls of each kind, the extra-room ones grouped by whether both
 /// windows hold the room, and as many again drawn until both do.
 fn symmetric_pairs(name: &str, per: usize, seed: u64, push: &mut Push) -> Result<()> {
@@ -250,7 +261,7 @@ fn symmetric_pairs(name: &str, per: usize, seed: u64, push: &mut Push) -> Result
             // both windows.
             let what = match (kind.extra_room, extra_room_in_both(kind, s, &pair)) {
                 (false, _) => kind.name(),
-                (true, true) => format!("{}, in both windows", kind.name()),
+                (true, true) => in_both(kind, s, &pair),
                 (true, false) => format!("{}, not in both", kind.name()),
             };
             push(
@@ -259,8 +270,8 @@ fn symmetric_pairs(name: &str, per: usize, seed: u64, push: &mut Push) -> Result
                 false,
                 pair,
             )?;
-            if let Some((pair, _)) = hall_pair_holding_room(kind, s ^ 0x600d_4004) {
-                let what = format!("{}, in both windows", kind.name());
+            if let Some((pair, held)) = hall_pair_holding_room(kind, s ^ 0x600d_4004) {
+                let what = in_both(kind, held, &pair);
                 push(
                     label(&what, format!("held-{k}")),
                     format!("{name}: {what}"),

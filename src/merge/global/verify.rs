@@ -21,7 +21,7 @@ use crate::cpu::CpuBackend;
 use crate::error::Result;
 use crate::merge::align::{
     accepts, alias, check, not_contradicted, overlap_centre, reference_rms, self_symmetry_with,
-    Features, Prepared, MAX_CANDIDATES, MAX_RATIO,
+    Features, Prepared, Repeats, MAX_CANDIDATES, MAX_RATIO,
 };
 use crate::merge::local::local_both;
 use crate::merge::refine::{map_to_crop, polish};
@@ -122,7 +122,9 @@ pub(super) fn why_not(
             }
         }
         if k == 0 && r.accepted {
-            if let Some(why) = accepted_holds(pa, pb, &e.transform, f, r.score)? {
+            if let Some(why) =
+                accepted_holds(pa, pb, &e.transform, f, r.score, options.pair.judge_repeats)?
+            {
                 return Ok(Some(why));
             }
         }
@@ -153,6 +155,7 @@ fn accepted_holds(
     t: &Rigid,
     mut f: Features,
     score: f64,
+    judge_repeats: bool,
 ) -> Result<Option<String>> {
     if pa.can_align() && pb.can_align() {
         let mut backend = CpuBackend;
@@ -162,7 +165,16 @@ fn accepted_holds(
         );
         f.self_match = sa.value.max(sb.value);
         f.self_match_held = sa.repeat.max(sb.repeat);
-        f.alias = alias(pb, pa, t, (sa, sb), &[], &mut backend)?.0;
+        let repeats = if judge_repeats {
+            Repeats::List
+        } else {
+            Repeats::Held
+        };
+        let found = alias(pb, pa, t, (sa, sb), &[], repeats, &mut backend)?;
+        f.alias = found.ratio;
+        if found.repeats_listed {
+            f.self_match_held = 0.0;
+        }
     }
     Ok((!accepts(&f, score)).then(|| {
         format!(

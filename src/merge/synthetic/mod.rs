@@ -16,7 +16,9 @@ mod symmetric;
 pub use crops::{synthetic_crops, CropSpec};
 pub use explore::{explore, Exploration};
 pub use layouts::{doors, grid_rooms, warehouse, Layout, LayoutKind};
-pub use symmetric::{extra_room_points, hall_pixel, symmetric_plan, SymmetricKind};
+pub use symmetric::{
+    extra_room_door, extra_room_points, hall_pixel, symmetric_plan, SymmetricKind,
+};
 
 use super::pairs::TruePair;
 use super::transform::Rigid;
@@ -422,6 +424,39 @@ pub fn extra_room_in_both(kind: SymmetricKind, seed: u64, pair: &SyntheticPair) 
     points.iter().all(|&(u, v)| {
         let in_a = (hall.0 + u - pair.a_origin.0, hall.1 + v - pair.a_origin.1);
         free(&pair.a, in_a) && free(&pair.b, to_b.apply(in_a))
+    })
+}
+
+/// Whether every turn of `pair`'s plan by a whole wing lays the extra room's door where the other
+/// window has seen ([`extra_room_door`]): A has seen the door's place turned by the wing, or B the
+/// place turned back. Only then do the maps themselves contradict each turned pose. Where neither
+/// has, the turned pose lays each map's room on the other's unknown, and the pair is exactly what a
+/// building with a room at both places would give: no merger can tell its poses apart. `false`
+/// without an extra room.
+pub fn extra_room_turns_seen(kind: SymmetricKind, seed: u64, pair: &SyntheticPair) -> bool {
+    let Some(door) = extra_room_door(kind, seed) else {
+        return false;
+    };
+    let hall = hall_pixel(kind, seed);
+    let to_b = pair.truth.inverse();
+    let seen = |m: &OccupancyMap, (x, y): (f64, f64)| {
+        let (x, y) = (x.round(), y.round());
+        x >= 0.0
+            && y >= 0.0
+            && x < f64::from(m.image.width())
+            && y < f64::from(m.image.height())
+            && ClassTable::new(&m.thresholds).state(m.image.get(x as u32, y as u32))
+                != CellState::Unknown
+    };
+    let in_a = |(u, v): (f64, f64)| (hall.0 + u - pair.a_origin.0, hall.1 + v - pair.a_origin.1);
+    let turned = |a: f64| {
+        let (s, c) = a.sin_cos();
+        (c * door.0 - s * door.1, s * door.0 + c * door.1)
+    };
+    let n = usize::from(kind.wings.clamp(2, 8));
+    (1..n).all(|j| {
+        let a = std::f64::consts::TAU * j as f64 / n as f64;
+        seen(&pair.a, in_a(turned(a))) || seen(&pair.b, to_b.apply(in_a(turned(-a))))
     })
 }
 

@@ -256,6 +256,20 @@ pub fn extra_room_points(kind: SymmetricKind, seed: u64) -> Option<[(f64, f64); 
     Some([at(0.0, 0.0), at(-r, -r), at(-r, r), at(r, -r), at(r, r)])
 }
 
+/// The extra room's door of `kind`'s plan for `seed` (`None` without one), from the hall's centre: the
+/// middle of the gap it cuts in the first wing's end wall (half a wall in from the wall's outer face,
+/// where the room's own wall begins). The plan turned by a whole wing lays it on another wing's closed
+/// end wall, the one place where a turn of the plan contradicts the plan.
+pub fn extra_room_door(kind: SymmetricKind, seed: u64) -> Option<(f64, f64)> {
+    if !kind.extra_room {
+        return None;
+    }
+    let z = Sizes::draw(kind, seed);
+    let (s, c) = z.turn0.sin_cos();
+    let u = z.room_at() - z.depth / 2.0 - 1.5 * WALL;
+    Some((c * u, s * u))
+}
+
 /// The canvas that holds `rects` and a hall of circumradius `r` about the origin with a margin: where
 /// its pixel (0, 0) lies (its corner, in plan coordinates) and its size.
 fn canvas(rects: &[Rect], r: f64) -> (f64, f64, usize, usize) {
@@ -341,6 +355,28 @@ mod tests {
                 FREE,
                 "{kind:?}"
             );
+        }
+    }
+
+    /// The door of the extra room is free in the plan, and every turn of it by a whole wing lies on
+    /// another wing's closed end wall: the pixel a turned pose contradicts.
+    #[test]
+    fn the_extra_rooms_door_turned_by_a_wing_lies_on_a_closed_end_wall() {
+        for kind in SymmetricKind::suite().into_iter().filter(|k| k.extra_room) {
+            for seed in 1..=4u64 {
+                let (img, c) = symmetric_plan(kind, seed).unwrap();
+                let (u, v) = extra_room_door(kind, seed).unwrap();
+                let at = |(x, y): (f64, f64)| {
+                    img.get((c.0 + x).round() as u32, (c.1 + y).round() as u32)
+                };
+                assert_eq!(at((u, v)), FREE, "{kind:?} {seed}");
+                let n = f64::from(kind.wings);
+                for j in 1..kind.wings {
+                    let (s, co) = (std::f64::consts::TAU * f64::from(j) / n).sin_cos();
+                    let turned = (co * u - s * v, s * u + co * v);
+                    assert_eq!(at(turned), OCCUPIED, "{kind:?} {seed}: wing {j}");
+                }
+            }
         }
     }
 
