@@ -434,7 +434,6 @@ fn merge_options(flags: u8, b: &mut Bytes) -> MergeOptions {
         hypotheses,
         check_symmetry: flags & 0x20 == 0,
         always_verify: flags & 0x40 != 0,
-        judge_repeats: flags & 0x80 != 0,
     }
 }
 

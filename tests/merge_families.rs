@@ -11,9 +11,9 @@ use ogm_corners::merge::synthetic::{
 };
 use ogm_corners::OccupancyMap;
 
-/// Repetitive layouts at 30% overlap: whatever is accepted is the true pose, with a repeat held as
-/// ambiguous (the default) and judged pose by pose. Before the alternative-pose test, the warehouse's
-/// racks were merged a half turn or a period off with every wall matching.
+/// Repetitive layouts at 30% overlap: whatever is accepted is the true pose, each repeat's lattice
+/// listed and judged pose by pose. Before the alternative-pose test, the warehouse's racks were merged
+/// a half turn or a period off with every wall matching.
 #[test]
 fn repetitive_layouts_are_never_merged_wrongly() {
     let mut identifiable = 0;
@@ -34,21 +34,15 @@ fn repetitive_layouts_are_never_merged_wrongly() {
             };
             let breaks = pair.alias_contradiction.unwrap() >= MIN_ALIAS_CONTRADICTION;
             identifiable += usize::from(breaks);
-            for judge_repeats in [false, true] {
-                let options = MergeOptions {
-                    judge_repeats,
-                    ..MergeOptions::default()
-                };
-                let al = align(&pair.a, &pair.b, &options).unwrap();
-                assert!(
-                    !al.accepted || pair.accurate(&al.transform),
-                    "{} seed {seed} (repeats judged: {judge_repeats}): wrong merge {:?} (truth {:?}); {}",
-                    kind.name(),
-                    al.transform,
-                    pair.truth,
-                    al.explain()
-                );
-            }
+            let al = align(&pair.a, &pair.b, &MergeOptions::default()).unwrap();
+            assert!(
+                !al.accepted || pair.accurate(&al.transform),
+                "{} seed {seed}: wrong merge {:?} (truth {:?}); {}",
+                kind.name(),
+                al.transform,
+                pair.truth,
+                al.explain()
+            );
         }
     }
     // The oracle sees both kinds of pairs: some whose overlap breaks the period.
@@ -85,10 +79,7 @@ fn a_warehouse_misplaced_by_its_repeat_is_declined_as_ambiguous() {
 /// the steps from each of the pose's turns do, and the pair is declined or placed right.
 #[test]
 fn a_warehouse_a_half_turn_and_a_period_off_is_never_merged_with_repeats_judged() {
-    let options = MergeOptions {
-        judge_repeats: true,
-        ..MergeOptions::default()
-    };
+    let options = MergeOptions::default();
     for k in [1u64, 2] {
         // The family's seed for its k-th warehouse (run seed 1), and its pair seed at 20% overlap.
         let s = 7919 + k;

@@ -40,12 +40,6 @@ pub(super) struct MergeEvalArgs {
     /// cut until both windows hold the room), or all (the default).
     #[arg(long, value_delimiter = ',', value_name = "FAMILY")]
     family: Vec<String>,
-    /// Judge a map that repeats itself pose by pose (measured, not yet the default): every step of its
-    /// repeat that could still lay the maps on each other is listed, a step that a detail of the
-    /// overlap contradicts is no rival, and the repeat declines only while a step keeps a quarter of
-    /// the evidence
-    #[arg(long)]
-    judge_repeats: bool,
     /// With --synthetic MAPS: a map `NAME_furnished` given beside `NAME` is its furnished copy (the same
     /// place in the same frame with furniture drawn in, as in the maps-more data): not cut on its own,
     /// but --per-map plan-vs-furnished pairs, A a window of `NAME` and B one of the copy, each 36-64% of
@@ -185,7 +179,7 @@ pub(super) fn run(a: MergeEvalArgs, budget: &Budget) -> Result<()> {
             let done = eval::run_cached(
                 &set,
                 &maps,
-                &a.merge_options(),
+                &MergeOptions::default(),
                 &mut on_pair,
                 cache.as_mut(),
             )?;
@@ -231,7 +225,7 @@ pub(super) fn run(a: MergeEvalArgs, budget: &Budget) -> Result<()> {
                 furnished,
                 save: a.save_pairs.clone(),
             };
-            let options = a.merge_options();
+            let options = MergeOptions::default();
             let (mut rows, mut costs) = if office {
                 eval::run_synthetic_with(&sources, &run, &options, &mut on_pair)?
             } else {
@@ -313,14 +307,6 @@ fn say_cache_use(cache: Option<&eval::cache::RecordCache>) {
 }
 
 impl MergeEvalArgs {
-    /// The pair test's options: the default, repeats judged pose by pose with `--judge-repeats`.
-    fn merge_options(&self) -> MergeOptions {
-        MergeOptions {
-            judge_repeats: self.judge_repeats,
-            ..MergeOptions::default()
-        }
-    }
-
     /// The cache of measured alignments the options ask for (none with --no-cache, or when no folder
     /// can be told).
     fn record_cache(&self) -> Option<eval::cache::RecordCache> {
@@ -355,7 +341,7 @@ fn cross_validate(a: &MergeEvalArgs, budget: &Budget) -> Result<()> {
     }
     let options = MergeOptions {
         always_verify: true,
-        ..a.merge_options()
+        ..MergeOptions::default()
     };
     let keep = |n: &str| a.only.is_empty() || a.only.iter().any(|p| n.starts_with(p.as_str()));
     // Every file read and checked before the first pair is run.
@@ -515,10 +501,7 @@ fn run_global(a: &MergeEvalArgs, budget: &Budget) -> Result<()> {
         bar.set_length(n as u64);
         bar.set_position(k as u64);
     };
-    let options = GlobalOptions {
-        pair: a.merge_options(),
-        ..GlobalOptions::with_partners(a.partners as usize)
-    };
+    let options = GlobalOptions::with_partners(a.partners as usize);
     let size = a.set_size as usize;
     let buildings = a.buildings as usize;
     if buildings > size {

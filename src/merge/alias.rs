@@ -32,10 +32,11 @@ pub const ALIAS_TOLD_RATIO: f64 = 2.0;
 /// a difference far above what its clutter puts on free space at any pose.
 pub const ALIAS_TOLD_SIGMAS: f64 = 3.0;
 
-/// A map's repeat is listed step by step ([`lattice_poses`]) up to this many poses tried for each map:
-/// a long corridor of equal rooms is a few dozen, a warehouse's racks in two directions can be
-/// hundreds (then the repeat stays held, as it is without the listing).
-pub const LATTICE_POSES: usize = 256;
+/// A map's repeat is listed step by step ([`lattice_poses`]) up to this many poses tried for each map,
+/// from every base pose together: a long corridor of equal rooms is a few dozen, a warehouse's racks
+/// in two directions from several turned poses can be thousands (then the repeat stays held, as it is
+/// without the listing, and a pair costs no more than a few hundred poses scored).
+pub const LATTICE_POSES: usize = 1024;
 
 /// Poses composed two ways that land within this of each other are one pose (the distance of
 /// [`transform_distance`]: px, and 10 px a degree).
@@ -111,15 +112,22 @@ pub(super) fn alias(
         // Every step from the chosen pose and from each of its turns (a turn of a building that
         // repeats is a turn and a step of the repeat away from the truth as often as not), the
         // search's turned candidates among them.
-        let bases: Vec<Rigid> = std::iter::once(*best)
-            .chain(
-                poses
-                    .iter()
-                    .copied()
-                    .chain(found.iter().map(|f| f.0))
-                    .filter(|t| signed_deg(t.theta_deg - best.theta_deg).abs() > NEAR_IDENTITY_DEG),
-            )
-            .collect();
+        let mut bases: Vec<Rigid> = Vec::new();
+        for t in std::iter::once(*best).chain(
+            poses
+                .iter()
+                .copied()
+                .chain(found.iter().map(|f| f.0))
+                .filter(|t| signed_deg(t.theta_deg - best.theta_deg).abs() > NEAR_IDENTITY_DEG),
+        ) {
+            // One turn reached through A's symmetry and B's is one base: its lattice walked once.
+            if !bases
+                .iter()
+                .any(|b| transform_distance(b, &t) <= SAME_POSE_PX)
+            {
+                bases.push(t);
+            }
+        }
         if let Some(steps) = lattice_poses(src, dst, best, &bases, (sa, sb), backend)? {
             poses.extend(steps);
             repeats_listed = true;
@@ -232,10 +240,12 @@ pub(super) fn alias(
     })
 }
 
-/// How [`alias`] treats a map's repeat (a self-match under a shift over [`MAX_SELF_SYMMETRY`]).
+/// How [`alias`] treats the maps' shifts onto themselves (a repeat, held when its self-match is over
+/// [`MAX_SELF_SYMMETRY`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(super) enum Repeats {
-    /// Held: its steps are alternatives, never told apart (the pair test's default).
+    /// The self-transforms' shifts are alternatives, never told apart (one step of a lattice says
+    /// nothing of the next): for maps with no held repeat, or a lattice too large to list.
     Held,
     /// The screen before listing: the self-transforms' steps told apart as turns are, nothing listed;
     /// the alternative is a lower bound of what [`Repeats::List`] finds, so a pair this declines
@@ -265,8 +275,8 @@ pub(super) struct Alias {
 /// map's centre) composed with one another, breadth first from the chosen pose, a step kept and grown
 /// from while it lays at least a quarter of the chosen pose's walls near the other map's (the screen
 /// [`alias`] applies; a repeat that ends lays fewer walls with every step on, so a step that fails it
-/// ends its line). `None` when a map's lattice reaches past [`LATTICE_POSES`] poses tried: its steps are
-/// then not all listed, and the repeat stays held.
+/// ends its line). `None` when a map's lattice reaches past [`LATTICE_POSES`] poses tried from all the
+/// bases together: its steps are then not all listed, and the repeat stays held.
 fn lattice_poses(
     src: &Prepared,
     dst: &Prepared,
@@ -285,6 +295,7 @@ fn lattice_poses(
         if steps.is_empty() {
             continue;
         }
+        let mut budget = LATTICE_POSES;
         for base in bases {
             let pose = |(x, y): (f64, f64)| {
                 let shift = Rigid {
@@ -298,7 +309,8 @@ fn lattice_poses(
                     base.after(&shift)
                 }
             };
-            let Some(reached) = walk_lattice(src, dst, &steps, &pose, near0, backend)? else {
+            let Some(reached) = walk_lattice(src, dst, &steps, &pose, near0, &mut budget, backend)?
+            else {
                 return Ok(None);
             };
             out.extend(reached);
@@ -309,13 +321,14 @@ fn lattice_poses(
 
 /// The poses `pose` makes of the lattice `steps` span, breadth first from its origin, a step kept and
 /// grown from while it lays at least a quarter of `near0` walls (the chosen pose's) near the other
-/// map's; `None` past [`LATTICE_POSES`] steps tried.
+/// map's; `None` when the steps to try outgrow `budget` (what is tried is taken from it).
 fn walk_lattice(
     src: &Prepared,
     dst: &Prepared,
     steps: &[(f64, f64)],
     pose: &dyn Fn((f64, f64)) -> Rigid,
     near0: f64,
+    budget: &mut usize,
     backend: &mut dyn Backend,
 ) -> Result<Option<Vec<Rigid>>> {
     // Steps closer than half the shortest one are the same step reached two ways.
@@ -341,9 +354,10 @@ fn walk_lattice(
         if next.is_empty() {
             break;
         }
-        if tried.len() + next.len() > LATTICE_POSES {
+        if next.len() > *budget {
             return Ok(None);
         }
+        *budget -= next.len();
         let crops: Vec<Rigid> = next
             .iter()
             .map(|&x| map_to_crop(src, dst, &pose(x)))

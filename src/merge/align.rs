@@ -67,12 +67,6 @@ pub struct MergeOptions {
     /// only for what the rule could accept otherwise): what refitting the rule needs
     /// (`merge-eval --cross-validate`).
     pub always_verify: bool,
-    /// Judge a map that repeats itself (a row of equal rooms) pose by pose, as a turn is (measured,
-    /// not yet the default): every step of its lattice that could still lay the maps on each other
-    /// is listed, a step a detail of the overlap contradicts is no rival, and the repeat declines only
-    /// while a step keeps a quarter of the evidence. Off: a repeat over the self-match limit always
-    /// declines.
-    pub judge_repeats: bool,
 }
 
 impl Default for MergeOptions {
@@ -82,7 +76,6 @@ impl Default for MergeOptions {
             hypotheses: Hypotheses::default(),
             check_symmetry: true,
             always_verify: false,
-            judge_repeats: false,
         }
     }
 }
@@ -285,7 +278,7 @@ pub fn align_prepared_with(
             .iter()
             .map(|&i| (to_full(&crops[i]), locals[i]))
             .collect();
-        let judged = options.judge_repeats && features.self_match_held > MAX_SELF_SYMMETRY;
+        let judged = features.self_match_held > MAX_SELF_SYMMETRY;
         let mode = if judged {
             Repeats::Screen
         } else {

@@ -122,9 +122,7 @@ pub(super) fn why_not(
             }
         }
         if k == 0 && r.accepted {
-            if let Some(why) =
-                accepted_holds(pa, pb, &e.transform, f, r.score, options.pair.judge_repeats)?
-            {
+            if let Some(why) = accepted_holds(pa, pb, &e.transform, f, r.score)? {
                 return Ok(Some(why));
             }
         }
@@ -155,7 +153,6 @@ fn accepted_holds(
     t: &Rigid,
     mut f: Features,
     score: f64,
-    judge_repeats: bool,
 ) -> Result<Option<String>> {
     if pa.can_align() && pb.can_align() {
         let mut backend = CpuBackend;
@@ -165,12 +162,8 @@ fn accepted_holds(
         );
         f.self_match = sa.value.max(sb.value);
         f.self_match_held = sa.repeat.max(sb.repeat);
-        let repeats = if judge_repeats {
-            Repeats::List
-        } else {
-            Repeats::Held
-        };
-        let found = alias(pb, pa, t, (sa, sb), &[], repeats, &mut backend)?;
+        // An accepted pair: its repeats' lattices listed, as the pair test lists them for a merge.
+        let found = alias(pb, pa, t, (sa, sb), &[], Repeats::List, &mut backend)?;
         f.alias = found.ratio;
         if found.repeats_listed {
             f.self_match_held = 0.0;
