@@ -11,6 +11,27 @@ use ogm_corners::merge::synthetic::{
 };
 use ogm_corners::OccupancyMap;
 
+/// A pair cut from `kind`'s layout for `seed` at `overlap`, with its lattice known, as `merge-eval
+/// --synthetic` cuts the layout families (`pair_seed` the cut's).
+fn layout_pair(
+    kind: LayoutKind,
+    seed: u64,
+    overlap: f64,
+    pair_seed: u64,
+) -> Option<ogm_corners::merge::synthetic::SyntheticPair> {
+    let layout = kind.make(seed).unwrap();
+    let map = OccupancyMap::from_image(layout.image);
+    let shape = PairShape {
+        lattice: layout.lattice,
+        ..PairShape::default()
+    };
+    let spec = SyntheticSpec {
+        overlap,
+        noise: 0.0,
+    };
+    synthetic_pair_with(&map, &spec, &shape, pair_seed)
+}
+
 /// Repetitive layouts at 30% overlap: whatever is accepted is the true pose, each repeat's lattice
 /// listed and judged pose by pose. Before the alternative-pose test, the warehouse's racks were merged
 /// a half turn or a period off with every wall matching.
@@ -19,17 +40,7 @@ fn repetitive_layouts_are_never_merged_wrongly() {
     let mut identifiable = 0;
     for kind in LayoutKind::ALL {
         for seed in 0..2u64 {
-            let layout = kind.make(seed).unwrap();
-            let map = OccupancyMap::from_image(layout.image);
-            let shape = PairShape {
-                lattice: layout.lattice,
-                ..PairShape::default()
-            };
-            let spec = SyntheticSpec {
-                overlap: 0.3,
-                noise: 0.0,
-            };
-            let Some(pair) = synthetic_pair_with(&map, &spec, &shape, seed * 17 + 3) else {
+            let Some(pair) = layout_pair(kind, seed, 0.3, seed * 17 + 3) else {
                 continue;
             };
             let breaks = pair.alias_contradiction.unwrap() >= MIN_ALIAS_CONTRADICTION;
@@ -83,17 +94,7 @@ fn a_warehouse_a_half_turn_and_a_period_off_is_never_merged_with_repeats_judged(
     for k in [1u64, 2] {
         // The family's seed for its k-th warehouse (run seed 1), and its pair seed at 20% overlap.
         let s = 7919 + k;
-        let layout = LayoutKind::Warehouse.make(s).unwrap();
-        let map = OccupancyMap::from_image(layout.image);
-        let shape = PairShape {
-            lattice: layout.lattice,
-            ..PairShape::default()
-        };
-        let spec = SyntheticSpec {
-            overlap: 0.2,
-            noise: 0.0,
-        };
-        let pair = synthetic_pair_with(&map, &spec, &shape, s ^ 2000).unwrap();
+        let pair = layout_pair(LayoutKind::Warehouse, s, 0.2, s ^ 2000).unwrap();
         let al = align(&pair.a, &pair.b, &options).unwrap();
         assert!(
             !al.accepted || pair.accurate(&al.transform),

@@ -42,6 +42,11 @@ pub const LATTICE_POSES: usize = 1024;
 /// [`transform_distance`]: px, and 10 px a degree).
 const SAME_POSE_PX: f64 = 4.0;
 
+/// An alternative laying under this share of the chosen pose's walls near the other map's walls is
+/// no rival (the cheap screen before the local fits), and a step of a repeat's lattice that does ends
+/// its line ([`lattice_poses`]).
+const RIVAL_WALLS: f64 = 0.25;
+
 /// Whether an alternative pose with `alt` contradicting wall pixels is told apart from a chosen pose with
 /// `chosen` ([`ALIAS_TOLD_RATIO`], [`ALIAS_TOLD_SIGMAS`]): the overlap holds a detail that only the
 /// chosen pose fits.
@@ -112,22 +117,16 @@ pub(super) fn alias(
         // Every step from the chosen pose and from each of its turns (a turn of a building that
         // repeats is a turn and a step of the repeat away from the truth as often as not), the
         // search's turned candidates among them.
-        let mut bases: Vec<Rigid> = Vec::new();
-        for t in std::iter::once(*best).chain(
-            poses
-                .iter()
-                .copied()
-                .chain(found.iter().map(|f| f.0))
-                .filter(|t| signed_deg(t.theta_deg - best.theta_deg).abs() > NEAR_IDENTITY_DEG),
-        ) {
-            // One turn reached through A's symmetry and B's is one base: its lattice walked once.
-            if !bases
-                .iter()
-                .any(|b| transform_distance(b, &t) <= SAME_POSE_PX)
-            {
-                bases.push(t);
-            }
-        }
+        // One turn reached through A's symmetry and B's is one base: its lattice walked once.
+        let bases = one_of_each(
+            std::iter::once(*best).chain(
+                poses
+                    .iter()
+                    .copied()
+                    .chain(found.iter().map(|f| f.0))
+                    .filter(|t| signed_deg(t.theta_deg - best.theta_deg).abs() > NEAR_IDENTITY_DEG),
+            ),
+        );
         if let Some(steps) = lattice_poses(src, dst, best, &bases, (sa, sb), backend)? {
             poses.extend(steps);
             repeats_listed = true;
@@ -139,16 +138,7 @@ pub(super) fn alias(
     let judge_shifts = repeats_listed || repeats == Repeats::Screen;
     // A lattice's steps reached by each map's repeat are mostly one pose twice.
     if repeats_listed {
-        let mut kept: Vec<Rigid> = Vec::with_capacity(poses.len());
-        for t in poses {
-            if !kept
-                .iter()
-                .any(|k| transform_distance(k, &t) <= SAME_POSE_PX)
-            {
-                kept.push(t);
-            }
-        }
-        poses = kept;
+        poses = one_of_each(poses);
     }
     let turned: Vec<(Rigid, (f64, f64, f64))> = found
         .iter()
@@ -172,7 +162,7 @@ pub(super) fn alias(
         let (walls_d, walls_s) = score_both(src, dst, &crops, Probe::Walls, backend)?;
         let near = |i: usize| f64::from(walls_d[i][1] + walls_s[i][1]);
         (1..poses.len())
-            .filter(|&i| near(i) >= 0.25 * near(0))
+            .filter(|&i| near(i) >= RIVAL_WALLS * near(0))
             .collect()
     };
     if screened.is_empty() && turned.is_empty() {
@@ -214,10 +204,10 @@ pub(super) fn alias(
         // Unless it is a turn that a detail of the overlap tells apart: walls it lays deep on free
         // space that the chosen pose does not (a door of one map on the other's closed wall), counted
         // once it is fitted as finely as the chosen pose (a composed pose is a px or two off, and thin
-        // walls a px or two off lie on free space). Never a shift: a repeat is one step of a lattice
-        // whose other steps no search lists, so one contradicted step says nothing of the next (told
-        // apart, the warehouse family's shifts let poses a period off through).
-        // (A shift is told apart only when its whole lattice was listed, [`lattice_poses`].)
+        // walls a px or two off lie on free space). A shift only where its whole lattice was listed
+        // ([`lattice_poses`]; or on the screen, whose verdict is a lower bound): a repeat is one step
+        // of a lattice, so one contradicted step says nothing of the next (told apart alone, the
+        // warehouse family's shifts let poses a period off through).
         let turned = signed_deg(t.theta_deg - best.theta_deg).abs() > NEAR_IDENTITY_DEG;
         if !turned && !judge_shifts {
             (top, pose) = (ratio, Some(t));
@@ -238,6 +228,21 @@ pub(super) fn alias(
         pose,
         repeats_listed,
     })
+}
+
+/// `poses` with each pose within [`SAME_POSE_PX`] of an earlier one left out: a pose composed two ways
+/// kept once.
+fn one_of_each(poses: impl IntoIterator<Item = Rigid>) -> Vec<Rigid> {
+    let mut kept: Vec<Rigid> = Vec::new();
+    for t in poses {
+        if !kept
+            .iter()
+            .any(|k| transform_distance(k, &t) <= SAME_POSE_PX)
+        {
+            kept.push(t);
+        }
+    }
+    kept
 }
 
 /// How [`alias`] treats the maps' shifts onto themselves (a repeat, held when its self-match is over
@@ -273,7 +278,7 @@ pub(super) struct Alias {
 /// Every step of the maps' repeats that could misplace the pair: the shifts among each map's
 /// self-transforms (turned by under [`NEAR_IDENTITY_DEG`], taken as the translations they make at the
 /// map's centre) composed with one another, breadth first from the chosen pose, a step kept and grown
-/// from while it lays at least a quarter of the chosen pose's walls near the other map's (the screen
+/// from while it lays at least [`RIVAL_WALLS`] of the chosen pose's walls near the other map's (the screen
 /// [`alias`] applies; a repeat that ends lays fewer walls with every step on, so a step that fails it
 /// ends its line). `None` when a map's lattice reaches past [`LATTICE_POSES`] poses tried from all the
 /// bases together: its steps are then not all listed, and the repeat stays held.
@@ -320,7 +325,7 @@ fn lattice_poses(
 }
 
 /// The poses `pose` makes of the lattice `steps` span, breadth first from its origin, a step kept and
-/// grown from while it lays at least a quarter of `near0` walls (the chosen pose's) near the other
+/// grown from while it lays at least [`RIVAL_WALLS`] of `near0` walls (the chosen pose's) near the other
 /// map's; `None` when the steps to try outgrow `budget` (what is tried is taken from it).
 fn walk_lattice(
     src: &Prepared,
@@ -365,7 +370,7 @@ fn walk_lattice(
         let (walls_d, walls_s) = score_both(src, dst, &crops, Probe::Walls, backend)?;
         tried.extend(next.iter().copied());
         frontier = (0..next.len())
-            .filter(|&i| f64::from(walls_d[i][1] + walls_s[i][1]) >= 0.25 * near0)
+            .filter(|&i| f64::from(walls_d[i][1] + walls_s[i][1]) >= RIVAL_WALLS * near0)
             .map(|i| next[i])
             .collect();
         out.extend(frontier.iter().map(|&x| pose(x)));

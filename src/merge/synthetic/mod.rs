@@ -410,21 +410,32 @@ pub fn extra_room_in_both(kind: SymmetricKind, seed: u64, pair: &SyntheticPair) 
     let Some(points) = extra_room_points(kind, seed) else {
         return false;
     };
-    let hall = hall_pixel(kind, seed);
     let to_b = pair.truth.inverse();
-    let free = |m: &OccupancyMap, (x, y): (f64, f64)| {
-        let (x, y) = (x.round(), y.round());
-        x >= 0.0
-            && y >= 0.0
-            && x < f64::from(m.image.width())
-            && y < f64::from(m.image.height())
-            && ClassTable::new(&m.thresholds).state(m.image.get(x as u32, y as u32))
-                == CellState::Free
-    };
-    points.iter().all(|&(u, v)| {
-        let in_a = (hall.0 + u - pair.a_origin.0, hall.1 + v - pair.a_origin.1);
+    let free = |m: &OccupancyMap, p: (f64, f64)| state_at(m, p) == Some(CellState::Free);
+    points.iter().all(|&p| {
+        let in_a = plan_in_a(kind, seed, pair, p);
         free(&pair.a, in_a) && free(&pair.b, to_b.apply(in_a))
     })
+}
+
+/// The state of `m`'s pixel nearest `(x, y)`; `None` outside the map.
+fn state_at(m: &OccupancyMap, (x, y): (f64, f64)) -> Option<CellState> {
+    let (x, y) = (x.round(), y.round());
+    let inside =
+        x >= 0.0 && y >= 0.0 && x < f64::from(m.image.width()) && y < f64::from(m.image.height());
+    inside.then(|| ClassTable::new(&m.thresholds).state(m.image.get(x as u32, y as u32)))
+}
+
+/// Where a point of `kind`'s plan for `seed` (from the hall's centre, as [`extra_room_points`] gives
+/// it) lies in `pair`'s window A.
+fn plan_in_a(
+    kind: SymmetricKind,
+    seed: u64,
+    pair: &SyntheticPair,
+    (u, v): (f64, f64),
+) -> (f64, f64) {
+    let hall = hall_pixel(kind, seed);
+    (hall.0 + u - pair.a_origin.0, hall.1 + v - pair.a_origin.1)
 }
 
 /// Whether every turn of `pair`'s plan by a whole wing lays the extra room's door where the other
@@ -437,18 +448,10 @@ pub fn extra_room_turns_seen(kind: SymmetricKind, seed: u64, pair: &SyntheticPai
     let Some(door) = extra_room_door(kind, seed) else {
         return false;
     };
-    let hall = hall_pixel(kind, seed);
     let to_b = pair.truth.inverse();
-    let seen = |m: &OccupancyMap, (x, y): (f64, f64)| {
-        let (x, y) = (x.round(), y.round());
-        x >= 0.0
-            && y >= 0.0
-            && x < f64::from(m.image.width())
-            && y < f64::from(m.image.height())
-            && ClassTable::new(&m.thresholds).state(m.image.get(x as u32, y as u32))
-                != CellState::Unknown
-    };
-    let in_a = |(u, v): (f64, f64)| (hall.0 + u - pair.a_origin.0, hall.1 + v - pair.a_origin.1);
+    let seen =
+        |m: &OccupancyMap, p: (f64, f64)| state_at(m, p).is_some_and(|s| s != CellState::Unknown);
+    let in_a = |p: (f64, f64)| plan_in_a(kind, seed, pair, p);
     let turned = |a: f64| {
         let (s, c) = a.sin_cos();
         (c * door.0 - s * door.1, s * door.0 + c * door.1)
