@@ -33,6 +33,17 @@ pub const SELF_SYMMETRY_ALIAS: f64 = 0.25;
 /// contradicted where the period breaks (walls on free space at the ends, at a missing wall): a share
 /// well under 1; a wrong pose among equals has alternatives as good as itself.
 pub const MAX_ALIAS: f64 = 0.75;
+/// Whatever the rule says, a merge is ambiguous when a distinct pose that nothing in the maps
+/// contradicts keeps this share of the chosen pose's evidence or more
+/// ([`Features::alias_uncontradicted`]): its walls lie on walls or on unknown space, never deeper than
+/// a detail in free space, and its free space on free space, in an overlap of its own. Such a pose is a
+/// merge the maps allow as well as the chosen one; the chosen pose's larger evidence then says only
+/// that it overlaps more, which the windows two robots saw decide, not the building (the five-fold
+/// hall whose wrong pose has 1.36 times the true pose's evidence, both with no wall on free space). The
+/// quarter is where the alternative-pose test takes a pose for a rival at all. Real maps' right poses
+/// keep a few walls in a hundred on free space (clutter, glass), so among them this finds only poses
+/// laid beside the other map, which share no free space and are no merge.
+pub const MAX_UNCONTRADICTED_ALIAS: f64 = 0.25;
 /// Whatever the rule says, a merge rests on at least this many wall pixels (both maps together) within
 /// 5 px of the other map's walls ([`Features::support`]): two small partial maps (windows of 120 px) hold
 /// a few hundred, and their right and wrong poses then look alike (measured: right 457, wrong 444-735);
@@ -54,13 +65,15 @@ pub fn contradiction(features: &Features) -> f64 {
 }
 
 /// Whether an alignment with these features and rule value is accepted: the rule, the two contradiction
-/// vetoes, the self-symmetry test, the alternative-pose test ([`MAX_ALIAS`]) and the minimum support
+/// vetoes, the self-symmetry test, the alternative-pose test ([`MAX_ALIAS`], and
+/// [`MAX_UNCONTRADICTED_ALIAS`] for a pose nothing contradicts) and the minimum support
 /// ([`MIN_SUPPORT`]).
 pub fn accepts(features: &Features, rule_value: f64) -> bool {
     rule_value >= 0.0
         && not_contradicted(features)
         && !self_match_vetoes(features)
         && features.alias < MAX_ALIAS
+        && features.alias_uncontradicted < MAX_UNCONTRADICTED_ALIAS
         && features.support >= MIN_SUPPORT
 }
 
@@ -73,6 +86,8 @@ pub fn decline(features: &Features, rule_value: f64) -> Option<Decline> {
     let vetoed = rule_value >= 0.0;
     Some(if vetoed && features.alias >= MAX_ALIAS {
         Decline::Repeat
+    } else if vetoed && features.alias_uncontradicted >= MAX_UNCONTRADICTED_ALIAS {
+        Decline::Uncontradicted
     } else if vetoed && features.support < MIN_SUPPORT {
         Decline::LittleSupport
     } else if vetoed && self_match_vetoes(features) {
@@ -90,6 +105,9 @@ pub fn decline(features: &Features, rule_value: f64) -> Option<Decline> {
 pub enum Decline {
     /// Another pose (a map's repeat or turn, or another candidate) fits nearly as well ([`MAX_ALIAS`]).
     Repeat,
+    /// Another pose that nothing contradicts keeps a quarter of the evidence
+    /// ([`MAX_UNCONTRADICTED_ALIAS`]).
+    Uncontradicted,
     /// Too few wall pixels match ([`MIN_SUPPORT`]).
     LittleSupport,
     /// A map matches itself turned or shifted ([`MAX_SELF_SYMMETRY`]).
@@ -102,8 +120,9 @@ pub enum Decline {
 
 impl Decline {
     /// Every reason, in the order they are tested.
-    pub const ALL: [Decline; 5] = [
+    pub const ALL: [Decline; 6] = [
         Decline::Repeat,
+        Decline::Uncontradicted,
         Decline::LittleSupport,
         Decline::SelfMatch,
         Decline::Contradicted,
@@ -114,6 +133,7 @@ impl Decline {
     pub fn name(self) -> &'static str {
         match self {
             Decline::Repeat => "ambiguous (a repeat's pose)",
+            Decline::Uncontradicted => "ambiguous (an uncontradicted pose)",
             Decline::LittleSupport => "too little to go on",
             Decline::SelfMatch => "ambiguous (self-match)",
             Decline::Contradicted => "contradicted",
@@ -243,6 +263,13 @@ pub struct Features {
     /// part of [`Features::self_match`] under a shift (a map that repeats itself).
     #[serde(default)]
     pub self_match_held: f64,
+    /// [`Features::alias`] among the alternatives that nothing in the maps contradicts: fewer of their
+    /// walls deep in the other map's free space after the local shifts than a detail needs to be seen
+    /// against none, and a share of free space in the other map's known area (a quarter of the chosen
+    /// pose's at least) as much on free space as the chosen pose's ([`MAX_UNCONTRADICTED_ALIAS`]; 0
+    /// without one).
+    #[serde(default)]
+    pub alias_uncontradicted: f64,
 }
 
 #[cfg(test)]
@@ -367,6 +394,15 @@ mod tests {
                     ..ok
                 },
                 Decline::Repeat,
+            ),
+            (
+                Features {
+                    alias: 0.5,
+                    alias_uncontradicted: 0.3,
+                    support: 10.0,
+                    ..ok
+                },
+                Decline::Uncontradicted,
             ),
             (
                 Features {

@@ -21,9 +21,9 @@ use serde::Serialize;
 
 pub use super::accept::{
     accepts, contradiction, decline, not_contradicted, Acceptance, Decline, Features, MAX_ALIAS,
-    MAX_CONTRADICTION, MAX_FINE_CONFLICT, MAX_SELF_SYMMETRY, MIN_SUPPORT,
+    MAX_CONTRADICTION, MAX_FINE_CONFLICT, MAX_SELF_SYMMETRY, MAX_UNCONTRADICTED_ALIAS, MIN_SUPPORT,
 };
-use super::alias::{add_turns, ambiguous_why, self_match_why};
+use super::alias::{add_turns, ambiguous_why, self_match_why, uncontradicted_why};
 pub(super) use super::alias::{alias, Repeats};
 pub use super::alias::{ALIAS_EXTRA_CONFLICT, ALIAS_SELF_MATCH};
 use super::coarse::{coarse_hypotheses, screen, CoarseSet, Crop};
@@ -261,7 +261,7 @@ pub fn align_prepared_with(
     let score = options.accept.margin(&features);
     // Only for what could be merged (down to the operating curve's lowest offset): each map's
     // self-match costs an alignment (cached in the map).
-    let mut alternative = None;
+    let (mut alternative, mut unrefuted) = (None, None);
     let could = score >= SYMMETRY_FROM && accepts(&features, score);
     if options.check_symmetry && (could || options.always_verify) {
         let (sa, sb) = (
@@ -298,6 +298,7 @@ pub fn align_prepared_with(
             }
         }
         (features.alias, alternative) = (alt.ratio, alt.pose);
+        (features.alias_uncontradicted, unrefuted) = (alt.uncontradicted, alt.uncontradicted_pose);
         if alt.repeats_listed {
             // Every step of the repeat measured: nothing of it needs holding.
             features.self_match_held = 0.0;
@@ -306,6 +307,11 @@ pub fn align_prepared_with(
     let accepted = accepts(&features, score);
     let reason = decline(&features, score).map(|why| match why {
         Decline::Repeat => ambiguous_why(&best, &alternative.unwrap_or(best), features.alias),
+        Decline::Uncontradicted => uncontradicted_why(
+            &best,
+            &unrefuted.unwrap_or(best),
+            features.alias_uncontradicted,
+        ),
         Decline::LittleSupport => format!(
             "too little to go on: {:.0} wall pixels of the two maps match each other (at least \
              {MIN_SUPPORT:.0} are needed to tell a right pose from a wrong one)",

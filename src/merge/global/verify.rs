@@ -165,6 +165,7 @@ fn accepted_holds(
         // An accepted pair: its repeats' lattices listed, as the pair test lists them for a merge.
         let found = alias(pb, pa, t, (sa, sb), &[], Repeats::List, &mut backend)?;
         f.alias = found.ratio;
+        f.alias_uncontradicted = found.uncontradicted;
         if found.repeats_listed {
             f.self_match_held = 0.0;
         }
