@@ -186,7 +186,13 @@ def scenario(building: str, n: int, args, domain: int) -> dict:
         p.send_signal(2)
     sent = {}
     for name, p in robots.items():
-        out, _ = p.communicate(timeout=30)
+        try:
+            out, _ = p.communicate(timeout=30)
+        except subprocess.TimeoutExpired:
+            # A fake robot is not the node under test: one whose DDS teardown hangs after SIGINT (seen
+            # once in CI, every stage sent) is killed, and what it printed is read all the same.
+            p.kill()
+            out, _ = p.communicate(timeout=30)
         sent[name] = [float(line.split()[2]) for line in out.splitlines() if line.startswith("sent")]
     listener.destroy_node()
     rclpy.shutdown()
