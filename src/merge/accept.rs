@@ -36,7 +36,7 @@ pub const MAX_ALIAS: f64 = 0.75;
 /// Whatever the rule says, a merge is ambiguous when a distinct pose that nothing in the maps
 /// contradicts keeps this share of the chosen pose's evidence or more
 /// ([`Features::alias_uncontradicted`]): its walls lie on walls or on unknown space, never deeper than
-/// a detail in free space, and its free space on free space, in an overlap of its own. Such a pose is a
+/// a detail in free space, and it shares free space with the other map as a merge does. Such a pose is a
 /// merge the maps allow as well as the chosen one; the chosen pose's larger evidence then says only
 /// that it overlaps more, which the windows two robots saw decide, not the building (the five-fold
 /// hall whose wrong pose has 1.36 times the true pose's evidence, both with no wall on free space). The
@@ -265,9 +265,8 @@ pub struct Features {
     pub self_match_held: f64,
     /// [`Features::alias`] among the alternatives that nothing in the maps contradicts: fewer of their
     /// walls deep in the other map's free space after the local shifts than a detail needs to be seen
-    /// against none, and a share of free space in the other map's known area (a quarter of the chosen
-    /// pose's at least) as much on free space as the chosen pose's ([`MAX_UNCONTRADICTED_ALIAS`]; 0
-    /// without one).
+    /// against none, and a share of free space in the other map's known area at least a quarter of the
+    /// chosen pose's ([`MAX_UNCONTRADICTED_ALIAS`]; 0 without one).
     #[serde(default)]
     pub alias_uncontradicted: f64,
 }

@@ -83,14 +83,14 @@ pub(super) fn add_turns(p: &Prepared, out: &mut Symmetry) {
     }
 }
 
-/// The best alternative to `best` (B's pixels to A's) that the maps' self-transforms offer (each of
-/// them and its inverse applied on A's side or on B's) or the search found (`found`: the refined
-/// candidates turned from it, with their [`local_both`] fits): among those distinct from `best` whose
-/// residual conflict is hardly above its own ([`ALIAS_EXTRA_CONFLICT`]) and which, when they turn from
-/// it, no detail of the overlap tells apart from it ([`told_apart`]), the one
-/// with the most evidence
-/// (wall pixels agreeing locally, both ways): its evidence over `best`'s
-/// ([`Features::alias`](super::accept::Features::alias), 0 without one) and the pose.
+/// The best alternative to `best` (B's pixels to A's) that the maps' self-transforms offer
+/// ([`alternative_poses`]) or the search found (`found`: the refined candidates turned from it, with
+/// their [`local_both`] fits): among those distinct from `best` whose residual conflict is hardly
+/// above its own ([`ALIAS_EXTRA_CONFLICT`]) and which, when they turn from it, no detail of the overlap
+/// tells apart from it ([`told_apart`]), the one with the most evidence (wall pixels agreeing
+/// locally, both ways): its evidence over `best`'s ([`Features::alias`], 0 without one) and the pose;
+/// and the same among those nothing contradicts ([`walls_uncontradicted`], [`shares_free_space`]:
+/// [`Features::alias_uncontradicted`]).
 pub(super) fn alias(
     src: &Prepared,
     dst: &Prepared,
@@ -100,46 +100,11 @@ pub(super) fn alias(
     repeats: Repeats,
     backend: &mut dyn Backend,
 ) -> Result<Alias> {
-    let mut poses = vec![*best];
-    for s in &sa.transforms {
-        poses.push(s.after(best));
-        poses.push(s.inverse().after(best));
-    }
-    for s in &sb.transforms {
-        poses.push(best.after(s));
-        poses.push(best.after(&s.inverse()));
-    }
-    // A repeat strong enough to be held is judged pose by pose only when every step of its lattice
-    // that could still lay the maps on each other is listed.
-    let held = sa.repeat.max(sb.repeat) > MAX_SELF_SYMMETRY;
-    let mut repeats_listed = false;
-    if repeats == Repeats::List && held {
-        // Every step from the chosen pose and from each of its turns (a turn of a building that
-        // repeats is a turn and a step of the repeat away from the truth as often as not), the
-        // search's turned candidates among them.
-        // One turn reached through A's symmetry and B's is one base: its lattice walked once.
-        let bases = one_of_each(
-            std::iter::once(*best).chain(
-                poses
-                    .iter()
-                    .copied()
-                    .chain(found.iter().map(|f| f.0))
-                    .filter(|t| signed_deg(t.theta_deg - best.theta_deg).abs() > NEAR_IDENTITY_DEG),
-            ),
-        );
-        if let Some(steps) = lattice_poses(src, dst, best, &bases, (sa, sb), backend)? {
-            poses.extend(steps);
-            repeats_listed = true;
-        }
-    }
-    poses.retain(|t| t == best || transform_distance(t, best) > DISTINCT_PX);
+    let (poses, repeats_listed) =
+        alternative_poses(src, dst, best, (sa, sb), found, repeats, backend)?;
     // Shifts are told apart as turns are where the lattice was listed, and on the screen that asks
     // whether listing it could matter.
     let judge_shifts = repeats_listed || repeats == Repeats::Screen;
-    // A lattice's steps reached by each map's repeat are mostly one pose twice.
-    if repeats_listed {
-        poses = one_of_each(poses);
-    }
     let turned: Vec<(Rigid, (f64, f64, f64))> = found
         .iter()
         .filter(|(t, _)| signed_deg(t.theta_deg - best.theta_deg).abs() > NEAR_IDENTITY_DEG)
@@ -248,6 +213,59 @@ pub(super) fn alias(
         }
     }
     Ok(found)
+}
+
+/// The poses [`alias`] weighs against `best`: `best` first, then the chosen pose moved by each map's
+/// self-transforms (and their inverses), on A's side or B's, and, for [`Repeats::List`] with a repeat
+/// over [`MAX_SELF_SYMMETRY`], every step of its lattice ([`lattice_poses`]); those within
+/// [`DISTINCT_PX`] of `best` left out. With whether the lattice was listed.
+fn alternative_poses(
+    src: &Prepared,
+    dst: &Prepared,
+    best: &Rigid,
+    (sa, sb): (&Symmetry, &Symmetry),
+    found: &[(Rigid, (f64, f64, f64))],
+    repeats: Repeats,
+    backend: &mut dyn Backend,
+) -> Result<(Vec<Rigid>, bool)> {
+    let mut poses = vec![*best];
+    for s in &sa.transforms {
+        poses.push(s.after(best));
+        poses.push(s.inverse().after(best));
+    }
+    for s in &sb.transforms {
+        poses.push(best.after(s));
+        poses.push(best.after(&s.inverse()));
+    }
+    // A repeat strong enough to be held is judged pose by pose only when every step of its lattice
+    // that could still lay the maps on each other is listed.
+    let held = sa.repeat.max(sb.repeat) > MAX_SELF_SYMMETRY;
+    let mut repeats_listed = false;
+    if repeats == Repeats::List && held {
+        // Every step from the chosen pose and from each of its turns (a turn of a building that
+        // repeats is a turn and a step of the repeat away from the truth as often as not), the
+        // search's turned candidates among them.
+        // One turn reached through A's symmetry and B's is one base: its lattice walked once.
+        let bases = one_of_each(
+            std::iter::once(*best).chain(
+                poses
+                    .iter()
+                    .copied()
+                    .chain(found.iter().map(|f| f.0))
+                    .filter(|t| signed_deg(t.theta_deg - best.theta_deg).abs() > NEAR_IDENTITY_DEG),
+            ),
+        );
+        if let Some(steps) = lattice_poses(src, dst, best, &bases, (sa, sb), backend)? {
+            poses.extend(steps);
+            repeats_listed = true;
+        }
+    }
+    poses.retain(|t| t == best || transform_distance(t, best) > DISTINCT_PX);
+    // A lattice's steps reached by each map's repeat are mostly one pose twice.
+    if repeats_listed {
+        poses = one_of_each(poses);
+    }
+    Ok((poses, repeats_listed))
 }
 
 /// Whether an alternative pose's local fit `(share, residual, measured)` lays its walls on the other
@@ -474,8 +492,8 @@ pub(super) fn ambiguous_why(best: &Rigid, alt: &Rigid, ratio: f64) -> String {
 pub(super) fn uncontradicted_why(best: &Rigid, alt: &Rigid, ratio: f64) -> String {
     format!(
         "ambiguous: B also fits A {} with {ratio:.2} of the evidence and nothing against it (no wall \
-         on the other map's free space, its free space on free space), so it could be merged more \
-         than one way",
+         on the other map's free space, a share of free space in common), so it could be merged \
+         more than one way",
         how_it_differs(best, alt)
     )
 }

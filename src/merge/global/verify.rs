@@ -173,11 +173,13 @@ fn accepted_holds(
     Ok((!accepts(&f, score)).then(|| {
         format!(
             "it says accepted, but the pair test's vetoes decline its pose on the maps (support {:.0}, \
-             walls on free space {:.0}%, self-match {:.2}, alternative {:.0}%)",
+             walls on free space {:.0}%, self-match {:.2}, alternative {:.0}%, uncontradicted \
+             alternative {:.0}%)",
             f.support,
             100.0 * f.conflict_fine,
             f.self_match,
-            100.0 * f.alias
+            100.0 * f.alias,
+            100.0 * f.alias_uncontradicted
         )
     }))
 }
