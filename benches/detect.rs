@@ -23,7 +23,7 @@ use criterion::{
 use ogm_corners::cpu::CpuBackend;
 use ogm_corners::fast::FastCpuBackend;
 use ogm_corners::gpu::{GpuBackend, GpuOptions};
-use ogm_corners::synth::office_map;
+use ogm_corners::map::synthetic::office_map;
 use ogm_corners::{
     Backend, Baseline, BaselineParams, ClassTable, DetectorKind, OccupancyMap, RuleSet, RuleTable,
 };

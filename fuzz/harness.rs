@@ -6,12 +6,11 @@
 
 use ogm_corners::backend::Backend;
 use ogm_corners::cpu::CpuBackend;
-use ogm_corners::decode::{Decoder, ImageKind};
 use ogm_corners::fast::FastCpuBackend;
+use ogm_corners::map::decode::{Decoder, ImageKind};
 use ogm_corners::map::{
     decode_image, grid_image, GridThresholds, MapYaml, GRID_FREE, GRID_OCCUPIED, GRID_UNKNOWN,
 };
-use ogm_corners::memory::Budget;
 use ogm_corners::merge::align::{
     align_prepared_with, Acceptance, Alignment, MergeOptions, Prepared,
 };
@@ -24,6 +23,7 @@ use ogm_corners::merge::pair::{
 use ogm_corners::merge::pairs::PairSet;
 use ogm_corners::merge::Rigid;
 use ogm_corners::output::{self, Format};
+use ogm_corners::support::memory::Budget;
 use ogm_corners::{
     BaselineParams, CellState, ClassTable, DetectOptions, Detector, DetectorKind, GeoRef, MapImage,
     OccupancyMap, RuleSet, Thresholds,
@@ -54,7 +54,9 @@ pub fn decode(data: &[u8]) {
             Err(m) => {
                 assert!(!m.contains('\n'), "a message of more than one line: {m:?}");
                 // The whole-image path reads the same header, so it fails too.
-                assert!(ogm_corners::decode::decode_bytes(data, hint, MAX_DECODER_BYTES).is_err());
+                assert!(
+                    ogm_corners::map::decode::decode_bytes(data, hint, MAX_DECODER_BYTES).is_err()
+                );
                 continue;
             }
         };
@@ -64,7 +66,7 @@ pub fn decode(data: &[u8]) {
             // A header may claim 4 Gpx in a few bytes; the loader's budget refuses those (tested apart).
             continue;
         }
-        let whole = ogm_corners::decode::decode_bytes(data, hint, MAX_DECODER_BYTES);
+        let whole = ogm_corners::map::decode::decode_bytes(data, hint, MAX_DECODER_BYTES);
         // The row by row path over a reader gives the same result.
         let rows = open().and_then(|mut d| {
             let mut px = vec![0u8; pixels as usize];
@@ -100,7 +102,7 @@ pub fn decode(data: &[u8]) {
 /// The map yaml loader: any text parses or fails with a one-line message; what parses is valid.
 pub fn yaml(data: &[u8]) {
     // What a folder search reads of any file's first bytes: never a panic.
-    let _ = ogm_corners::marks::mark_in(data);
+    let _ = ogm_corners::support::marks::mark_in(data);
     let Ok(text) = std::str::from_utf8(data) else {
         return;
     };

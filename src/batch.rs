@@ -8,10 +8,10 @@ use std::time::Instant;
 
 use indicatif::{ProgressBar, ProgressStyle};
 
-use ogm_corners::files::{self, Inputs};
 pub use ogm_corners::map::{map_name, output_names};
-use ogm_corners::memory::Budget;
 use ogm_corners::output::{self, Format};
+use ogm_corners::support::files::{self, Inputs};
+use ogm_corners::support::memory::Budget;
 use ogm_corners::{overlay, Detector, Error, OccupancyMap, Result};
 
 /// Maps decoded ahead of the detector: one waiting while one is detected. A batch holds up to three maps

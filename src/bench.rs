@@ -10,13 +10,13 @@ use std::time::Instant;
 use crate::backend::{Backend, DetectorKind, Keypoint};
 use crate::baselines::{self, BaselineParams};
 use crate::cpu::{classify::classify, ogm_corners::ogm_corners, CpuBackend};
-use crate::error::{Error, Result};
 use crate::fast::FastCpuBackend;
 use crate::gpu::{GpuBackend, GpuOptions};
+use crate::map::states::ClassTable;
 use crate::map::{map_name, OccupancyMap};
 use crate::rules::{RuleSet, RuleTable};
-use crate::states::ClassTable;
-use crate::stats::median;
+use crate::support::error::{Error, Result};
+use crate::support::stats::median;
 
 /// The git commit the library was built from (build.rs; "unknown" without git).
 pub const GIT_COMMIT: &str = env!("OGM_GIT_COMMIT");
@@ -669,7 +669,7 @@ impl Runner {
         }
         if let Some(seed) = seed {
             lines.push(format!(
-                "# synthetic: the office map of ogm_corners::synth, seed {seed}"
+                "# synthetic: the office map of ogm_corners::map::synthetic, seed {seed}"
             ));
         }
         if self.cpu != Want::No || self.reference != Want::No {

@@ -5,9 +5,9 @@ use std::io::{self, Write};
 use image::RgbImage;
 
 use crate::detector::DetectorKind;
+use crate::map::states::ClassTable;
 use crate::map::OccupancyMap;
 use crate::output::{csv_field, md_cell, TableFormat};
-use crate::states::ClassTable;
 
 /// One row of `compare`: a detector on a map.
 #[derive(serde::Serialize, Debug)]
@@ -103,7 +103,7 @@ pub fn contact_sheet(
 pub fn explored_box(map: &OccupancyMap) -> (u32, u32, u32, u32) {
     let classes = ClassTable::new(&map.thresholds);
     let (w, h) = (map.image.width(), map.image.height());
-    crate::plot::bounding_box(w, h, 8, |x, y| {
+    crate::support::plot::bounding_box(w, h, 8, |x, y| {
         classes.state(map.image.get(x, y)) != crate::CellState::Unknown
     })
     .unwrap_or((0, 0, w, h))
@@ -132,7 +132,7 @@ pub fn labelled_sheet(
     marks: &[(f64, f64)],
 ) -> RgbImage {
     use crate::overlay::{fit_shrink, fit_zoom, OverlayCanvas};
-    use crate::plot::{draw_text, fill};
+    use crate::support::plot::{draw_text, fill};
     let (x0, y0, x1, y1) = explored_box(map);
     let (cw, ch) = (x1 - x0, y1 - y0);
     let px = (y0..y1)
@@ -144,7 +144,7 @@ pub fn labelled_sheet(
         .clamp(PANEL / 3, PANEL * 3 / 2);
     let d = fit_shrink(cw, ch, PANEL, ph);
     let mut canvas = OverlayCanvas::with_shrink(cw, ch, d);
-    canvas.add_rows(crate::stream::Rows::of(&crop), (0, ch as usize));
+    canvas.add_rows(crate::map::stream::Rows::of(&crop), (0, ch as usize));
     let f = fit_zoom(cw.div_ceil(d), ch.div_ceil(d), PANEL, ph);
     let mut legend = rule_legend();
     if !marks.is_empty() {
@@ -165,7 +165,7 @@ pub fn labelled_sheet(
         2,
         black,
     );
-    crate::plot::draw_legend(&mut sheet, 10, i64::from(TITLE_H), 2 * PANEL + 10, &legend);
+    crate::support::plot::draw_legend(&mut sheet, 10, i64::from(TITLE_H), 2 * PANEL + 10, &legend);
     for (i, (label, kps)) in found.iter().enumerate() {
         let shifted: Vec<crate::Keypoint> = kps
             .iter()
@@ -260,8 +260,8 @@ pub fn sheet_anchor(name: &str) -> String {
 }
 
 /// The rows as the `--html` page's table (`id="compare"`), each map linked to its contact sheet.
-pub fn html_table(rows: &[CompareRecord]) -> crate::report::Table {
-    use crate::report::{Cell, Table};
+pub fn html_table(rows: &[CompareRecord]) -> crate::support::report::Table {
+    use crate::support::report::{Cell, Table};
     let mut t = Table::new(
         "compare",
         "Keypoints and median times (ms) per map and detector; the same keypoints on every backend (checked)",
@@ -297,20 +297,20 @@ pub fn html_table(rows: &[CompareRecord]) -> crate::report::Table {
 
 /// The picture of map `i` named `name` on the `--html` page.
 pub fn sheet_file(i: usize, name: &str) -> String {
-    crate::report::file_name(i, name, "-contact-sheet")
+    crate::support::report::file_name(i, name, "-contact-sheet")
 }
 
 /// A `compare --html` page being written: each map's contact sheet written as the map is done.
 pub struct ComparePage {
-    report: crate::report::Report,
-    figures: Vec<crate::report::Figure>,
+    report: crate::support::report::Report,
+    figures: Vec<crate::support::report::Figure>,
 }
 
 impl ComparePage {
     /// A page written into `dir` (made now, so that a bad folder is found before the measurements).
-    pub fn create(dir: &std::path::Path) -> crate::error::Result<Self> {
+    pub fn create(dir: &std::path::Path) -> crate::support::error::Result<Self> {
         Ok(ComparePage {
-            report: crate::report::Report::create(dir, "ogm-corners compare")?,
+            report: crate::support::report::Report::create(dir, "ogm-corners compare")?,
             figures: Vec::new(),
         })
     }
@@ -322,7 +322,7 @@ impl ComparePage {
         name: &str,
         path: &std::path::Path,
         sheet: &RgbImage,
-    ) -> crate::error::Result<()> {
+    ) -> crate::support::error::Result<()> {
         let caption = vec![name.to_string(), path.display().to_string()];
         let mut figure = self.report.picture(&sheet_file(i, name), sheet, caption)?;
         figure.id = Some(sheet_anchor(name));
@@ -335,7 +335,7 @@ impl ComparePage {
         mut self,
         rows: &[CompareRecord],
         about: &str,
-    ) -> crate::error::Result<std::path::PathBuf> {
+    ) -> crate::support::error::Result<std::path::PathBuf> {
         let r = &mut self.report;
         r.text(format!("{about} Click a column to sort."));
         r.table(html_table(rows));
@@ -385,8 +385,8 @@ pub fn write_table(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::map::states::{FREE, OCCUPIED, UNKNOWN};
     use crate::map::MapImage;
-    use crate::states::{FREE, OCCUPIED, UNKNOWN};
 
     /// A room of `w` x `h` free pixels walled in, at (40, 30) in a larger unknown map.
     fn room(w: u32, h: u32) -> OccupancyMap {

@@ -3,13 +3,13 @@
 pub use crate::backend::{Backend, DetectOptions, DetectorKind, Keypoint};
 use crate::baselines::streamed::CandidateList;
 use crate::baselines::Candidate;
-use crate::error::{Error, Result};
 use crate::fast::FastCpuBackend;
+use crate::map::states::ClassTable;
+use crate::map::stream::{for_each_window, RowSource, Rows, Window, WindowPlan};
 use crate::map::{GeoRef, MapImage, OccupancyMap, Thresholds};
 use crate::robust::RobustInfo;
 use crate::rules::RuleTable;
-use crate::states::ClassTable;
-use crate::stream::{for_each_window, RowSource, Rows, Window, WindowPlan};
+use crate::support::error::{Error, Result};
 
 /// The keypoints found in one map.
 #[derive(Clone, Debug, PartialEq)]
@@ -168,7 +168,7 @@ impl Detector {
     }
 
     /// Detects corners in a map read row by row from `source`, whose values `classes` reads, holding a few
-    /// windows of rows at a time ([`crate::stream`]): the memory is bounded by the windows and the
+    /// windows of rows at a time ([`crate::map::stream`]): the memory is bounded by the windows and the
     /// keypoints, not by the map, and the keypoints are those of [`Detector::detect_image`] on the whole
     /// map, bit for bit, in the same order. They go to `sink` in (y, x) order: window by window for the OGM
     /// detector (without `max_corners`), at the end (in chunks of 65536) for the baselines, whose thresholds
@@ -196,7 +196,7 @@ impl Detector {
             let params = self.options.robust.in_frame(frame, h);
             let plan = self.tile_plan()?;
             // A map the turned grid cannot hold is refused before its rows are copied.
-            crate::grid::RotatedGrid::new(w, h, 0.0)?;
+            crate::map::grid::RotatedGrid::new(w, h, 0.0)?;
             let (mut spill, warnings) = Spill::from_source(source, on_rows)?;
             let (found, info) = detect_tiled(
                 &mut *self.backend,
@@ -253,8 +253,8 @@ impl Detector {
     pub fn window_plan(&self, width: u32) -> WindowPlan {
         let bytes = self.window_bytes();
         let halo = match self.options.detector {
-            DetectorKind::Ogm => crate::stream::OGM_HALO,
-            _ => crate::stream::HALO,
+            DetectorKind::Ogm => crate::map::stream::OGM_HALO,
+            _ => crate::map::stream::HALO,
         };
         WindowPlan::with_bytes(width, bytes, halo)
     }
@@ -511,7 +511,7 @@ mod tests {
     fn room() -> (MapImage, MapImage) {
         let (w, h) = (12u32, 10u32);
         let mut cells = vec![-1i8 as u8; (w * h) as usize];
-        let mut grey = vec![crate::states::UNKNOWN; (w * h) as usize];
+        let mut grey = vec![crate::map::states::UNKNOWN; (w * h) as usize];
         for y in 1..h - 1 {
             for x in 1..w - 1 {
                 let wall = x == 1 || y == 1 || x == w - 2 || y == h - 2;

@@ -25,10 +25,10 @@
 //! A file imports only its own layer and the layers below it, and no file imports one that imports it
 //! back: `tests/layering.rs` checks both on the source.
 //!
-//! 1. **Services**: [`error`], [`stop`], [`threads`] (the worker pool), [`memory`], [`files`], [`marks`] (what the tool's own outputs
-//!    carry), [`plot`] (drawing), [`report`] (HTML pages).
-//! 2. **Maps**: [`decode`] (PGM/PNG), [`map`] (yaml, georeference, thresholds), [`stream`] (maps as rows),
-//!    [`states`] (the three states), [`synth`] (synthetic maps), [`grid`] (a grid turned to the walls).
+//! 1. **Services** ([`support`]): errors, stopping on a signal, the worker pool, the memory budget, files
+//!    written whole, the marks the tool's own outputs carry, drawing, HTML pages.
+//! 2. **Maps** ([`map`]): images and their decoders (PGM/PNG), yaml, georeference and thresholds, maps
+//!    as rows (streamed), the three states, the synthetic office, a grid turned to the walls.
 //! 3. **Rules, the backend interface and the reference**: [`rules`] (the paper's 256-entry table),
 //!    [`baselines`] (Harris, Shi-Tomasi, Trajkovic-Hedley: parameters and selection), [`backend`] (the
 //!    trait every backend implements, keypoints, options), [`cpu`] (the CPU reference: one file per WGSL
@@ -54,22 +54,9 @@ macro_rules! say {
 }
 
 // 1. Services.
-pub mod error;
-pub mod files;
-pub mod marks;
-pub mod memory;
-pub mod plot;
-pub mod report;
-mod stats;
-pub mod stop;
-pub mod threads;
+pub mod support;
 // 2. Maps.
-pub mod decode;
-pub mod grid;
 pub mod map;
-pub mod states;
-pub mod stream;
-pub mod synth;
 // 3. Rules, the backend interface and the CPU reference.
 pub mod backend;
 pub mod baselines;
@@ -95,7 +82,7 @@ pub use baselines::{Baseline, BaselineParams};
 pub use detector::{
     Backend, BackendChoice, DetectOptions, Detection, Detector, DetectorKind, Keypoint,
 };
-pub use error::{Error, Result};
+pub use map::states::{CellState, ClassTable};
 pub use map::{GeoRef, MapImage, OccupancyMap, Thresholds};
 pub use rules::{RuleSet, RuleTable};
-pub use states::{CellState, ClassTable};
+pub use support::error::{Error, Result};

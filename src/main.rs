@@ -61,7 +61,7 @@ fn checked(ptr: *mut u8, size: usize) -> *mut u8 {
     );
     let n = cursor.position() as usize;
     let _ = std::io::stderr().write_all(&line[..n]);
-    ogm_corners::files::remove_pending_and_exit(2)
+    ogm_corners::support::files::remove_pending_and_exit(2)
 }
 
 fn main() -> ExitCode {
@@ -79,12 +79,12 @@ fn main() -> ExitCode {
             .unwrap_or_default();
         ogm_corners::say!(
             "ogm-corners: internal error: the tool panicked{at}: {} (a bug; please report it)",
-            ogm_corners::error::one_line(&what)
+            ogm_corners::support::error::one_line(&what)
         );
     }));
     quiet_display_probe();
     // Before the first parallel work, so the pool is made at its capped size.
-    if let Some(note) = ogm_corners::threads::cap_pool() {
+    if let Some(note) = ogm_corners::support::threads::cap_pool() {
         ogm_corners::say!("ogm-corners: note: {note}");
     }
     // Past a file size limit (`ulimit -f`) a write then fails with EFBIG, reported and cleaned up like a
@@ -98,7 +98,7 @@ fn main() -> ExitCode {
     // the ones in progress, so neither a partial output nor a stray temporary file is left.
     let _ = ctrlc::set_handler(|| {
         ogm_corners::say!("ogm-corners: interrupted; outputs in progress removed");
-        ogm_corners::files::remove_pending_and_exit(130);
+        ogm_corners::support::files::remove_pending_and_exit(130);
     });
     let parsed = match cli::Cli::try_parse() {
         Ok(c) => c,

@@ -31,7 +31,7 @@ pub fn csv_field(s: &str) -> std::borrow::Cow<'_, str> {
 /// A Markdown table cell: `|` escaped, line breaks made spaces and other control characters written
 /// escaped (`\u{1b}`), so a file name can neither break the table nor send escape sequences to a terminal.
 pub fn md_cell(s: &str) -> String {
-    crate::error::one_line(&s.replace('|', "\\|").replace(['\n', '\r'], " "))
+    crate::support::error::one_line(&s.replace('|', "\\|").replace(['\n', '\r'], " "))
 }
 
 /// Output formats of `detect`.

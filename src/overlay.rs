@@ -5,9 +5,9 @@ use std::path::Path;
 use image::{Rgb, RgbImage};
 
 use crate::backend::Keypoint;
-use crate::error::Result;
+use crate::map::stream::Rows;
 use crate::map::MapImage;
-use crate::stream::Rows;
+use crate::support::error::Result;
 
 /// Marker colour of each rule: 4 orange, 5 red, 6 blue; the baselines' keypoints (rule 0) magenta.
 pub fn rule_colour(rule: u8) -> Rgb<u8> {
@@ -173,9 +173,9 @@ impl OverlayCanvas {
         img
     }
 
-    /// Writes the overlay as a PNG, atomically ([`crate::files::write_atomic`]).
+    /// Writes the overlay as a PNG, atomically ([`crate::support::files::write_atomic`]).
     pub fn write(&mut self, path: &Path, keypoints: &[Keypoint]) -> Result<()> {
-        crate::files::write_png(path, &self.render(keypoints))
+        crate::support::files::write_png(path, &self.render(keypoints))
     }
 }
 
@@ -241,9 +241,9 @@ pub fn overlay_bytes(width: u32, height: u32) -> u64 {
     7 * side(width) * side(height)
 }
 
-/// Renders and writes the overlay as a PNG, atomically ([`crate::files::write_atomic`]).
+/// Renders and writes the overlay as a PNG, atomically ([`crate::support::files::write_atomic`]).
 pub fn write_overlay(path: &Path, map: &MapImage, keypoints: &[Keypoint]) -> Result<()> {
-    crate::files::write_png(path, &render_overlay(map, keypoints))
+    crate::support::files::write_png(path, &render_overlay(map, keypoints))
 }
 
 #[cfg(test)]

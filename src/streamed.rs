@@ -5,12 +5,12 @@
 use std::io::Write;
 
 use crate::detector::{Detector, DetectorKind, Streamed};
-use crate::error::{Error, Result};
+use crate::map::states::ClassTable;
 use crate::map::MapRows;
-use crate::memory::Budget;
 use crate::output::{About, Format, KeypointWriter};
 use crate::overlay::{overlay_bytes, OverlayCanvas};
-use crate::states::ClassTable;
+use crate::support::error::{Error, Result};
+use crate::support::memory::Budget;
 
 /// Checks that streaming `map` through `detector` (with an overlay when `overlay`) fits `budget`, making its
 /// windows smaller when that is enough: the windows in flight and the backend's buffers for one, the
@@ -100,7 +100,7 @@ pub fn detect_to(
     let classes = ClassTable::new(&map.thresholds);
     // Both callbacks draw on the canvas (rows, then marks), one at a time.
     let canvas = std::cell::RefCell::new(canvas);
-    let mut on_rows = |rows: crate::stream::Rows, core: (usize, usize)| {
+    let mut on_rows = |rows: crate::map::stream::Rows, core: (usize, usize)| {
         if let Some(c) = canvas.borrow_mut().as_deref_mut() {
             c.add_rows(rows, core);
         }

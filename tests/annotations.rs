@@ -24,7 +24,8 @@ fn marked_room_corners_are_found_and_unannotated_maps_are_noted() {
     // The room in the top-left corner of a 40 x 40 map that is otherwise unknown, so a mark can lie on
     // the map and far from every corner.
     let art = common::art(&["########", "#......#", "#......#", "#......#", "########"]);
-    let mut room = ogm_corners::MapImage::filled(40, 40, ogm_corners::synth::UNKNOWN).unwrap();
+    let mut room =
+        ogm_corners::MapImage::filled(40, 40, ogm_corners::map::synthetic::UNKNOWN).unwrap();
     for y in 0..art.height() {
         for x in 0..art.width() {
             room.pixels_mut()[(y * 40 + x) as usize] = art.get(x, y);

@@ -630,7 +630,9 @@ fn bench_save_map_writes_the_pixels_it_measured() {
     let saved = ogm_corners::map::load_image(&file).unwrap();
     assert_eq!(
         saved.pixels(),
-        ogm_corners::synth::office_map(64, 48, 3).unwrap().pixels()
+        ogm_corners::map::synthetic::office_map(64, 48, 3)
+            .unwrap()
+            .pixels()
     );
     // The saved map, measured as a file, gives the same keypoints.
     let again = bench_json(&[file.to_str().unwrap(), "--repeat", "1", "--backend", "cpu"]);

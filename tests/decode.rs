@@ -5,7 +5,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 
 use image::DynamicImage;
-use ogm_corners::decode::{decode_bytes, Decoder, ImageKind};
+use ogm_corners::map::decode::{decode_bytes, Decoder, ImageKind};
 use proptest::prelude::*;
 
 const LIMIT: u64 = 1 << 32;
@@ -861,7 +861,7 @@ fn header_is_known_before_any_pixel() {
     );
 }
 
-fn decode_header(bytes: &[u8]) -> ogm_corners::decode::Header {
+fn decode_header(bytes: &[u8]) -> ogm_corners::map::decode::Header {
     Decoder::new(bytes, Some(bytes.len() as u64), None, LIMIT)
         .unwrap()
         .header()
@@ -1095,10 +1095,10 @@ fn bad_headers_are_refused() {
     );
     // Holding such an image whole in memory is refused.
     assert_eq!(
-        ogm_corners::decode::check_in_memory(65537, 65536).unwrap_err(),
+        ogm_corners::map::decode::check_in_memory(65537, 65536).unwrap_err(),
         "image of 65537x65536 exceeds 4294967296 pixels (detect reads larger maps row by row)"
     );
-    assert!(ogm_corners::decode::check_in_memory(65536, 65536).is_ok());
+    assert!(ogm_corners::map::decode::check_in_memory(65536, 65536).is_ok());
     // Rasters whose byte count overflows 64 bits read as truncated, never as an overflow.
     for header in [
         &b"P5 4294967295 4294967295 65535\n"[..],

@@ -232,6 +232,202 @@ fn the_pages_name_no_tracker_issue() {
     assert!(bad.is_empty(), "{bad:#?}");
 }
 
+/// The repository paths a page names (`src/...`, `tests/...`, `shaders/...`, `scripts/...`, in text or as
+/// `../` links), less globs and placeholders (`tests/*.rs`, `fuzz/corpus/TARGET`).
+fn repo_paths(text: &str) -> Vec<String> {
+    let mut out = Vec::new();
+    let path_char = |c: char| c.is_ascii_alphanumeric() || "_-./".contains(c);
+    for start in [
+        "src/",
+        "tests/",
+        "shaders/",
+        "scripts/",
+        "benches/",
+        "examples/",
+    ] {
+        let mut from = 0;
+        while let Some(k) = text[from..].find(start) {
+            let s = from + k;
+            from = s + start.len();
+            let before = text[..s].chars().last();
+            if before.is_some_and(path_char) && !text[..s].ends_with("../") {
+                continue;
+            }
+            let end = text[s..]
+                .find(|c: char| !path_char(c))
+                .map_or(text.len(), |e| s + e);
+            let p = text[s..end].trim_end_matches(['.', ',', ':']);
+            let next = text[end..].chars().next();
+            let glob = next.is_some_and(|c| c == '*' || c == '{' || c == '<')
+                || p.split('/').any(|seg| {
+                    seg.chars().any(|c| c.is_ascii_uppercase())
+                        && seg
+                            .chars()
+                            .all(|c| c.is_ascii_uppercase() || c == '_' || c == '.')
+                });
+            if !glob && p.len() > start.len() {
+                out.push(p.to_string());
+            }
+        }
+    }
+    out
+}
+
+/// The library's module paths a page names in code spans: `ogm_corners::a::b`, `crate::a::b`, or `a::b`
+/// where `a` is one of the library's top-level modules.
+fn module_paths(text: &str, top: &BTreeSet<String>) -> Vec<String> {
+    let mut out = Vec::new();
+    for (i, span) in text.split('`').enumerate() {
+        if i % 2 == 0 || span.contains(' ') {
+            continue;
+        }
+        let p = span.trim_end_matches("()");
+        let p = p
+            .strip_prefix("ogm_corners::")
+            .or_else(|| p.strip_prefix("crate::"))
+            .unwrap_or(p);
+        let first = p.split("::").next().unwrap_or("");
+        if p.contains("::")
+            && top.contains(first)
+            && p.split("::")
+                .all(|s| !s.is_empty() && s.chars().all(|c| c.is_ascii_alphanumeric() || c == '_'))
+        {
+            out.push(p.to_string());
+        }
+    }
+    out
+}
+
+/// Whether `path` (`a::b::Item::method`) names a public module path of the library and an item in it:
+/// each module declared `pub mod` in its parent, the first other segment defined or re-exported in the
+/// last module's file, any further one (a method, a variant, a field) defined somewhere in `src/`.
+fn module_path_exists(path: &str) -> Result<(), String> {
+    let src = root().join("src");
+    let read = |f: &Path| std::fs::read_to_string(f).unwrap_or_default();
+    let all_src = {
+        let mut files = Vec::new();
+        let mut dirs = vec![src.clone()];
+        while let Some(d) = dirs.pop() {
+            for e in std::fs::read_dir(&d).unwrap() {
+                let p = e.unwrap().path();
+                if p.is_dir() {
+                    dirs.push(p);
+                } else if p.extension().is_some_and(|x| x == "rs") {
+                    files.push(read(&p));
+                }
+            }
+        }
+        files.join("\n")
+    };
+    let segs: Vec<&str> = path.split("::").collect();
+    let (mut file, mut dir) = (src.join("lib.rs"), src.clone());
+    let mut k = 0;
+    while k < segs.len() {
+        let s = segs[k];
+        let declared = read(&file).lines().any(|l| {
+            let l = l.trim();
+            l == format!("pub mod {s};") || l == format!("pub mod {s} {{")
+        });
+        if !declared {
+            break;
+        }
+        let (a, b) = (dir.join(format!("{s}.rs")), dir.join(s).join("mod.rs"));
+        file = if a.is_file() { a } else { b };
+        dir = dir.join(s);
+        k += 1;
+    }
+    if k == 0 {
+        return Err(format!("{}: not a public module", segs[0]));
+    }
+    let Some(item) = segs.get(k) else {
+        return Ok(());
+    };
+    let text = read(&file);
+    // Items a page names are public ones: `pub fn`, not `pub(crate) fn`; members need only exist.
+    let defined_as = |t: &str, name: &str, vis: &str| {
+        [
+            "fn", "struct", "enum", "trait", "type", "const", "static", "mod",
+        ]
+        .iter()
+        .any(|kw| {
+            ["(", " ", "<", ";", ":"]
+                .iter()
+                .any(|end| t.contains(&format!("{vis}{kw} {name}{end}")))
+        })
+    };
+    // Re-exported: a name a `pub use` statement (one line or several) ends a path with.
+    let mut uses = String::new();
+    let mut inside = false;
+    for l in text.lines() {
+        if l.trim_start().starts_with("pub use") || inside {
+            uses.push_str(l);
+            uses.push('\n');
+            inside = !l.contains(';');
+        }
+    }
+    let leaves = uses.replace("pub use", " ");
+    let reexported = leaves
+        .split(|c: char| !(c.is_ascii_alphanumeric() || c == '_' || c == ':'))
+        .any(|w| w.rsplit("::").next() == Some(*item) && !w.ends_with("::"));
+    let defined = |t: &str, name: &str| defined_as(t, name, "");
+    if !defined_as(&text, item, "pub ") && !reexported {
+        return Err(format!(
+            "{item}: not in {}",
+            file.strip_prefix(root()).unwrap().display()
+        ));
+    }
+    for rest in &segs[k + 1..] {
+        let member = defined(&all_src, rest)
+            || all_src.contains(&format!("pub {rest}:"))
+            || all_src.lines().any(|l| {
+                l.trim().starts_with(&format!("{rest},"))
+                    || l.trim().starts_with(&format!("{rest} {{"))
+                    || l.trim().starts_with(&format!("{rest}("))
+            });
+        if !member {
+            return Err(format!("{rest}: defined nowhere in src/"));
+        }
+    }
+    Ok(())
+}
+
+#[test]
+fn the_files_and_module_paths_the_pages_name_exist() {
+    let lib = std::fs::read_to_string(root().join("src/lib.rs")).unwrap();
+    let top: BTreeSet<String> = lib
+        .lines()
+        .filter_map(|l| l.trim().strip_prefix("pub mod "))
+        .map(|m| m.trim_end_matches(';').to_string())
+        .collect();
+    assert!(top.contains("merge") && top.contains("map"), "{top:?}");
+    let mut bad = Vec::new();
+    let (mut files, mut paths) = (0, 0);
+    // The CHANGELOG is history: it names files and paths as they were.
+    for (page, text) in pages().iter().filter(|(p, _)| p != "CHANGELOG.md") {
+        for p in repo_paths(text) {
+            files += 1;
+            if !root().join(&p).exists() {
+                bad.push(format!("{page}: no file {p}"));
+            }
+        }
+        for p in module_paths(text, &top) {
+            paths += 1;
+            if let Err(e) = module_path_exists(&p) {
+                bad.push(format!("{page}: `{p}`: {e}"));
+            }
+        }
+    }
+    assert!(
+        files > 50 && paths > 20,
+        "only {files} files and {paths} module paths read"
+    );
+    assert!(
+        bad.is_empty(),
+        "{} paths that do not exist: {bad:#?}",
+        bad.len()
+    );
+}
+
 #[test]
 fn the_checks_see_what_they_look_for() {
     assert_eq!(
@@ -247,4 +443,21 @@ fn the_checks_see_what_they_look_for() {
         "a\n<!-- figure:f -->\n<sub>Measured by\n<!-- /figure:f -->\n".into(),
     )]);
     assert_eq!(b, [("f".into(), "x.md".into(), "<sub>Measured by".into())]);
+    assert_eq!(
+        repo_paths(
+            "see `src/map/yaml.rs`, [x](../tests/cli.rs) and python/src/x.rs, not tests/*.rs."
+        ),
+        ["src/map/yaml.rs", "tests/cli.rs"]
+    );
+    let top = BTreeSet::from(["merge".to_string()]);
+    assert_eq!(
+        module_paths(
+            "`merge::align::align()` `ogm_corners::merge::X` `map::a` `merge a b`",
+            &top
+        ),
+        ["merge::align::align", "merge::X"]
+    );
+    assert!(module_path_exists("merge::align::align_with").is_ok());
+    assert!(module_path_exists("merge::global::merged::merge_maps").is_err());
+    assert!(module_path_exists("merge::compose::resample").is_err());
 }

@@ -8,7 +8,7 @@ mod common;
 use ogm_corners::baselines::{cpu_scores, select, Baseline, BaselineParams, ExactParams};
 use ogm_corners::cpu::CpuBackend;
 use ogm_corners::fast::{baselines as fast, FastCpuBackend};
-use ogm_corners::synth::{office_map, Rng};
+use ogm_corners::map::synthetic::{office_map, Rng};
 use ogm_corners::{Backend, MapImage, OccupancyMap};
 use proptest::prelude::*;
 

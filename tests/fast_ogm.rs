@@ -10,7 +10,7 @@ use ogm_corners::fast::bitplanes::{
 use ogm_corners::fast::ogm::ogm_corners_on;
 use ogm_corners::fast::simd::Isa;
 use ogm_corners::fast::FastCpuBackend;
-use ogm_corners::synth::{office_map, Rng, FREE, OCCUPIED, UNKNOWN};
+use ogm_corners::map::synthetic::{office_map, Rng, FREE, OCCUPIED, UNKNOWN};
 use ogm_corners::{Backend, ClassTable, MapImage, OccupancyMap, RuleSet, RuleTable, Thresholds};
 use proptest::prelude::*;
 

@@ -160,8 +160,8 @@ fn an_overlay_of_detect_is_a_marked_picture_that_loads_as_any_png() {
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
     assert_eq!(
-        ogm_corners::marks::written_by_tool(&png),
-        Some(ogm_corners::marks::Written::Picture)
+        ogm_corners::support::marks::written_by_tool(&png),
+        Some(ogm_corners::support::marks::Written::Picture)
     );
     // Other readers see an ordinary PNG.
     let img = image::open(&png).unwrap();

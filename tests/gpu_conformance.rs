@@ -6,7 +6,7 @@ mod common;
 use ogm_corners::baselines;
 use ogm_corners::cpu::CpuBackend;
 use ogm_corners::gpu::{GpuBackend, GpuOptions};
-use ogm_corners::synth::{office_map, Rng};
+use ogm_corners::map::synthetic::{office_map, Rng};
 use ogm_corners::{
     Backend, Baseline, BaselineParams, CellState, ClassTable, MapImage, OccupancyMap, RuleSet,
     RuleTable, Thresholds,
@@ -588,7 +588,7 @@ fn maps_stream_through_in_bands_under_a_byte_budget() {
 #[test]
 fn coarsening_matches_the_reference_at_every_angle_and_scale() {
     use ogm_corners::cpu::coarsen::coarsen;
-    use ogm_corners::grid::RotatedGrid;
+    use ogm_corners::map::grid::RotatedGrid;
     for max_tile_bytes in [64 << 20, 700] {
         let Some(mut gpu) = common::gpu_backend(GpuOptions {
             max_tile_bytes,

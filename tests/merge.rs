@@ -453,8 +453,9 @@ fn half_overlapping_synthetic_offices_are_merged_and_never_wrongly() {
     use ogm_corners::merge::synthetic::{synthetic_pair, SyntheticSpec};
     let mut merged = 0;
     for seed in 1..5 {
-        let office =
-            OccupancyMap::from_image(ogm_corners::synth::office_map(1024, 768, seed).unwrap());
+        let office = OccupancyMap::from_image(
+            ogm_corners::map::synthetic::office_map(1024, 768, seed).unwrap(),
+        );
         let spec = SyntheticSpec {
             overlap: 0.5,
             noise: 0.0,
@@ -549,8 +550,9 @@ fn accepted_synthetic_pairs_are_recovered_within_a_pixel_and_half_a_degree() {
     use ogm_corners::merge::synthetic::{synthetic_pair, SyntheticSpec};
     let mut accepted = 0;
     for seed in 1..9 {
-        let office =
-            OccupancyMap::from_image(ogm_corners::synth::office_map(900, 700, seed).unwrap());
+        let office = OccupancyMap::from_image(
+            ogm_corners::map::synthetic::office_map(900, 700, seed).unwrap(),
+        );
         for overlap in [0.5, 0.3] {
             let spec = SyntheticSpec {
                 overlap,

@@ -7,12 +7,12 @@ mod common;
 
 use common::run::*;
 
+use ogm_corners::map::synthetic::{office_map, FREE, OCCUPIED, UNKNOWN};
 use ogm_corners::merge::synthetic::{
     furnished_pair, synthetic_pair, SyntheticPair, SyntheticSpec, FURNISHED_MIN_SHARED,
     FURNISHED_PART,
 };
 use ogm_corners::merge::Rigid;
-use ogm_corners::synth::{office_map, FREE, OCCUPIED, UNKNOWN};
 use ogm_corners::{MapImage, OccupancyMap};
 
 /// The share of `from`'s wall pixels that land, by `t`, on a wall pixel of `onto` (within one pixel),
@@ -77,7 +77,7 @@ fn a_cut_pairs_truth_carries_b_walls_onto_a_walls() {
 fn furnished(seed: u64) -> (OccupancyMap, OccupancyMap) {
     let plan = office_map(640, 480, seed).unwrap();
     let mut copy = plan.clone();
-    let mut rng = ogm_corners::synth::Rng::new(seed);
+    let mut rng = ogm_corners::map::synthetic::Rng::new(seed);
     let (w, h) = (plan.width(), plan.height());
     for _ in 0..400 {
         let (x0, y0) = (rng.range(2, w - 12), rng.range(2, h - 12));

@@ -112,8 +112,9 @@ fn a_warehouse_a_half_turn_and_a_period_off_is_never_merged_with_repeats_judged(
 fn bent_maps_are_placed_within_the_limits() {
     let (mut right, mut accepted) = (0, 0);
     for seed in 0..3u64 {
-        let map =
-            OccupancyMap::from_image(ogm_corners::synth::office_map(1024, 768, seed + 11).unwrap());
+        let map = OccupancyMap::from_image(
+            ogm_corners::map::synthetic::office_map(1024, 768, seed + 11).unwrap(),
+        );
         let shape = PairShape {
             bend_deg_per_kpx: 4.0,
             unexplored: 0.08,
@@ -149,7 +150,7 @@ fn bent_maps_are_placed_within_the_limits() {
 fn small_partial_maps_apart_are_declined() {
     for (k, side) in [120u32, 250, 250, 120].into_iter().enumerate() {
         let map = OccupancyMap::from_image(
-            ogm_corners::synth::office_map(1024, 768, k as u64 + 21).unwrap(),
+            ogm_corners::map::synthetic::office_map(1024, 768, k as u64 + 21).unwrap(),
         );
         for overlap in [None, Some(0.3)] {
             let spec = CropSpec {

@@ -71,7 +71,8 @@ fn synthetic_sets_are_placed_within_a_pixel_and_half_a_degree() {
 /// maps placed wrongly.
 #[test]
 fn a_set_of_small_alike_rooms_is_never_placed_wrongly() {
-    let office = OccupancyMap::from_image(ogm_corners::synth::office_map(512, 384, 1).unwrap());
+    let office =
+        OccupancyMap::from_image(ogm_corners::map::synthetic::office_map(512, 384, 1).unwrap());
     let (names, maps, truths) = synthetic_maps_of(&office, 20, 1).unwrap();
     // Every pair aligned.
     let r = run_maps(

@@ -10,7 +10,7 @@ use std::fs;
 use std::path::{Path, PathBuf};
 
 use common::run::*;
-use ogm_corners::synth::office_map;
+use ogm_corners::map::synthetic::office_map;
 
 /// An office map `w` x `h` written as `NAME.yaml` at `resolution` and `origin`, with its image beside it
 /// (named after NAME with anything but letters and digits made `_`, so any NAME gives valid YAML).

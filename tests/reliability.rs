@@ -12,7 +12,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use ogm_corners::synth::{office_map, FREE, OCCUPIED, UNKNOWN};
+use ogm_corners::map::synthetic::{office_map, FREE, OCCUPIED, UNKNOWN};
 
 /// A map with many keypoints (a dense random three-state map), so keypoint files are large.
 fn busy_pgm(dir: &Path, name: &str, w: u32, h: u32, seed: u64) -> PathBuf {

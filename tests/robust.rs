@@ -6,9 +6,9 @@ mod common;
 use ogm_corners::cpu::coarsen::{self, CellRule};
 use ogm_corners::cpu::CpuBackend;
 use ogm_corners::fast::FastCpuBackend;
-use ogm_corners::grid::RotatedGrid;
+use ogm_corners::map::grid::RotatedGrid;
+use ogm_corners::map::synthetic::Rng;
 use ogm_corners::robust::{self, orientation, Anchor, RobustParams};
-use ogm_corners::synth::Rng;
 use ogm_corners::{
     Backend, ClassTable, DetectOptions, Detector, DetectorKind, Keypoint, MapImage, OccupancyMap,
     RuleSet, RuleTable,

@@ -43,7 +43,7 @@ fn both(
     let (gw, gh) = {
         let (w, h) = (img.width(), img.height());
         let anchor = params.anchor2(w, h);
-        let g = ogm_corners::grid::RotatedGrid::anchored(w, h, info.angle, anchor).unwrap();
+        let g = ogm_corners::map::grid::RotatedGrid::anchored(w, h, info.angle, anchor).unwrap();
         (g.width, g.height)
     };
     let tiles = (gw.div_ceil(plan.tile) * gh.div_ceil(plan.tile)) as usize;
@@ -140,7 +140,7 @@ fn a_plan_fits_its_bytes() {
 /// centre column, tiles whose edges fall there.
 #[test]
 fn twin_cells_on_the_centre_column_split_by_a_tile_edge_keep_their_corner() {
-    use ogm_corners::grid::RotatedGrid;
+    use ogm_corners::map::grid::RotatedGrid;
     let (w, h, y0, s, arm) = (625u32, 360u32, 40u32, 2i32, 200u32);
     let g = RotatedGrid::new(w, h, 0.0).unwrap();
     assert_eq!(g.centre2.0 % 2, 0);

@@ -3,7 +3,7 @@
 
 mod common;
 
-use ogm_corners::synth::{FREE, OCCUPIED, UNKNOWN};
+use ogm_corners::map::synthetic::{FREE, OCCUPIED, UNKNOWN};
 use ogm_corners::{Baseline, DetectOptions, Detector, DetectorKind, MapImage, OccupancyMap};
 
 /// A room: free inside `inside`, 2-px walls around it, unknown beyond. `inside(x, y)` on real coordinates.

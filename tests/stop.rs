@@ -5,11 +5,11 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 
 use ogm_corners::cpu::CpuBackend;
 use ogm_corners::detector::{DetectOptions, DetectorKind};
+use ogm_corners::map::synthetic::office_map;
 use ogm_corners::merge::global::eval::synthetic_maps;
 use ogm_corners::merge::global::{merge_maps, GlobalOptions};
 use ogm_corners::merge::mosaic;
-use ogm_corners::stop::Stop;
-use ogm_corners::synth::office_map;
+use ogm_corners::support::stop::Stop;
 use ogm_corners::{Detector, Error, OccupancyMap};
 
 #[test]

@@ -11,9 +11,9 @@ use ogm_corners::baselines::{cpu_scores, select, Baseline, BaselineParams};
 use ogm_corners::cpu::CpuBackend;
 use ogm_corners::detector::strongest;
 use ogm_corners::fast::FastCpuBackend;
+use ogm_corners::map::stream::{RowSource, SliceRows};
+use ogm_corners::map::synthetic::{office_map, OfficeRows};
 use ogm_corners::output::{self, Format};
-use ogm_corners::stream::{RowSource, SliceRows};
-use ogm_corners::synth::{office_map, OfficeRows};
 use ogm_corners::{
     Backend, ClassTable, DetectOptions, Detector, DetectorKind, Keypoint, MapImage, OccupancyMap,
     RuleSet, RuleTable, Thresholds,

@@ -2,7 +2,7 @@
 
 mod common;
 
-use ogm_corners::synth::{office_map, Rng, FREE, OCCUPIED, UNKNOWN};
+use ogm_corners::map::synthetic::{office_map, Rng, FREE, OCCUPIED, UNKNOWN};
 use ogm_corners::RuleSet;
 
 #[test]
@@ -72,7 +72,7 @@ fn the_generator_is_stable_across_versions() {
 
 #[test]
 fn large_maps_are_tiled_with_offices_drawn_in_parallel() {
-    use ogm_corners::synth::{office_map, office_map_parallel};
+    use ogm_corners::map::synthetic::{office_map, office_map_parallel};
     // Under two tiles a side it is the plain office map; above, the first tile is an office of its own.
     assert_eq!(
         office_map_parallel(300, 200, 5).unwrap(),

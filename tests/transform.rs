@@ -3,8 +3,8 @@
 mod common;
 
 use common::detect;
+use ogm_corners::map::synthetic::{FREE, OCCUPIED, UNKNOWN};
 use ogm_corners::rules::{mirror_code, rotate_code};
-use ogm_corners::synth::{FREE, OCCUPIED, UNKNOWN};
 use ogm_corners::{Keypoint, MapImage, RuleSet};
 use proptest::prelude::*;
 
@@ -104,7 +104,7 @@ proptest! {
 #[test]
 fn random_maps_do_fire_every_rule() {
     // Guards the property test against passing on maps where nothing fires.
-    let mut rng = ogm_corners::synth::Rng::new(7);
+    let mut rng = ogm_corners::map::synthetic::Rng::new(7);
     let mut seen = [false; 7];
     for _ in 0..50 {
         let px = (0..24 * 24)

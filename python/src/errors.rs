@@ -45,7 +45,7 @@ pub fn unlocked<T: Send>(
 const SIGNAL_POLL: std::time::Duration = std::time::Duration::from_millis(50);
 
 /// [`unlocked`] for long work (detection, alignment, merging): `f` runs on a worker thread under an
-/// [`ogm_corners::stop::Stop`] while this thread looks for signals every [`SIGNAL_POLL`]. When a signal
+/// [`ogm_corners::support::stop::Stop`] while this thread looks for signals every [`SIGNAL_POLL`]. When a signal
 /// handler raises (Ctrl-C: `KeyboardInterrupt`), the stop is raised, the work ends at its next check
 /// (between stages, maps or pairs) and the handler's exception is raised here, instead of the call
 /// running to its end with the interpreter deaf to Ctrl-C.
@@ -88,7 +88,7 @@ fn run_polling<T: Send>(
     f: impl FnOnce() -> ogm_corners::Result<T> + Send,
 ) -> (Joined<T>, Option<PyErr>) {
     use std::sync::mpsc::{channel, RecvTimeoutError};
-    let stop = ogm_corners::stop::Stop::new();
+    let stop = ogm_corners::support::stop::Stop::new();
     let (done, finished) = channel::<()>();
     std::thread::scope(|s| {
         let worker = {
@@ -168,7 +168,7 @@ fn panic_error(panic: Box<dyn std::any::Any + Send>) -> PyErr {
 /// budget (`OGM_MAX_MEMORY`, else 80% of the machine's memory or of this process's limits), before it is
 /// allocated: the command line's check, so that a call raises instead of aborting the interpreter.
 pub fn within_budget(what: impl std::fmt::Display, bytes: u64) -> PyResult<()> {
-    ogm_corners::memory::Budget::from_option(None)
+    ogm_corners::support::memory::Budget::from_option(None)
         .map_err(to_py)?
         .check(what, bytes)
         .map_err(|e| PyMemoryError::new_err(e.to_string()))

@@ -34,6 +34,6 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
         m.py().get_type::<errors::BackendUnavailableError>(),
     )?;
     // Before the first parallel call, as the command line does: the package says it as a warning.
-    m.add("_THREADS_NOTE", ogm_corners::threads::cap_pool())?;
+    m.add("_THREADS_NOTE", ogm_corners::support::threads::cap_pool())?;
     Ok(())
 }

@@ -12,10 +12,10 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
+use ogm_corners::map::states::ClassTable;
 use ogm_corners::map::{GeoRef, GridThresholds, MapImage, PixelSource, Thresholds};
 use ogm_corners::merge::synthetic::synthetic_set;
-use ogm_corners::states::ClassTable;
-use ogm_corners::{synth, Error, OccupancyMap};
+use ogm_corners::{map::synthetic, Error, OccupancyMap};
 
 use crate::errors::{to_py, unlocked, within_budget};
 
@@ -353,8 +353,8 @@ pub fn synthetic_office(
 ) -> PyResult<Map> {
     let georef = GeoRef::checked(resolution, [0.0; 3]).map_err(to_py)?;
     let image = unlocked(py, || {
-        synth::check_office_size(width, height)?;
-        synth::office_map(width, height, seed)
+        synthetic::check_office_size(width, height)?;
+        synthetic::office_map(width, height, seed)
     })?;
     Ok(Map::wrap(OccupancyMap {
         georef: Some(georef),

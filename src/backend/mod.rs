@@ -10,12 +10,12 @@ use serde::Serialize;
 use crate::baselines::streamed::CandidateList;
 use crate::baselines::{Baseline, BaselineParams, Candidate, ExactParams};
 use crate::cpu::merge_score::{FixedRigid, ScoreTarget};
-use crate::error::Result;
-use crate::grid::RotatedGrid;
+use crate::map::grid::RotatedGrid;
+use crate::map::states::ClassTable;
+use crate::map::stream::Rows;
 use crate::map::MapImage;
 use crate::rules::{RuleSet, RuleTable};
-use crate::states::ClassTable;
-use crate::stream::Rows;
+use crate::support::error::Result;
 use robust_params::RobustParams;
 
 /// A corner: pixel coordinates (origin top-left, x right, y down), the rule that fired and the code.
@@ -159,7 +159,7 @@ pub trait Backend: Send {
     }
 
     /// The OGM keypoints of rows `core` of a window of a map, sorted by (y, x); `rows` holds the rows around
-    /// the core the map has (at least one for the OGM detector, [`crate::stream::HALO`] for the baselines).
+    /// the core the map has (at least one for the OGM detector, [`crate::map::stream::HALO`] for the baselines).
     /// By default the window is detected as an image of its own ([`Backend::detect`]) and the core's rows
     /// kept.
     fn detect_rows(
@@ -193,8 +193,8 @@ pub trait Backend: Send {
         maxima_of_window_scores(self, kind, rows, core, params)
     }
 
-    /// Pixels a window of a streamed map should hold ([`crate::stream::WindowPlan`]): small enough that
-    /// [`crate::stream::WINDOWS_IN_FLIGHT`] windows and the backend's working memory for one stay a few tens
+    /// Pixels a window of a streamed map should hold ([`crate::map::stream::WindowPlan`]): small enough that
+    /// [`crate::map::stream::WINDOWS_IN_FLIGHT`] windows and the backend's working memory for one stay a few tens
     /// of megabytes, large enough that the halo rows and each window's set-up stay a small share.
     fn window_bytes(&self, options: &DetectOptions) -> u64 {
         let _ = options;

@@ -3,11 +3,11 @@
 //! the detector ([`crate::robust`]) that sits a layer above the backends.
 
 use crate::cpu::coarsen::{CellRule, MAX_SCALE};
-use crate::error::{Error, Result};
 #[cfg(doc)]
-use crate::grid::RotatedGrid;
-use crate::grid::MAX_ANCHOR;
+use crate::map::grid::RotatedGrid;
+use crate::map::grid::MAX_ANCHOR;
 use crate::map::GeoRef;
+use crate::support::error::{Error, Result};
 
 /// Options of the robust detector.
 #[derive(Clone, Copy, Debug, PartialEq)]

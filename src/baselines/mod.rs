@@ -6,7 +6,7 @@
 
 pub mod streamed;
 
-use crate::error::{Error, Result};
+use crate::support::error::{Error, Result};
 
 /// Which baseline.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -371,7 +371,7 @@ mod tests {
     #[test]
     fn larger_blocks_keep_the_same_points() {
         let (w, h) = (300usize, 200usize);
-        let mut rng = crate::synth::Rng::new(11);
+        let mut rng = crate::map::synthetic::Rng::new(11);
         // Distinct pixels with random scores (many ties).
         let cands: Vec<Candidate> = (0..4000)
             .map(|_| {

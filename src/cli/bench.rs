@@ -7,9 +7,9 @@ use std::path::{Path, PathBuf};
 use clap::{Args, ValueEnum};
 
 use ogm_corners::backend::reference_working_bytes;
-use ogm_corners::files::{self, Inputs};
-use ogm_corners::memory::Budget;
-use ogm_corners::synth;
+use ogm_corners::map::synthetic;
+use ogm_corners::support::files::{self, Inputs};
+use ogm_corners::support::memory::Budget;
 use ogm_corners::{Baseline, DetectOptions, DetectorKind, Error, OccupancyMap, Result};
 
 use crate::batch::map_name;
@@ -204,12 +204,12 @@ fn write_map(a: &BenchArgs, path: &Path, budget: &Budget) -> Result<()> {
             "--write-map writes a synthetic map: give no maps",
         ));
     }
-    let mut rows = synth::OfficeRows::new(w, h, a.seed)?;
+    let mut rows = synthetic::OfficeRows::new(w, h, a.seed)?;
     budget.check(
         format_args!("bench --write-map --size {w}x{h}"),
         rows.bytes(),
     )?;
-    ogm_corners::stream::write_pgm(path, &mut rows)
+    ogm_corners::map::stream::write_pgm(path, &mut rows)
 }
 
 pub(super) fn bench(a: BenchArgs, budget: &Budget) -> Result<()> {
@@ -225,7 +225,7 @@ pub(super) fn bench(a: BenchArgs, budget: &Budget) -> Result<()> {
     super::check_stdout()?;
     // Every size and path is checked before anything is printed or measured.
     for &(w, h) in &sizes {
-        synth::check_office_size(w, h)?;
+        synthetic::check_office_size(w, h)?;
         let px = u64::from(w) * u64::from(h);
         budget.check(
             format_args!("bench --size {w}x{h}"),
@@ -340,10 +340,10 @@ pub(super) fn bench(a: BenchArgs, budget: &Budget) -> Result<()> {
         let bm = match src {
             Source::Synthetic(w, h) => {
                 // Large maps are drawn on all threads so that making them does not dominate the run.
-                let image = if u64::from(w) * u64::from(h) > synth::PARALLEL_PIXELS {
-                    synth::office_map_parallel(w, h, a.seed)?
+                let image = if u64::from(w) * u64::from(h) > synthetic::PARALLEL_PIXELS {
+                    synthetic::office_map_parallel(w, h, a.seed)?
                 } else {
-                    synth::office_map(w, h, a.seed)?
+                    synthetic::office_map(w, h, a.seed)?
                 };
                 let saved = saves[synthetic].clone();
                 synthetic += 1;
@@ -351,7 +351,7 @@ pub(super) fn bench(a: BenchArgs, budget: &Budget) -> Result<()> {
                     image.write_pgm(p)?;
                     ogm_corners::say!(
                         "ogm-corners: bench: wrote {}",
-                        ogm_corners::error::one_line(&p.display().to_string())
+                        ogm_corners::support::error::one_line(&p.display().to_string())
                     );
                 }
                 BenchMap {

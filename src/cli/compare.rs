@@ -10,8 +10,8 @@ use crate::batch::output_names;
 use ogm_corners::backend::reference_working_bytes;
 use ogm_corners::compare::ComparePage;
 use ogm_corners::compare::{self, CompareRecord};
-use ogm_corners::files;
-use ogm_corners::memory::Budget;
+use ogm_corners::support::files;
+use ogm_corners::support::memory::Budget;
 use ogm_corners::{
     Baseline, BaselineParams, DetectOptions, DetectorKind, OccupancyMap, Result, RuleSet,
 };
@@ -69,7 +69,7 @@ pub(super) fn run(a: CompareArgs, budget: &Budget) -> Result<()> {
         inputs.claim_output(s, "--out")?;
     }
     if let Some(dir) = &a.html {
-        inputs.claim_output(&dir.join(ogm_corners::report::INDEX), "--html")?;
+        inputs.claim_output(&dir.join(ogm_corners::support::report::INDEX), "--html")?;
         for (i, n) in names.iter().enumerate() {
             inputs.claim_output(&dir.join(compare::sheet_file(i, n)), "--html")?;
         }
@@ -115,7 +115,7 @@ pub(super) fn run(a: CompareArgs, budget: &Budget) -> Result<()> {
         files::write_png(sheet_path, &sheet)?;
         ogm_corners::say!(
             "ogm-corners: wrote {}",
-            ogm_corners::error::one_line(&sheet_path.display().to_string())
+            ogm_corners::support::error::one_line(&sheet_path.display().to_string())
         );
         if let Some(page) = &mut page {
             page.add_sheet(i, &name, p, &sheet)?;
@@ -132,7 +132,7 @@ pub(super) fn run(a: CompareArgs, budget: &Budget) -> Result<()> {
         let index = page.finish(&rows, &about)?;
         ogm_corners::say!(
             "ogm-corners: wrote {}",
-            ogm_corners::error::one_line(&index.display().to_string())
+            ogm_corners::support::error::one_line(&index.display().to_string())
         );
     }
     write_stdout(|out| compare::write_table(out, a.format.into(), &rows))

@@ -7,11 +7,11 @@ use std::time::Instant;
 
 use clap::Args;
 
-use ogm_corners::files::{self, AtomicFile};
-use ogm_corners::memory::Budget;
 use ogm_corners::output::{self, Format};
 use ogm_corners::overlay::OverlayCanvas;
-use ogm_corners::{overlay, streamed, synth, DetectorKind, OccupancyMap, Result};
+use ogm_corners::support::files::{self, AtomicFile};
+use ogm_corners::support::memory::Budget;
+use ogm_corners::{map::synthetic, overlay, streamed, DetectorKind, OccupancyMap, Result};
 
 use super::{parse_size, write_stdout, DetectOpts};
 
@@ -44,7 +44,7 @@ pub(super) fn run(a: DemoArgs, budget: &Budget) -> Result<()> {
     // Everything is checked before the folder is made or anything is allocated: the size, then the memory.
     // The map is made row by row and written; the detection then reads it back as a user's map, streamed
     // (or, for the robust detector, whole: the map, the detector's buffers, the overlay).
-    let mut rows = synth::OfficeRows::new(w, h, a.seed)?;
+    let mut rows = synthetic::OfficeRows::new(w, h, a.seed)?;
     let mut detector = a.opts.detector()?;
     let streamed = detector.options().detector != DetectorKind::OgmRobust;
     let detect_bytes = if streamed {
@@ -52,7 +52,7 @@ pub(super) fn run(a: DemoArgs, budget: &Budget) -> Result<()> {
             .streamed_bytes(w, h)
             .saturating_add(overlay::overlay_bytes(w, h))
     } else {
-        synth::check_office_size(w, h)?;
+        synthetic::check_office_size(w, h)?;
         (u64::from(w) * u64::from(h))
             .saturating_add(detector.working_bytes(w, h))
             .saturating_add(overlay::overlay_bytes(w, h))
@@ -64,7 +64,7 @@ pub(super) fn run(a: DemoArgs, budget: &Budget) -> Result<()> {
     files::create_dir(dir)?;
     let pgm = dir.join("demo-map.pgm");
     let yaml = dir.join("demo-map.yaml");
-    ogm_corners::stream::write_pgm(&pgm, &mut rows)?;
+    ogm_corners::map::stream::write_pgm(&pgm, &mut rows)?;
     drop(rows);
     let yaml_text = format!(
         "# Synthetic office map made by `ogm-corners demo --size {w}x{h} --seed {}`\n{}",

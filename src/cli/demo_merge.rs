@@ -7,15 +7,15 @@ use std::time::Instant;
 
 use serde_json::json;
 
-use ogm_corners::files;
 use ogm_corners::map::{merged_yaml_text, write_merged_pgm_to, yaml_text, GeoRef};
-use ogm_corners::memory::Budget;
 use ogm_corners::merge::footprint;
 use ogm_corners::merge::global::{merge_maps, GlobalOptions};
 use ogm_corners::merge::synthetic::{explore, Exploration};
 use ogm_corners::merge::Rigid;
-use ogm_corners::plot;
-use ogm_corners::{synth, Error, MapImage, OccupancyMap, Result};
+use ogm_corners::support::files;
+use ogm_corners::support::memory::Budget;
+use ogm_corners::support::plot;
+use ogm_corners::{map::synthetic, Error, MapImage, OccupancyMap, Result};
 
 use super::demo::DemoArgs;
 use super::write_stdout;
@@ -50,7 +50,7 @@ pub(super) fn run(a: &DemoArgs, budget: &Budget) -> Result<()> {
             u32::MAX
         )));
     }
-    synth::check_office_size(w / 2, h / 2)?;
+    synthetic::check_office_size(w / 2, h / 2)?;
     // What the exploration holds at its peak, measured: about 50-60 bytes a pixel of the building (its
     // states, the drivable cells and their order of reach, the cells each pose sees, the robots' maps).
     budget.check(
@@ -62,7 +62,7 @@ pub(super) fn run(a: &DemoArgs, budget: &Budget) -> Result<()> {
     let total = Instant::now();
 
     let t = Instant::now();
-    let half = synth::office_map(w / 2, h / 2, a.seed)?;
+    let half = synthetic::office_map(w / 2, h / 2, a.seed)?;
     let (bw, bh) = (half.width() * 2, half.height() * 2);
     let px = (0..bh)
         .flat_map(|y| (0..bw).map(move |x| (x, y)))
@@ -250,7 +250,7 @@ pub(super) fn run(a: &DemoArgs, budget: &Budget) -> Result<()> {
     for p in earlier_outputs(dir, names.len(), many.groups() > 0) {
         ogm_corners::say!(
             "ogm-corners: note: {} is from an earlier run, not this one",
-            ogm_corners::error::one_line(&p.display().to_string())
+            ogm_corners::support::error::one_line(&p.display().to_string())
         );
     }
     lines.push(format!("5. outputs written: {}", ms(t)));
@@ -263,7 +263,7 @@ pub(super) fn run(a: &DemoArgs, budget: &Budget) -> Result<()> {
             writeln!(
                 out,
                 "wrote {}",
-                ogm_corners::error::one_line(&p.display().to_string())
+                ogm_corners::support::error::one_line(&p.display().to_string())
             )?;
         }
         Ok(())

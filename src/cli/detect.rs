@@ -7,11 +7,11 @@ use clap::Args;
 
 use crate::batch;
 
-use ogm_corners::files::{self, AtomicFile, Inputs};
 use ogm_corners::map::find_maps;
-use ogm_corners::memory::Budget;
 use ogm_corners::output::{self, Format};
 use ogm_corners::overlay::OverlayCanvas;
+use ogm_corners::support::files::{self, AtomicFile, Inputs};
+use ogm_corners::support::memory::Budget;
 use ogm_corners::{overlay, streamed, DetectorKind, Error, OccupancyMap, Result};
 
 use super::{write_stdout, DetectOpts, FormatArg};
@@ -105,7 +105,7 @@ fn robust_fits(a: &DetectArgs, budget: &Budget) -> Result<bool> {
     let need = (u64::from(w) * u64::from(h))
         .saturating_add(map.decoder_bytes())
         .saturating_add(a.extra_bytes(w, h));
-    Ok(ogm_corners::decode::check_in_memory(w, h).is_ok() && need <= budget.limit())
+    Ok(ogm_corners::map::decode::check_in_memory(w, h).is_ok() && need <= budget.limit())
 }
 
 /// One map read row by row: the keypoints written as they come, the overlay drawn downsampled on the way;

@@ -7,9 +7,9 @@ use clap::Args;
 use ogm_corners::backend::reference_working_bytes;
 use ogm_corners::eval::report::{self, EvalPage};
 use ogm_corners::eval::{self, MAX_TRIALS};
-use ogm_corners::files;
 use ogm_corners::map::output_names;
-use ogm_corners::memory::Budget;
+use ogm_corners::support::files;
+use ogm_corners::support::memory::Budget;
 use ogm_corners::{DetectOptions, Error, OccupancyMap, Result};
 
 use super::{detector_on, write_stdout, BackendArg, TableFormat, ALL_DETECTORS};
@@ -95,7 +95,7 @@ pub(super) fn run(a: EvalArgs, budget: &Budget) -> Result<()> {
     // The annotated maps are named by their file stems, as the annotation file names them.
     let stems: Vec<String> = maps.iter().map(|p| stem(p).to_string()).collect();
     if let Some(dir) = &a.html {
-        inputs.claim_output(&dir.join(ogm_corners::report::INDEX), "--html")?;
+        inputs.claim_output(&dir.join(ogm_corners::support::report::INDEX), "--html")?;
         let marked = a.annotations.is_some();
         let named = if marked { &stems } else { &names };
         for file in report::picture_files(named, marked) {
@@ -163,7 +163,7 @@ pub(super) fn run(a: EvalArgs, budget: &Budget) -> Result<()> {
         let index = page.finish_repeatability(&rows, &about)?;
         ogm_corners::say!(
             "ogm-corners: wrote {}",
-            ogm_corners::error::one_line(&index.display().to_string())
+            ogm_corners::support::error::one_line(&index.display().to_string())
         );
     }
     if let Some(dir) = &a.plot {
@@ -173,7 +173,7 @@ pub(super) fn run(a: EvalArgs, budget: &Budget) -> Result<()> {
             files::write_png(&path, &picture)?;
             ogm_corners::say!(
                 "ogm-corners: wrote {}",
-                ogm_corners::error::one_line(&path.display().to_string())
+                ogm_corners::support::error::one_line(&path.display().to_string())
             );
         }
     }
@@ -261,7 +261,7 @@ fn annotated(
             files::write_png(&path, &sheet)?;
             ogm_corners::say!(
                 "ogm-corners: wrote {}",
-                ogm_corners::error::one_line(&path.display().to_string())
+                ogm_corners::support::error::one_line(&path.display().to_string())
             );
         }
         if let Some(page) = &mut page {
@@ -283,7 +283,7 @@ fn annotated(
         let index = page.finish_recall(&rows, file)?;
         ogm_corners::say!(
             "ogm-corners: wrote {}",
-            ogm_corners::error::one_line(&index.display().to_string())
+            ogm_corners::support::error::one_line(&index.display().to_string())
         );
     }
     write_stdout(|out| write_table(out, a.format.into(), &rows))

@@ -8,12 +8,12 @@ use std::time::Instant;
 use clap::Args;
 use serde::Serialize;
 
-use ogm_corners::files;
 use ogm_corners::map::{merged_yaml_text, save_names, write_merged_pgm_to};
-use ogm_corners::memory::Budget;
 use ogm_corners::merge::footprint::{self, check_alignable};
 use ogm_corners::merge::pair::{self, Verdict};
 use ogm_corners::merge::{compose, MergeOptions};
+use ogm_corners::support::files;
+use ogm_corners::support::memory::Budget;
 use ogm_corners::{Error, OccupancyMap, Result};
 
 use super::write_stdout;
@@ -118,7 +118,10 @@ pub(super) fn run(a: MergeArgs, budget: &Budget) -> Result<()> {
             + u64::from(w) * u64::from(h)
     })?;
     for w in map_a.warnings.iter().chain(&map_b.warnings) {
-        ogm_corners::say!("ogm-corners: warning: {}", ogm_corners::error::one_line(w));
+        ogm_corners::say!(
+            "ogm-corners: warning: {}",
+            ogm_corners::support::error::one_line(w)
+        );
     }
     // B at A's resolution and both preparations over their explored parts, before any is allocated.
     let (fa, fb) = footprint::pair(&map_a, &map_b)?;
@@ -214,7 +217,7 @@ pub(super) fn run(a: MergeArgs, budget: &Budget) -> Result<()> {
     }
     if let Some(png) = &a.overlay {
         let picture = pair::overlay_pair(&map_a, &map_b, &al.transform)?;
-        let picture = ogm_corners::plot::with_legend(&picture, &compose::overlay_legend());
+        let picture = ogm_corners::support::plot::with_legend(&picture, &compose::overlay_legend());
         staged.write(png, |out| files::encode_png(out, &picture))?;
         wrote.push(png);
     }
@@ -222,7 +225,7 @@ pub(super) fn run(a: MergeArgs, budget: &Budget) -> Result<()> {
     for p in wrote {
         ogm_corners::say!(
             "ogm-corners: wrote {}",
-            ogm_corners::error::one_line(&p.display().to_string())
+            ogm_corners::support::error::one_line(&p.display().to_string())
         );
     }
     Ok(())

@@ -5,13 +5,13 @@ use std::path::PathBuf;
 
 use clap::Args;
 
-use ogm_corners::memory::Budget;
 use ogm_corners::merge::eval;
 use ogm_corners::merge::global::eval as global_eval;
 use ogm_corners::merge::global::GlobalOptions;
 use ogm_corners::merge::pairs::PairSet;
 use ogm_corners::merge::report::PairsPage;
 use ogm_corners::merge::{MergeOptions, Rigid};
+use ogm_corners::support::memory::Budget;
 use ogm_corners::{Error, OccupancyMap, Result};
 
 use super::write_stdout;
@@ -243,13 +243,13 @@ pub(super) fn run(a: MergeEvalArgs, budget: &Budget) -> Result<()> {
                     return Err(Error::invalid(format!(
                         "no synthetic pair could be cut from {}: too small (or too little of it known) \
                          for two parts at 50% and 30% overlap",
-                        ogm_corners::error::one_line(&uncut.join(", "))
+                        ogm_corners::support::error::one_line(&uncut.join(", "))
                     )));
                 }
                 for name in uncut {
                     ogm_corners::say!(
                         "ogm-corners: note: {}: too small to cut synthetic pairs from; left out",
-                        ogm_corners::error::one_line(name)
+                        ogm_corners::support::error::one_line(name)
                     );
                 }
             }
@@ -279,7 +279,7 @@ pub(super) fn run(a: MergeEvalArgs, budget: &Budget) -> Result<()> {
         let index = page.finish(&rows, costs.prepare_ms)?;
         ogm_corners::say!(
             "ogm-corners: wrote {}",
-            ogm_corners::error::one_line(&index.display().to_string())
+            ogm_corners::support::error::one_line(&index.display().to_string())
         );
     }
     write_table(a.format, &rows, |out| {
@@ -293,14 +293,14 @@ fn say_cache_use(cache: Option<&eval::cache::RecordCache>) {
         ogm_corners::say!(
             "ogm-corners: merge-eval: {} pairs read from the cache ({}), {} aligned",
             c.hits,
-            ogm_corners::error::one_line(&c.dir().display().to_string()),
+            ogm_corners::support::error::one_line(&c.dir().display().to_string()),
             c.misses
         );
         if let Some(why) = &c.unwritable {
             ogm_corners::say!(
                 "ogm-corners: warning: merge-eval: the cache could not be written ({}); give another \
                  with --cache DIR, or --no-cache",
-                ogm_corners::error::one_line(why)
+                ogm_corners::support::error::one_line(why)
             );
         }
     }
@@ -432,15 +432,18 @@ fn families(names: &[String], generated: bool) -> Result<(bool, Vec<eval::famili
 fn synthetic_sources(
     args: &[PathBuf],
     budget: &Budget,
-) -> Result<(Vec<(String, OccupancyMap)>, ogm_corners::files::Inputs)> {
+) -> Result<(
+    Vec<(String, OccupancyMap)>,
+    ogm_corners::support::files::Inputs,
+)> {
     if args.is_empty() {
         let maps = (1..=8)
             .map(|seed| {
-                let img = ogm_corners::synth::office_map(1024, 768, seed)?;
+                let img = ogm_corners::map::synthetic::office_map(1024, 768, seed)?;
                 Ok((format!("office-{seed}"), OccupancyMap::from_image(img)))
             })
             .collect::<Result<_>>()?;
-        return Ok((maps, ogm_corners::files::Inputs::new()));
+        return Ok((maps, ogm_corners::support::files::Inputs::new()));
     }
     // Each part's canvas holds at most the map's diagonal squared: twice the map, and the merger's
     // buffers for both.
@@ -591,7 +594,7 @@ fn save_set(
     std::fs::create_dir_all(dir)
         .map_err(|e| Error::input(dir, format!("cannot create the folder: {e}")))?;
     // All or nothing: the maps and their truths renamed into place together.
-    let mut staged = ogm_corners::files::Staged::default();
+    let mut staged = ogm_corners::support::files::Staged::default();
     for (n, m) in names.iter().zip(maps) {
         staged.write(&dir.join(format!("{n}.pgm")), |out| {
             m.image.write_pgm_to(out)

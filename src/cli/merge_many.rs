@@ -4,12 +4,12 @@
 
 use std::path::{Path, PathBuf};
 
-use ogm_corners::files;
 use ogm_corners::map::{merged_yaml_text, save_names, write_merged_pgm_to};
-use ogm_corners::memory::Budget;
 use ogm_corners::merge::footprint;
 use ogm_corners::merge::global::previous::Previous;
 use ogm_corners::merge::global::{merge_maps_cached, page, report, Cache, GlobalOptions};
+use ogm_corners::support::files;
+use ogm_corners::support::memory::Budget;
 use ogm_corners::{Error, OccupancyMap, Result};
 
 use super::merge::MergeArgs;
@@ -110,7 +110,7 @@ pub(super) fn run(a: MergeArgs, budget: &Budget) -> Result<()> {
         }
     }
     if let Some(dir) = &a.html {
-        inputs.claim_output(&dir.join(ogm_corners::report::INDEX), "--html")?;
+        inputs.claim_output(&dir.join(ogm_corners::support::report::INDEX), "--html")?;
         for file in page::picture_files(paths.len()) {
             inputs.claim_output(&dir.join(file), "--html")?;
         }
@@ -129,7 +129,10 @@ pub(super) fn run(a: MergeArgs, budget: &Budget) -> Result<()> {
         .map(|p| OccupancyMap::load_within(p, budget, &|_, _| total))
         .collect::<Result<Vec<_>>>()?;
     for w in maps.iter().flat_map(|m| &m.warnings) {
-        ogm_corners::say!("ogm-corners: warning: {}", ogm_corners::error::one_line(w));
+        ogm_corners::say!(
+            "ogm-corners: warning: {}",
+            ogm_corners::support::error::one_line(w)
+        );
     }
     // Each map at the first georeferenced map's cells, and its preparation over its explored part.
     let held = footprint::many_bytes(&maps)?;
@@ -176,8 +179,8 @@ pub(super) fn run(a: MergeArgs, budget: &Budget) -> Result<()> {
                 "ogm-corners: note: --from: {} of its pairs' alignments do not hold on the maps and were \
                  not taken up (the first, {} onto {}: {})",
                 used.pairs_refused,
-                ogm_corners::error::one_line(&names[*j]),
-                ogm_corners::error::one_line(&names[*i]),
+                ogm_corners::support::error::one_line(&names[*j]),
+                ogm_corners::support::error::one_line(&names[*i]),
                 why
             );
         }
@@ -249,7 +252,7 @@ pub(super) fn run(a: MergeArgs, budget: &Budget) -> Result<()> {
         let index = html.commit()?;
         ogm_corners::say!(
             "ogm-corners: wrote {}",
-            ogm_corners::error::one_line(&index.display().to_string())
+            ogm_corners::support::error::one_line(&index.display().to_string())
         );
     }
     // The alignments are the --poses file's: a later `--from` reads them there.

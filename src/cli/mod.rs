@@ -23,8 +23,8 @@ use ogm_corners::cpu::CpuBackend;
 use ogm_corners::detector::BackendChoice;
 use ogm_corners::fast::FastCpuBackend;
 use ogm_corners::gpu::GpuOptions;
-use ogm_corners::memory::{self, Budget};
 use ogm_corners::robust::{Anchor, RobustParams};
+use ogm_corners::support::memory::{self, Budget};
 use ogm_corners::{
     Backend, Baseline, BaselineParams, DetectOptions, Detector, DetectorKind, Error, Result,
     RuleSet,
@@ -329,7 +329,7 @@ fn map_inputs(
     args: &[std::path::PathBuf],
     budget: &Budget,
     extra: &dyn Fn(u32, u32) -> u64,
-) -> Result<(Vec<std::path::PathBuf>, ogm_corners::files::Inputs)> {
+) -> Result<(Vec<std::path::PathBuf>, ogm_corners::support::files::Inputs)> {
     let found = ogm_corners::map::find_maps(args);
     for n in &found.notes {
         ogm_corners::say!("ogm-corners: note: {n}");
@@ -345,7 +345,7 @@ fn map_inputs(
             }
         )));
     }
-    let mut inputs = ogm_corners::files::Inputs::new();
+    let mut inputs = ogm_corners::support::files::Inputs::new();
     for p in &found.maps {
         claim_input(p, budget, extra, &mut inputs)?;
     }
@@ -358,7 +358,7 @@ fn claim_input(
     p: &std::path::Path,
     budget: &Budget,
     extra: &dyn Fn(u32, u32) -> u64,
-    inputs: &mut ogm_corners::files::Inputs,
+    inputs: &mut ogm_corners::support::files::Inputs,
 ) -> Result<(u32, u32)> {
     let (w, h, image) = ogm_corners::OccupancyMap::probe(p)?;
     budget.check(

@@ -1,7 +1,7 @@
 //! CPU twin of the classification kernel: each pixel value becomes a [`CellState`] through the table.
 
+use crate::map::states::{CellState, ClassTable};
 use crate::map::MapImage;
-use crate::states::{CellState, ClassTable};
 
 /// The state of every pixel of `image`, row-major.
 pub fn classify(image: &MapImage, table: &ClassTable) -> Vec<CellState> {

@@ -1,5 +1,5 @@
 //! CPU twin of the coarsening kernel (`shaders/coarsen.wgsl`): the map sampled on a rotated grid
-//! ([`crate::grid`]), every `scale` x `scale` box of samples becoming one coarse cell, **at every grid
+//! ([`crate::map::grid`]), every `scale` x `scale` box of samples becoming one coarse cell, **at every grid
 //! phase**: a box starts at every sample, not only at multiples of the scale, so that whether a corner is
 //! found does not depend on where a block grid falls (a crop, a quarter turn or a mirror moves it).
 //!
@@ -14,12 +14,12 @@
 //! Samples outside the map are unknown. The coarse map is written with the values of [`OCCUPIED`],
 //! [`FREE`] and [`UNKNOWN`], so the paper's detector runs on it unchanged.
 
-use crate::grid::RotatedGrid;
+use crate::map::grid::RotatedGrid;
+use crate::map::states::{CellState, ClassTable};
 use crate::map::MapImage;
-use crate::states::{CellState, ClassTable};
 
 /// The coarse cells' values: ROS map_server's.
-pub use crate::states::{FREE, OCCUPIED, UNKNOWN};
+pub use crate::map::states::{FREE, OCCUPIED, UNKNOWN};
 
 /// Largest scale (samples a side of a cell): a cell's counts fit a byte (the fast path's summed-area
 /// tables wrap in `u8`).
@@ -120,10 +120,10 @@ impl Default for CellRule {
 
 impl CellRule {
     /// Checks the shares (each 1..=100).
-    pub fn check(&self) -> crate::error::Result<()> {
+    pub fn check(&self) -> crate::support::error::Result<()> {
         for (name, v) in [("occupied", self.occupied_pct), ("free", self.free_pct)] {
             if !(1..=100).contains(&v) {
-                return Err(crate::error::Error::invalid(format!(
+                return Err(crate::support::error::Error::invalid(format!(
                     "the {name} share of a coarse cell must be 1 to 100 percent, got {v}"
                 )));
             }

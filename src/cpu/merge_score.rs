@@ -11,7 +11,7 @@
 
 use rayon::prelude::*;
 
-use crate::error::{Error, Result};
+use crate::support::error::{Error, Result};
 
 /// Fraction bits of the fixed-point transforms.
 pub const SCORE_FRAC_BITS: u32 = 13;
@@ -227,7 +227,7 @@ pub fn score_transforms(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::synth::Rng;
+    use crate::map::synthetic::Rng;
 
     #[test]
     fn the_zero_transform_maps_every_point_to_itself() {

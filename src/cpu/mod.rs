@@ -16,10 +16,10 @@ pub mod trajkovic;
 
 use crate::backend::{Backend, Keypoint};
 use crate::baselines::{self, Baseline, ExactParams};
-use crate::error::Result;
+use crate::map::states::ClassTable;
 use crate::map::MapImage;
 use crate::rules::RuleTable;
-use crate::states::ClassTable;
+use crate::support::error::Result;
 
 /// The CPU backend: classification then the rule table, pixel by pixel.
 #[derive(Clone, Copy, Debug, Default)]

@@ -14,8 +14,8 @@ use std::path::Path;
 use serde::Serialize;
 
 use crate::backend::Keypoint;
-use crate::error::{Error, Result};
 use crate::output::{csv_field, md_cell, TableFormat};
+use crate::support::error::{Error, Result};
 
 /// Largest annotation file read: the shared one is 20 KB.
 pub const MAX_ANNOTATION_BYTES: u64 = 16 << 20;
@@ -67,7 +67,11 @@ impl<'de> serde::Deserialize<'de> for Entries {
 impl Annotations {
     /// Reads an annotation file (bounded in size); every point must be finite.
     pub fn load(path: &Path) -> Result<Self> {
-        let text = crate::files::read_small_text(path, MAX_ANNOTATION_BYTES, "an annotation file")?;
+        let text = crate::support::files::read_small_text(
+            path,
+            MAX_ANNOTATION_BYTES,
+            "an annotation file",
+        )?;
         Self::parse(&text).map_err(|m| Error::input(path, m))
     }
 
@@ -269,8 +273,8 @@ pub fn marked_sheet_file(name: &str) -> String {
 }
 
 /// The rows as the `--html` page's table (`id="recall"`), the pooled rows in bold colours.
-pub fn html_table(rows: &[RecallRecord]) -> crate::report::Table {
-    use crate::report::{Cell, Table};
+pub fn html_table(rows: &[RecallRecord]) -> crate::support::report::Table {
+    use crate::support::report::{Cell, Table};
     let mut t = Table::new(
         "recall",
         "Hand-marked corners found: recall within 5 and 10 px, and at a budget of the strongest 1x and 3x as many keypoints as marked points",

@@ -13,10 +13,10 @@ use image::{Rgb, RgbImage};
 use serde::Serialize;
 
 use crate::detector::{DetectOptions, Detector, DetectorKind, Keypoint};
-use crate::error::{Error, Result};
+use crate::map::synthetic::{Rng, FREE, OCCUPIED, UNKNOWN};
 use crate::map::{GeoRef, MapImage, OccupancyMap};
 use crate::output::{csv_field, md_cell, TableFormat};
-use crate::synth::{Rng, FREE, OCCUPIED, UNKNOWN};
+use crate::support::error::{Error, Result};
 
 /// Most random trials per condition `evaluate` runs (each trial is a transformed copy of the map).
 pub const MAX_TRIALS: u32 = 1000;
@@ -538,7 +538,7 @@ pub const PLOT_FILES: [&str; 2] = ["repeatability-noise.png", "repeatability-rot
 /// Plots of repeatability against noise and rotation, averaged over the maps, a line per detector:
 /// `(file name, picture)` for `repeatability-noise.png` and `repeatability-rotation.png`.
 pub fn repeatability_plots(rows: &[EvalRecord]) -> Vec<(&'static str, RgbImage)> {
-    use crate::plot::{line_plot, Series};
+    use crate::support::plot::{line_plot, Series};
     let mut plots = Vec::new();
     let colours = [
         ("ogm", Rgb([220, 20, 20])),

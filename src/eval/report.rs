@@ -6,8 +6,8 @@ use std::path::{Path, PathBuf};
 use image::RgbImage;
 
 use super::EvalRecord;
-use crate::error::Result;
-use crate::report::{file_name, Figure, Report};
+use crate::support::error::Result;
+use crate::support::report::{file_name, Figure, Report};
 
 /// The picture of map `i` named `name` on the page: its keypoints per detector (`marked`: false) or its
 /// marked points ([`super::annotations::marked_sheet`]).
@@ -28,8 +28,8 @@ pub fn picture_files(names: &[String], marked: bool) -> Vec<String> {
 
 /// The rows as the `--html` page's table (`id="eval"`): repeatability in percent, missing when no trial
 /// had keypoints in the shared region.
-pub fn repeatability_table(rows: &[EvalRecord]) -> crate::report::Table {
-    use crate::report::{Cell, Table};
+pub fn repeatability_table(rows: &[EvalRecord]) -> crate::support::report::Table {
+    use crate::support::report::{Cell, Table};
     let mut t = Table::new(
         "eval",
         "Repeatability: keypoints found again after a known change of the map, within the tolerance (mean over the trials)",

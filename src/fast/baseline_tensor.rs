@@ -13,7 +13,7 @@
 //! are all the next one needs.
 
 use crate::cpu::gaussian_blur::reflect101;
-use crate::stream::Rows;
+use crate::map::stream::Rows;
 
 /// The reflected index of `i` in `0..n` (BORDER_REFLECT_101, as the reference).
 #[inline(always)]
@@ -294,7 +294,7 @@ const TWO_52: f64 = 4_503_599_627_370_496.0;
 mod tests {
     use super::{harris_score, shi_tomasi_score};
     use crate::cpu::{harris::harris, shi_tomasi::shi_tomasi};
-    use crate::synth::Rng;
+    use crate::map::synthetic::Rng;
 
     /// Window sums reach 9 * 1020^2.
     const TOP: i32 = 9 * 1020 * 1020;

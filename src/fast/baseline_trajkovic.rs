@@ -6,7 +6,7 @@
 //! score is the reference's by construction. On maps most rows have no hit at all.
 
 use crate::cpu::trajkovic::full_res_score;
-use crate::stream::Rows;
+use crate::map::stream::Rows;
 
 /// Marks no row (a cache tag).
 const NONE: usize = usize::MAX;

@@ -20,9 +20,9 @@ use rayon::prelude::*;
 use super::baseline_tensor::{kernel_supported, TensorRows, TensorScore};
 use super::baseline_trajkovic::TrajkovicRows;
 use crate::baselines::{self, Baseline, BaselineParams, Candidate, ExactParams};
-use crate::error::Result;
+use crate::map::stream::Rows;
 use crate::map::MapImage;
-use crate::stream::Rows;
+use crate::support::error::Result;
 
 /// Rows per band at least: a band recomputes a few rows of halo (up to three above and below).
 const MIN_BAND_ROWS: usize = 32;
@@ -313,7 +313,7 @@ fn emit_row(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::synth::{office_map, Rng};
+    use crate::map::synthetic::{office_map, Rng};
 
     /// The band functions as compiled without AVX2 (the integration tests run the AVX2 variant wherever
     /// the CPU has it): scores and candidates agree with the reference.

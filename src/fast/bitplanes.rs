@@ -6,7 +6,7 @@
 //! 256-entry table, pixel by pixel.
 
 use super::simd::Isa;
-use crate::states::{CellState, ClassTable};
+use crate::map::states::{CellState, ClassTable};
 
 /// Which pixel values set a plane's bit, derived once from a [`ClassTable`].
 #[derive(Clone, Debug, PartialEq, Eq)]

@@ -8,9 +8,9 @@ use rayon::prelude::*;
 
 use crate::cpu::coarsen::{CellRule, Mosaic, FREE, MAX_SCALE, OCCUPIED, UNKNOWN};
 use crate::fast::bitplanes::{self, plane_row, ValueSet};
-use crate::grid::{nearest, RotatedGrid};
+use crate::map::grid::{nearest, RotatedGrid};
+use crate::map::states::{CellState, ClassTable};
 use crate::map::MapImage;
-use crate::states::{CellState, ClassTable};
 
 /// The rotated grid's samples as planes: bit p of row q is sample (p, q).
 struct Planes {

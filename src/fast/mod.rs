@@ -20,12 +20,12 @@ use crate::backend::{
 };
 use crate::baselines::{Baseline, BaselineParams, Candidate, ExactParams};
 use crate::cpu::coarsen::CellRule;
-use crate::error::Result;
-use crate::grid::RotatedGrid;
+use crate::map::grid::RotatedGrid;
+use crate::map::states::ClassTable;
+use crate::map::stream::Rows;
 use crate::map::MapImage;
 use crate::rules::RuleTable;
-use crate::states::ClassTable;
-use crate::stream::Rows;
+use crate::support::error::Result;
 
 /// The fast CPU backend (the default). Threads come from rayon's global pool (`RAYON_NUM_THREADS`).
 #[derive(Clone, Copy, Debug, Default)]

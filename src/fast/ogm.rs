@@ -13,10 +13,10 @@ use rayon::prelude::*;
 use super::bitplanes::{ogm_sets, plane_rows2_on, words, ValueSet};
 use super::simd::{set_bits, Isa, Lanes};
 use crate::backend::Keypoint;
+use crate::map::states::ClassTable;
+use crate::map::stream::Rows;
 use crate::map::MapImage;
 use crate::rules::RuleTable;
-use crate::states::ClassTable;
-use crate::stream::Rows;
 
 /// Rows per band at least: the rows above and below a band are classified twice, so bands are long.
 const MIN_BAND_ROWS: usize = 64;

@@ -1,6 +1,6 @@
 //! Finding GPU adapters: what `ogm-corners info` lists, and which adapter the backend opens.
 
-use crate::error::{Error, Result};
+use crate::support::error::{Error, Result};
 
 /// What `ogm-corners info` prints about an adapter.
 #[derive(Clone, Debug, serde::Serialize)]
@@ -92,8 +92,8 @@ fn check_backend_env() -> Result<()> {
     }
     Err(Error::invalid(format!(
         "WGPU_BACKEND={}: unknown backend {}; use vulkan, metal, dx12 or gl (comma-separated)",
-        crate::error::one_line(&v),
-        crate::error::one_line(&unknown.join(", "))
+        crate::support::error::one_line(&v),
+        crate::support::error::one_line(&unknown.join(", "))
     )))
 }
 

@@ -12,8 +12,8 @@ use std::sync::{mpsc, Arc};
 use rayon::prelude::*;
 
 use super::tiles::Tile;
-use crate::error::{Error, Result};
-use crate::stream::Rows;
+use crate::map::stream::Rows;
+use crate::support::error::{Error, Result};
 
 /// A reusable buffer that grows (to the next power of two, within `cap`) when a call needs more.
 pub(super) struct Slot {

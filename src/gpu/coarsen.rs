@@ -3,7 +3,7 @@
 
 use super::*;
 use crate::cpu::coarsen::{CellRule, Mosaic, UNKNOWN};
-use crate::grid::{RotatedGrid, FRAC_BITS};
+use crate::map::grid::{RotatedGrid, FRAC_BITS};
 
 /// Invocations per workgroup of the coarsening kernel.
 const COARSEN_GROUP: u32 = 64;

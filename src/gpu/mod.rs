@@ -31,11 +31,11 @@ use wgpu::util::DeviceExt;
 use crate::backend::{Backend, DetectOptions, DetectorKind, Keypoint};
 use crate::baselines::{Baseline, ExactParams};
 use crate::cpu::merge_score::{FixedRigid, ScoreTarget};
-use crate::error::{Error, Result};
+use crate::map::states::ClassTable;
+use crate::map::stream::Rows;
 use crate::map::MapImage;
 use crate::rules::RuleTable;
-use crate::states::ClassTable;
-use crate::stream::Rows;
+use crate::support::error::{Error, Result};
 
 /// Workgroup size of the baseline, coarsening and scoring kernels.
 const WORKGROUP: u32 = 256;
@@ -484,7 +484,7 @@ impl Backend for GpuBackend {
         &mut self,
         image: &MapImage,
         classes: &ClassTable,
-        grid: &crate::grid::RotatedGrid,
+        grid: &crate::map::grid::RotatedGrid,
         scales: &[u32],
         rule: crate::cpu::coarsen::CellRule,
     ) -> Result<Vec<MapImage>> {

@@ -108,7 +108,7 @@ impl GpuBackend {
     }
 
     /// [`GpuBackend::baseline_candidates`] of rows `core` of a window of a map (which holds the rows
-    /// around the core the map has, up to [`crate::stream::HALO`]): the candidates of those rows and their
+    /// around the core the map has, up to [`crate::map::stream::HALO`]): the candidates of those rows and their
     /// largest score.
     pub fn baseline_candidates_rows(
         &mut self,

@@ -5,8 +5,8 @@ use std::collections::HashSet;
 use std::path::{Path, PathBuf};
 
 use super::{MapYaml, MAX_YAML_BYTES};
-use crate::files::{self, FileId};
-use crate::marks::{self, Written};
+use crate::support::files::{self, FileId};
+use crate::support::marks::{self, Written};
 
 /// What [`find_maps`] found.
 #[derive(Debug, Default)]
@@ -25,7 +25,7 @@ pub struct FoundMaps {
 /// hidden entries left out, each real folder once however many links lead to it) every ROS map yaml plus
 /// every PGM/PNG image that no yaml there names. A yaml that is not a map (ROS packages keep other yaml
 /// files beside their maps) is left out with a note, and so are the tool's own outputs (merged maps,
-/// pictures: [`crate::marks`]). A map yaml that cannot be read or parsed is a problem, and the image it
+/// pictures: [`crate::support::marks`]). A map yaml that cannot be read or parsed is a problem, and the image it
 /// names is not used alone. Unreadable entries are reported in [`FoundMaps::problems`] and skipped; they
 /// never stop the search.
 pub fn find_maps(inputs: &[PathBuf]) -> FoundMaps {

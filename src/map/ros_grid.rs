@@ -9,8 +9,8 @@
 use rayon::prelude::*;
 
 use super::{GeoRef, MapImage, OccupancyMap, Thresholds};
-use crate::error::{Error, Result};
-use crate::states::{CellState, ClassTable};
+use crate::map::states::{CellState, ClassTable};
+use crate::support::error::{Error, Result};
 
 /// The grid value of an unknown cell.
 pub const GRID_UNKNOWN: i8 = -1;

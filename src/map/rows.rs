@@ -1,18 +1,20 @@
 //! A map opened to be read row by row ([`OccupancyMap::open_rows`]), for streamed detection
-//! ([`crate::stream`]): the yaml and the image header are read and checked, the pixels stay in the file.
+//! ([`crate::map::stream`]): the yaml and the image header are read and checked, the pixels stay in the file.
 
 use std::io::BufReader;
 use std::path::{Path, PathBuf};
 
+use super::occupancy::open_image_with;
 use super::yaml::is_yaml;
-use super::{open_image_with, read_yaml, GeoRef, OccupancyMap, Thresholds};
-use crate::decode::Decoder;
-use crate::error::{Error, Result};
-use crate::memory::Budget;
+use super::yaml::read_yaml;
+use super::{GeoRef, OccupancyMap, Thresholds};
+use crate::map::decode::Decoder;
+use crate::support::error::{Error, Result};
+use crate::support::memory::Budget;
 
 impl OccupancyMap {
     /// Opens a map (a `.yaml` and its image, or an image alone) to be read row by row
-    /// ([`crate::stream`]): the yaml and the image header are read and checked, no pixel is.
+    /// ([`crate::map::stream`]): the yaml and the image header are read and checked, no pixel is.
     pub fn open_rows(path: &Path) -> Result<MapRows> {
         let (meta, image_path, yaml_path) = if is_yaml(path) {
             let (meta, image_path) = read_yaml(path)?;
@@ -54,7 +56,7 @@ impl OccupancyMap {
 /// A map opened to be read row by row ([`OccupancyMap::open_rows`]): what [`OccupancyMap`] holds, with
 /// the rows still in the file.
 pub struct MapRows {
-    /// The rows, to be read once ([`crate::stream::RowSource`]).
+    /// The rows, to be read once ([`crate::map::stream::RowSource`]).
     pub source: DecoderRows,
     /// How pixel values become occupied / unknown / free.
     pub thresholds: Thresholds,
@@ -79,7 +81,7 @@ impl MapRows {
         (self.source.width(), self.source.height())
     }
 
-    /// Bytes the decoder allocates beyond the rows it hands out (see [`crate::decode::Header`]).
+    /// Bytes the decoder allocates beyond the rows it hands out (see [`crate::map::decode::Header`]).
     pub fn decoder_bytes(&self) -> u64 {
         self.source
             .decoder

@@ -3,8 +3,8 @@
 use std::path::{Path, PathBuf};
 
 use super::{map_yaml_text_with, OccupancyMap};
-use crate::error::{Error, Result};
-use crate::files;
+use crate::support::error::{Error, Result};
+use crate::support::files;
 
 /// The files a map is written to for `path`: `NAME.yaml` gives the yaml and `NAME.pgm`; `NAME.pgm` the
 /// image alone; anything else is refused.
@@ -45,9 +45,9 @@ pub fn yaml_text(pgm: &Path, map: &OccupancyMap, reference: &str) -> String {
 }
 
 /// The text of a merged map's yaml: [`yaml_text`] opened by the comment that tells a later folder run it
-/// is the tool's output, not a robot's map ([`crate::marks`]).
+/// is the tool's output, not a robot's map ([`crate::support::marks`]).
 pub fn merged_yaml_text(pgm: &Path, map: &OccupancyMap, reference: &str) -> String {
-    crate::marks::merged_yaml_comment() + &yaml_text(pgm, map, reference)
+    crate::support::marks::merged_yaml_comment() + &yaml_text(pgm, map, reference)
 }
 
 /// A merged map's image as a binary PGM into `out`, its header carrying the merged map's mark (a comment,
@@ -61,7 +61,7 @@ pub fn write_merged_pgm_to(
         out,
         image.width(),
         image.height(),
-        Some(crate::marks::MERGED_MAP),
+        Some(crate::support::marks::MERGED_MAP),
     )?;
     out.write_all(image.pixels())
 }

@@ -5,8 +5,8 @@ use std::path::{Path, PathBuf};
 use serde_yaml::Value;
 
 use super::Thresholds;
-use crate::error::{Error, Result};
-use crate::files;
+use crate::support::error::{Error, Result};
+use crate::support::files;
 
 /// The text of a ROS map_server yaml for image file `image` (a name beside the yaml), with the ROS
 /// default thresholds, trinary mode and `resolution` and `origin` (a non-finite yaw written as 0). The

@@ -12,7 +12,7 @@ use super::score::{score_both, Probe};
 use super::symmetry::{self_turns, NEAR_IDENTITY_DEG};
 use super::transform::{signed_deg, transform_distance, Rigid, DISTINCT_PX};
 use crate::backend::Backend;
-use crate::error::Result;
+use crate::support::error::Result;
 
 /// A self-transform of a map offers an alternative pose
 /// ([`Features::alias`](super::accept::Features::alias)) when the map matches itself under it at least

@@ -36,8 +36,8 @@ use super::symmetry::NEAR_IDENTITY_DEG;
 use super::transform::{signed_deg, transform_distance, Rigid, DISTINCT_PX};
 use crate::backend::Backend;
 use crate::cpu::CpuBackend;
-use crate::error::{Error, Result};
 use crate::map::OccupancyMap;
+use crate::support::error::{Error, Result};
 
 /// The rule value from which the self-symmetry is measured: the operating curve's lowest offset.
 const SYMMETRY_FROM: f64 = -8.0;
@@ -168,7 +168,7 @@ pub fn align_prepared_with(
         unit: coarse_unit,
     } = coarse_hypotheses(src, dst, &options.hypotheses)?;
     // Between stages, a raised stop (Ctrl-C in Python) ends the alignment.
-    crate::stop::check()?;
+    crate::support::stop::check()?;
     if coarse.is_empty() {
         return Ok(declined(
             "no hypothesis: the maps' corners agree on no placement",
@@ -178,7 +178,7 @@ pub fn align_prepared_with(
     // shifts around it: a coarse peak is off by up to half a cell, and the walls of a
     // building of many like rooms correlate almost as well with a wrong placement at the coarse level.
     let [tolerant, strict] = screen(src, dst, &coarse, cell as f64, backend)?;
-    crate::stop::check()?;
+    crate::support::stop::check()?;
     let mut picked: Vec<(f64, Crop)> = Vec::new();
     for (order, most) in [(&tolerant, REFINED), (&strict, REFINED + STRICT)] {
         for &(i, t) in order {
@@ -203,7 +203,7 @@ pub fn align_prepared_with(
     };
     let crops: Vec<Rigid> = icped.iter().map(|r| r.1).collect();
     let verified = verify(src, dst, &crops, backend)?;
-    crate::stop::check()?;
+    crate::support::stop::check()?;
     // Every candidate's local agreement: the choice below and its margin over the runner-up need them all.
     let top = icped.iter().map(|r| r.0).fold(f64::MIN, f64::max).max(1e-9);
     let locals: Vec<(f64, f64, f64)> = {
@@ -244,7 +244,7 @@ pub fn align_prepared_with(
     // The chosen one polished to a fraction of a pixel, and verified again.
     let polished = polish_fully(src, dst, &crops[order[0]], backend)?;
     let again = verify(src, dst, &[polished], backend)?[0];
-    crate::stop::check()?;
+    crate::support::stop::check()?;
     refined[0].1 = to_full(&polished);
     refined[0].2 = Features {
         coarse: refined[0].2.coarse,

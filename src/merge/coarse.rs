@@ -12,7 +12,7 @@ use super::prepare::{Prepared, CELLS};
 use super::score::{score_both, Counts, Probe};
 use super::transform::Rigid;
 use crate::backend::Backend;
-use crate::error::{Error, Result};
+use crate::support::error::{Error, Result};
 
 /// Weight of walls on free space in the coarse score.
 const LAMBDA: f32 = 1.0;

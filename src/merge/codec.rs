@@ -15,7 +15,7 @@
 use super::prepare::{Coarse, Prepared, CELLS};
 use super::prescreen::Signature;
 use crate::cpu::merge_score::ScoreTarget;
-use crate::error::{Error, Result};
+use crate::support::error::{Error, Result};
 
 const PREPARED_MAGIC: &[u8; 8] = b"OGMPREP\0";
 const SIGNATURE_MAGIC: &[u8; 8] = b"OGMSIGN\0";

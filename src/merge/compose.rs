@@ -7,9 +7,9 @@
 //! origin moved so that every cell of A keeps its world coordinates.
 
 use super::transform::{Applier, Rigid};
-use crate::error::{Error, Result};
+use crate::map::states::{CellState, ClassTable};
 use crate::map::{GeoRef, MapImage, OccupancyMap, Thresholds};
-use crate::states::{CellState, ClassTable};
+use crate::support::error::{Error, Result};
 
 /// Largest merged canvas, pixels, relative to the two maps together: a transform that would grow the
 /// canvas beyond this is not a merge of maps of one place.
@@ -272,7 +272,7 @@ pub(super) fn grown_georef(g: &GeoRef, h0: u32, x0: i64, y1: i64) -> GeoRef {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::states::{FREE, OCCUPIED, UNKNOWN};
+    use crate::map::states::{FREE, OCCUPIED, UNKNOWN};
 
     #[test]
     fn a_cells_keep_their_world_coordinates_and_the_rule_is_conservative() {

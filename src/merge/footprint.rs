@@ -9,8 +9,8 @@ use super::prepare::{
 };
 use super::resample::resampled_size;
 use super::transform::Rigid;
-use crate::error::Result;
 use crate::map::OccupancyMap;
+use crate::support::error::Result;
 
 /// A map as the merge holds it.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -13,8 +13,8 @@ use std::collections::HashMap;
 use super::transform::Rigid;
 use crate::backend::{DetectOptions, DetectorKind};
 use crate::detector::Detector;
-use crate::error::Result;
 use crate::map::OccupancyMap;
+use crate::support::error::Result;
 
 /// Where hypotheses come from.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]

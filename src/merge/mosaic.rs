@@ -4,9 +4,9 @@
 
 use super::compose::{grown_georef, merge_cell};
 use super::transform::Rigid;
-use crate::error::{Error, Result};
+use crate::map::states::{CellState, ClassTable};
 use crate::map::{MapImage, OccupancyMap, Thresholds};
-use crate::states::{CellState, ClassTable};
+use crate::support::error::{Error, Result};
 
 /// The canvas holding every map's known area placed by its pose, in the frame's pixels: `[x0, x1) x [y0, y1)`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -151,7 +151,7 @@ fn for_each_cell(
 ) -> Result<()> {
     for (k, (m, pose)) in maps.iter().zip(poses).enumerate() {
         // Map by map, a raised stop (Ctrl-C in Python) ends the drawing.
-        crate::stop::check()?;
+        crate::support::stop::check()?;
         let classes = ClassTable::new(&m.thresholds);
         let (w, h) = (m.image.width(), m.image.height());
         let Some(known) = known_box(m) else { continue };
@@ -250,8 +250,8 @@ pub fn overlay_many(maps: &[&OccupancyMap], poses: &[Rigid]) -> Result<image::Rg
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::map::states::{FREE, OCCUPIED, UNKNOWN};
     use crate::map::GeoRef;
-    use crate::states::{FREE, OCCUPIED, UNKNOWN};
 
     #[test]
     fn the_first_map_keeps_its_world_frame_and_walls_win() {

@@ -9,8 +9,8 @@ use super::align::{align_with, Alignment, Features, MergeOptions};
 use super::transform::{to_world, Rigid, WorldRigid};
 use super::{compose, resample};
 use crate::backend::Backend;
-use crate::error::Result;
 use crate::map::OccupancyMap;
+use crate::support::error::Result;
 
 /// The verdict on a pair ([`merge_pair`]).
 #[derive(Clone, Debug, PartialEq)]

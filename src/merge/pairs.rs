@@ -10,7 +10,7 @@ use std::path::Path;
 use serde::{Deserialize, Serialize};
 
 use super::transform::Rigid;
-use crate::error::{Error, Result};
+use crate::support::error::{Error, Result};
 
 /// Largest pair file read.
 pub const MAX_PAIRS_BYTES: u64 = 64 << 20;
@@ -67,7 +67,7 @@ pub struct PairSet {
 impl PairSet {
     /// Reads and checks a pair file (bounded size; finite numbers; as many points in both maps).
     pub fn load(path: &Path) -> Result<Self> {
-        let text = crate::files::read_small_text(path, MAX_PAIRS_BYTES, "a pair file")?;
+        let text = crate::support::files::read_small_text(path, MAX_PAIRS_BYTES, "a pair file")?;
         let set: PairSet = serde_json::from_str(&text)
             .map_err(|e| Error::input(path, format!("not a pair file: {e}")))?;
         // A file of no pairs would give a table of zeros that reads as a result.

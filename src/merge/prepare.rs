@@ -4,8 +4,8 @@
 
 use super::distance::{edt, edt_distance};
 use crate::cpu::merge_score::{ScoreTarget, FLAG_DEEP, FLAG_INSIDE, FLAG_NEAR};
+use crate::map::states::{CellState, ClassTable};
 use crate::map::OccupancyMap;
-use crate::states::{CellState, ClassTable};
 
 /// Coarse cell sides the correlation may use, pixels: per pair, the finest whose FFT stays small (so a
 /// small map is correlated at 4 px, the 1585 px maps of the real pairs at 16).
@@ -332,7 +332,7 @@ impl Prepared {
     pub fn with_corners(
         map: &OccupancyMap,
         detector: crate::backend::DetectorKind,
-    ) -> crate::error::Result<Prepared> {
+    ) -> crate::support::error::Result<Prepared> {
         let mut p = Prepared::new(map);
         let (ox, oy) = p.off;
         p.corners = Some(

@@ -24,8 +24,8 @@ use super::transform::Rigid;
 use crate::backend::{DetectOptions, DetectorKind};
 use crate::cpu::merge_score::FLAG_INSIDE;
 use crate::detector::Detector;
-use crate::error::Result;
 use crate::map::{MapImage, OccupancyMap};
+use crate::support::error::Result;
 
 /// Corner pairs farther apart than this (pixels) make no term.
 pub const REACH: f64 = 320.0;
@@ -525,7 +525,7 @@ mod tests {
     /// corner pairs are the same), another office's shares almost nothing with it.
     #[test]
     fn a_turned_and_shifted_map_keeps_its_signature_and_another_office_does_not() {
-        let a = OccupancyMap::from_image(crate::synth::office_map(360, 280, 3).unwrap());
+        let a = OccupancyMap::from_image(crate::map::synthetic::office_map(360, 280, 3).unwrap());
         let turned = quarter_turn(&a);
         // Shifted: 40 unknown columns on its left.
         let (w, h) = (turned.image.width(), turned.image.height());
@@ -540,7 +540,8 @@ mod tests {
             })
             .collect();
         let moved = OccupancyMap::from_image(MapImage::new(w + 40, h, px).unwrap());
-        let other = OccupancyMap::from_image(crate::synth::office_map(360, 280, 11).unwrap());
+        let other =
+            OccupancyMap::from_image(crate::map::synthetic::office_map(360, 280, 11).unwrap());
         let sigs: Vec<Signature> = [&a, &moved, &other]
             .iter()
             .map(|m| Signature::of(m).unwrap())

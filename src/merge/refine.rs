@@ -9,7 +9,7 @@ use super::prepare::Prepared;
 use super::score::{score_both, Probe};
 use super::transform::{fit_rigid, Rigid};
 use crate::backend::Backend;
-use crate::error::Result;
+use crate::support::error::Result;
 
 /// `t` (src crop to dst crop) moved by up to `scale` half pixels and turned by up to `scale` tenths of
 /// a degree about src's walls' centre to where most wall pixels of each map land on occupied pixels of

@@ -6,9 +6,9 @@ use image::RgbImage;
 use super::compose::{overlay, OVERLAY_COLOURS};
 use super::eval::PairRecord;
 use super::transform::Rigid;
-use crate::error::Result;
 use crate::map::OccupancyMap;
-use crate::report::{Cell, Figure, Report, Table};
+use crate::support::error::Result;
+use crate::support::report::{Cell, Figure, Report, Table};
 
 /// Side of the box a pair's overlay is fitted into, pixels.
 pub const PAIR_PICTURE: u32 = 480;
@@ -153,8 +153,12 @@ pub fn overlay_rank(p: image::Rgb<u8>) -> u8 {
 /// walls and conflicts).
 pub fn pair_picture(a: &OccupancyMap, b: &OccupancyMap, t: &Rigid) -> Result<RgbImage> {
     // The full-size overlay dropped as soon as it is cut.
-    let full = crate::plot::crop_to_content(&overlay(a, b, t)?, super::compose::OVERLAY_UNKNOWN, 4);
-    Ok(crate::plot::fit_image(
+    let full = crate::support::plot::crop_to_content(
+        &overlay(a, b, t)?,
+        super::compose::OVERLAY_UNKNOWN,
+        4,
+    );
+    Ok(crate::support::plot::fit_image(
         &full,
         PAIR_PICTURE,
         PAIR_PICTURE,
@@ -242,7 +246,7 @@ impl PairsPage {
                 return Ok(());
             }
         };
-        let name = crate::report::file_name(i, "pair", "");
+        let name = crate::support::report::file_name(i, "pair", "");
         let mut figure = self.report.picture(&name, &picture, caption(i, r))?;
         figure.id = Some(anchor(i));
         figure.class = Some(outcome.class()).filter(|c| *c != "warn");
@@ -253,7 +257,7 @@ impl PairsPage {
             .and_then(|t| pair_picture(a, b, &t).ok().map(|p| (t, p)))
         {
             let (t, picture) = picture;
-            let name = crate::report::file_name(i, "pair", "-truth");
+            let name = crate::support::report::file_name(i, "pair", "-truth");
             let lines = vec![
                 format!("#{i} at the true pose"),
                 format!("{:.1}° ({:.1}, {:.1}) px", t.theta_deg, t.tx, t.ty),
@@ -377,8 +381,8 @@ mod tests {
 
     #[test]
     fn a_pair_that_cannot_be_drawn_is_listed_without_a_picture() {
+        use crate::map::states::FREE;
         use crate::map::MapImage;
-        use crate::states::FREE;
         // Two long corridors crossed at 90 degrees: the canvas would be far over the overlay's limit.
         let corridor = OccupancyMap::from_image(MapImage::filled(4000, 4, FREE).unwrap());
         let turned = Rigid {
@@ -402,8 +406,8 @@ mod tests {
 
     #[test]
     fn a_pair_picture_fills_its_box_and_shows_conflicts() {
+        use crate::map::states::{FREE, OCCUPIED, UNKNOWN};
         use crate::map::MapImage;
-        use crate::states::{FREE, OCCUPIED, UNKNOWN};
         // A room, and the same room with a wall across its middle where A is free.
         let room = |cross: bool| {
             let (w, h) = (120u32, 60u32);

@@ -2,8 +2,8 @@
 //! merges apply to every map whose cells differ from the reference map's, and the size it would have,
 //! refused in plain words before anything is allocated.
 
-use crate::error::{Error, Result};
 use crate::map::{GeoRef, MapImage, OccupancyMap};
+use crate::support::error::{Error, Result};
 
 /// Most pixels a map resampled to another's resolution may have (4 Gi: an index past this would not fit
 /// the 32-bit image sizes the tool uses).

@@ -5,7 +5,7 @@ use super::prepare::Prepared;
 use super::transform::Rigid;
 use crate::backend::Backend;
 use crate::cpu::merge_score::{FixedRigid, ScoreTarget};
-use crate::error::Result;
+use crate::support::error::Result;
 
 /// The scoring kernel's counts for one transform: inside, near, deep.
 pub(super) type Counts = [u32; 3];

@@ -302,7 +302,7 @@ mod tests {
     fn an_office_of_unequal_rooms_has_no_whole_turn() {
         for seed in [1u64, 2, 3] {
             for (w, h, most) in [(640, 480, 0.8), (1024, 768, 0.9)] {
-                let turns = turns_of(crate::synth::office_map(w, h, seed).unwrap());
+                let turns = turns_of(crate::map::synthetic::office_map(w, h, seed).unwrap());
                 let best = turns.first().map_or(0.0, |t| t.score);
                 assert!(best < most, "seed {seed}, {w}x{h}: {turns:?}");
             }
@@ -311,7 +311,7 @@ mod tests {
 
     #[test]
     fn a_map_with_no_walls_has_no_turns() {
-        let img = crate::map::MapImage::filled(64, 64, crate::states::FREE).unwrap();
+        let img = crate::map::MapImage::filled(64, 64, crate::map::states::FREE).unwrap();
         assert!(turns_of(img).is_empty());
     }
 }

@@ -4,9 +4,9 @@
 //! Host code over the few cells where a rule fired, shared by every backend.
 
 use crate::cpu::coarsen::{sample, FREE, OCCUPIED};
-use crate::grid::RotatedGrid;
+use crate::map::grid::RotatedGrid;
+use crate::map::states::{CellState, ClassTable};
 use crate::map::MapImage;
-use crate::states::{CellState, ClassTable};
 
 /// Longest wall arm measured, in coarse cells.
 pub const MAX_ARM_CELLS: i32 = 64;

@@ -3,7 +3,7 @@
 //! Real sensor maps have walls several pixels thick and jagged, turned by any angle, so a room corner is
 //! almost never the exact 3 x 3 pattern the rules look for. The robust detector
 //! 1. estimates the map's dominant wall direction ([`orientation`]) and samples the map on a grid
-//!    turned to it ([`crate::grid`]): walls run along rows and columns;
+//!    turned to it ([`crate::map::grid`]): walls run along rows and columns;
 //! 2. coarsens that grid at several scales (the `coarsen` kernel: a cell is occupied when a quarter of
 //!    its samples are), so that a jagged wall is a straight line of cells at some scale;
 //! 3. runs the paper's detector, unchanged, on every coarse map: on free cells (concave corners, as in
@@ -31,11 +31,11 @@ pub use crate::backend::robust_params::{grid_samples, robust_working_bytes, Anch
 
 use crate::backend::{Backend, Keypoint};
 use crate::cpu::coarsen::{Mosaic, FREE, OCCUPIED};
-use crate::error::Result;
-use crate::grid::RotatedGrid;
+use crate::map::grid::RotatedGrid;
+use crate::map::states::{CellState, ClassTable};
 use crate::map::MapImage;
 use crate::rules::RuleTable;
-use crate::states::{CellState, ClassTable};
+use crate::support::error::Result;
 use corners::{concave_arms, convex_arms, Arms, Cells, Sampler};
 use rayon::prelude::*;
 pub use suppress::suppress;
@@ -58,7 +58,7 @@ pub fn coarse_classes(swapped: bool) -> ClassTable {
 /// What the robust detector found besides its keypoints.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct RobustInfo {
-    /// The grid angle used, degrees (as quantised, see [`crate::grid::FRAC_BITS`]).
+    /// The grid angle used, degrees (as quantised, see [`crate::map::grid::FRAC_BITS`]).
     pub angle: f64,
     /// The point the grid was anchored at, map pixels ([`RobustParams::anchor`]): with the angle, what
     /// `Anchor::Point` and `angle` need to repeat the detection on a crop or a grown copy of the map.
@@ -84,7 +84,7 @@ pub fn detect(
         .unwrap_or_else(|| orientation::dominant_angle_about(image, classes, anchor2));
     let grid = RotatedGrid::anchored(w, h, angle, anchor2)?;
     // Between stages, a raised stop (Ctrl-C in Python) ends the detection.
-    crate::stop::check()?;
+    crate::support::stop::check()?;
     // The map in memory is one window of the tiled path: every corner seen, every fate decided.
     let window = Window {
         image,
@@ -194,7 +194,7 @@ pub fn detect_window(
     let coarse = backend.coarsen(image, classes, grid, &scales, params.cells)?;
     let mut found = Vec::new();
     for (&scale, map) in scales.iter().zip(&coarse) {
-        crate::stop::check()?;
+        crate::support::stop::check()?;
         let cells = Cells::new(map);
         let mosaic = Mosaic::new(grid, scale);
         let lattice = Lattice::new(grid, &mosaic);
@@ -234,7 +234,7 @@ pub fn detect_window(
         centres,
         &|i| window.settled.contains(found[i].at),
     );
-    crate::stop::check()?;
+    crate::support::stop::check()?;
     // The survivors are placed, those of the ring too: the suppression on the placed positions is then
     // decided here as well where it can be, so that the window reports about one corner a keypoint.
     let survivors: Vec<usize> = (0..found.len())

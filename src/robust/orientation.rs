@@ -8,10 +8,10 @@
 
 use rayon::prelude::*;
 
-use crate::error::Result;
 use crate::fast::bitplanes::{plane_row, words, ValueSet};
+use crate::map::states::{CellState, ClassTable};
 use crate::map::MapImage;
-use crate::states::{CellState, ClassTable};
+use crate::support::error::Result;
 
 /// Boundary pixels used at most: beyond this, a deterministic subset whose choice does not depend on the
 /// map's orientation (whole orbits of the map's quarter turns and mirrors are kept or dropped).
@@ -178,7 +178,7 @@ fn profile(points: &[(i32, i32)], tenths: i32, bin: i64, hist: &mut Vec<u32>) ->
 }
 
 /// The occupied pixels with a free 4-neighbour, in half pixels about `anchor2` (half pixels; at most
-/// [`crate::grid::MAX_ANCHOR`] pixels from the map's pixel (0, 0)); at most about [`MAX_POINTS`] of them.
+/// [`crate::map::grid::MAX_ANCHOR`] pixels from the map's pixel (0, 0)); at most about [`MAX_POINTS`] of them.
 fn boundary_points(
     rows: &mut dyn RowReader,
     classes: &ClassTable,
@@ -286,7 +286,7 @@ mod tests {
     #[test]
     fn about_an_anchor_far_off_the_map_the_angle_is_found_too() {
         // The histograms span the points, not the anchor's distance (a million pixels here).
-        let far = 2 * i64::from(crate::grid::MAX_ANCHOR);
+        let far = 2 * i64::from(crate::map::grid::MAX_ANCHOR);
         for anchor2 in [(far, -far), (-far, 3), (479, 479)] {
             let got = dominant_angle_about(&turned_room(-20.0), &ClassTable::default(), anchor2);
             assert!((got + 20.0).abs() <= 0.3, "{anchor2:?}: got {got}");

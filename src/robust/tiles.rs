@@ -27,12 +27,12 @@ use super::orientation::{self, RowReader};
 use super::{detect_window, finish, RobustInfo, RobustParams, Span, Window};
 use crate::backend::{Backend, Keypoint};
 use crate::cpu::coarsen::MAX_SCALE;
-use crate::error::{Error, Result};
-use crate::grid::RotatedGrid;
+use crate::map::grid::RotatedGrid;
+use crate::map::states::ClassTable;
+use crate::map::stream::{RowSource, Rows};
 use crate::map::MapImage;
 use crate::rules::RuleTable;
-use crate::states::ClassTable;
-use crate::stream::{RowSource, Rows};
+use crate::support::error::{Error, Result};
 
 /// Smallest tile side, samples: below it the halo is nearly all the work.
 pub const MIN_TILE: u32 = 256;
@@ -212,7 +212,7 @@ impl Spill {
         let mut buf = vec![0u8; rows * w as usize];
         let mut y = 0usize;
         while y < h as usize {
-            crate::stop::check()?;
+            crate::support::stop::check()?;
             let n = rows.min(h as usize - y);
             let chunk = &mut buf[..n * w as usize];
             source.read_rows(chunk)?;
@@ -319,7 +319,7 @@ pub fn detect_tiled(
     let mut candidates = 0;
     for j in 0..ny {
         for i in 0..nx {
-            crate::stop::check()?;
+            crate::support::stop::check()?;
             let owned = Span {
                 p: span(i, nx),
                 q: span(j, ny),

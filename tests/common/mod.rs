@@ -5,14 +5,14 @@ use std::path::PathBuf;
 
 pub mod run;
 
-use ogm_corners::synth::{FREE, OCCUPIED, UNKNOWN};
+use ogm_corners::map::synthetic::{FREE, OCCUPIED, UNKNOWN};
 use ogm_corners::{DetectOptions, Detector, Keypoint, MapImage, OccupancyMap, RuleSet};
 
 /// A coarse-cell rule for a twin test: the default on even seeds, else shares drawn from 1% to 120% of a
 /// cell's samples (over 100%, which the options refuse, no cell reaches the threshold on any path).
 pub fn some_cell_rule(
     seed: u64,
-    rng: &mut ogm_corners::synth::Rng,
+    rng: &mut ogm_corners::map::synthetic::Rng,
 ) -> ogm_corners::cpu::coarsen::CellRule {
     if seed.is_multiple_of(2) {
         ogm_corners::cpu::coarsen::CellRule::default()
@@ -55,7 +55,7 @@ pub fn art(rows: &[&str]) -> MapImage {
 
 /// Three-state maps whose occupied density varies with the seed, so sparse and dense maps both occur.
 pub fn random_map(w: u32, h: u32, seed: u64) -> MapImage {
-    let mut rng = ogm_corners::synth::Rng::new(seed);
+    let mut rng = ogm_corners::map::synthetic::Rng::new(seed);
     let occ = 0.15 + 0.3 * (seed % 4) as f64 / 3.0;
     let px = (0..w as usize * h as usize)
         .map(|_| {
@@ -274,8 +274,8 @@ pub fn turned_rooms(size: u32, degrees: f64, seed: u64) -> (MapImage, Vec<(f64, 
 /// the map does not look the same turned by 180 degrees (the bare office's grid of rooms nearly does), and
 /// its top-right corner unexplored.
 pub fn cluttered_office(w: u32, h: u32, seed: u64) -> MapImage {
-    let mut img = ogm_corners::synth::office_map(w, h, seed).unwrap();
-    let mut rng = ogm_corners::synth::Rng::new(seed ^ 0x5eed);
+    let mut img = ogm_corners::map::synthetic::office_map(w, h, seed).unwrap();
+    let mut rng = ogm_corners::map::synthetic::Rng::new(seed ^ 0x5eed);
     let boxes = (w * h / 4000).max(4);
     for _ in 0..boxes {
         let (bw, bh) = (rng.range(6, 40), rng.range(6, 40));
@@ -310,7 +310,7 @@ pub fn floor_plan(w: u32, h: u32, seed: u64) -> MapImage {
             px[(y * w + x) as usize] = if edge { OCCUPIED } else { FREE };
         }
     }
-    let mut rng = ogm_corners::synth::Rng::new(seed);
+    let mut rng = ogm_corners::map::synthetic::Rng::new(seed);
     let mut rooms = vec![(x0 + 3, y0 + 3, x1 - 3, y1 - 3)];
     while let Some((ax, ay, bx, by)) = rooms.pop() {
         let (rw, rh) = (bx - ax, by - ay);

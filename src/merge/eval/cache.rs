@@ -8,10 +8,10 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
-use crate::error::Result;
 use crate::map::OccupancyMap;
 use crate::merge::align::{Alignment, MergeOptions};
 use crate::merge::global::{content_id, ContentId};
+use crate::support::error::Result;
 
 /// The code that measures an alignment, as the build saw it: the crate's version and a hash of every
 /// source but the command line and this harness (`build.rs`).
@@ -88,8 +88,12 @@ impl RecordCache {
     /// The alignment kept under `key`, with its time, counted as a hit; None (counted as nothing) when
     /// there is none, or it cannot be read, or another build wrote it.
     pub fn get(&mut self, key: &str) -> Option<(Alignment, f64)> {
-        let text = crate::files::read_small_text(&self.path(key), MAX_ENTRY_BYTES, "a cache entry")
-            .ok()?;
+        let text = crate::support::files::read_small_text(
+            &self.path(key),
+            MAX_ENTRY_BYTES,
+            "a cache entry",
+        )
+        .ok()?;
         let entry: Entry = serde_json::from_str(&text).ok()?;
         if entry.measure != self.measure {
             return None;
@@ -111,15 +115,15 @@ impl RecordCache {
     }
 
     fn write(&self, key: &str, alignment: &Alignment, ms: f64) -> Result<()> {
-        crate::files::create_dir(&self.dir)?;
+        crate::support::files::create_dir(&self.dir)?;
         let entry = Entry {
             measure: self.measure.clone(),
             alignment: alignment.clone(),
             ms,
         };
         let text = serde_json::to_string(&entry)
-            .map_err(|e| crate::error::Error::Internal(e.to_string()))?;
-        crate::files::write_atomic(&self.path(key), |w| w.write_all(text.as_bytes()))
+            .map_err(|e| crate::support::error::Error::Internal(e.to_string()))?;
+        crate::support::files::write_atomic(&self.path(key), |w| w.write_all(text.as_bytes()))
     }
 }
 

@@ -12,7 +12,6 @@
 //! merger. Windows apart are negatives: any accept is wrong.
 
 use super::{synthetic_label, synthetic_record, MapCosts, OnPair, PairRecord, PrepTimer};
-use crate::error::{Error, Result};
 use crate::map::OccupancyMap;
 use crate::merge::align::MergeOptions;
 use crate::merge::synthetic::{
@@ -20,6 +19,7 @@ use crate::merge::synthetic::{
     synthetic_pair_with, CropSpec, LayoutKind, PairShape, SymmetricKind, SyntheticPair,
     SyntheticSpec, MIN_ALIAS_CONTRADICTION,
 };
+use crate::support::error::{Error, Result};
 
 /// A family of synthetic pairs.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -103,7 +103,7 @@ pub fn run_families(
     let mut prep = PrepTimer::default();
     let offices: Vec<OccupancyMap> = (0..per as u64)
         .map(|k| {
-            crate::synth::office_map(1024, 768, seed.wrapping_mul(97).wrapping_add(k + 11))
+            crate::map::synthetic::office_map(1024, 768, seed.wrapping_mul(97).wrapping_add(k + 11))
                 .map(OccupancyMap::from_image)
         })
         .collect::<Result<_>>()?;

@@ -20,8 +20,8 @@ use super::synthetic::{furnished_pair, synthetic_pair, SyntheticPair, SyntheticS
 use super::transform::Rigid;
 use crate::backend::DetectorKind;
 use crate::baselines::Baseline;
-use crate::error::Result;
 use crate::map::OccupancyMap;
+use crate::support::error::Result;
 
 /// One pair's outcome.
 #[derive(Clone, Debug, Serialize)]
@@ -60,7 +60,7 @@ pub fn map_path(maps: &Path, name: &str) -> Result<std::path::PathBuf> {
         // Anything there, not only a regular file: loading then says what it is (a fifo, a device).
         .find(|p| p.exists())
         .ok_or_else(|| {
-            crate::error::Error::input(
+            crate::support::error::Error::input(
                 maps,
                 format!(
                     "no map {name:?} in this folder (looked for {})",
@@ -424,8 +424,8 @@ fn run_negatives(
 fn write_pair_file(dir: &std::path::Path, saved: &[TruePair]) -> Result<()> {
     let set = serde_json::json!({ "pairs": saved, "negatives": [], "maps": "." });
     let text = serde_json::to_string_pretty(&set)
-        .map_err(|e| crate::error::Error::Internal(e.to_string()))?;
-    crate::files::write_atomic(&dir.join("pairs.json"), |w| {
+        .map_err(|e| crate::support::error::Error::Internal(e.to_string()))?;
+    crate::support::files::write_atomic(&dir.join("pairs.json"), |w| {
         w.write_all(text.as_bytes())?;
         writeln!(w)
     })
@@ -905,7 +905,8 @@ mod tests {
     /// time; a second pair of the same maps and a map aligned with itself add what they should.
     #[test]
     fn self_symmetry_is_counted_once_per_map_apart_from_the_pairs() {
-        let office = OccupancyMap::from_image(crate::synth::office_map(480, 360, 5).unwrap());
+        let office =
+            OccupancyMap::from_image(crate::map::synthetic::office_map(480, 360, 5).unwrap());
         let spec = SyntheticSpec {
             overlap: 0.6,
             noise: 0.0,

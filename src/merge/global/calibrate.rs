@@ -88,8 +88,9 @@ pub fn calibrate(pairwise: &Pairwise, ev: &[EdgeEvidence]) -> Calibration {
     if confirmed == 0 {
         return Calibration::default();
     }
-    let median = crate::stats::median(r.clone());
-    let spread = 1.4826 * crate::stats::median(r.iter().map(|x| (x - median).abs()).collect());
+    let median = crate::support::stats::median(r.clone());
+    let spread =
+        1.4826 * crate::support::stats::median(r.iter().map(|x| (x - median).abs()).collect());
     let limit = (confirmed >= MIN_CONFIRMED)
         .then(|| (median + SPREADS * spread).max(MEDIANS * median).max(FLOOR));
     Calibration {

@@ -6,10 +6,10 @@
 //! is exact ([`crate::merge::codec`], [`super::PairRecord`]).
 
 use super::{align_pairs, GlobalOptions, PairRecord};
-use crate::error::Result;
 use crate::map::OccupancyMap;
 use crate::merge::align::Prepared;
 use crate::merge::prescreen::Signature;
+use crate::support::error::Result;
 
 /// Computes a run's preparations and pair alignments.
 pub trait Engine {
@@ -52,12 +52,12 @@ impl Engine for Local {
         signatures: bool,
     ) -> Result<Vec<(Prepared, Option<Signature>)>> {
         use rayon::prelude::*;
-        let stop = crate::stop::current();
+        let stop = crate::support::stop::current();
         maps.par_iter()
             .map(|&(_, map)| {
-                crate::stop::with(stop.clone(), || {
+                crate::support::stop::with(stop.clone(), || {
                     // A raised stop skips the maps not yet prepared.
-                    crate::stop::check()?;
+                    crate::support::stop::check()?;
                     let s = signatures.then(|| Signature::of(map)).transpose()?;
                     Ok((Prepared::new(map), s))
                 })

@@ -8,10 +8,10 @@ use serde::Serialize;
 use super::graph::Placement;
 use super::{GlobalOptions, Pairwise, Timing};
 use crate::cpu::CpuBackend;
-use crate::error::Result;
 use crate::map::OccupancyMap;
 use crate::merge::pairs::TruePair;
 use crate::merge::transform::Rigid;
+use crate::support::error::Result;
 
 /// Many maps placed: the pairwise alignments, the placement, the time.
 #[derive(Clone, Debug, Serialize)]
@@ -468,7 +468,7 @@ pub fn synthetic_maps(
     let cols = (n as f64 * 4.0 / 3.0).sqrt().round().max(1.0);
     let rows = (n as f64 / cols).ceil();
     let (w, h) = ((cols * 290.0) as u32, (rows * 290.0) as u32);
-    let half = crate::synth::office_map(w.max(128), h.max(128), seed)?;
+    let half = crate::map::synthetic::office_map(w.max(128), h.max(128), seed)?;
     let (w2, h2) = (half.width() * 2, half.height() * 2);
     let px = (0..h2)
         .flat_map(|y| (0..w2).map(move |x| (x, y)))
@@ -487,7 +487,7 @@ pub fn synthetic_maps_of(
 ) -> Result<(Vec<String>, Vec<OccupancyMap>, Vec<TruePair>)> {
     use crate::merge::synthetic::synthetic_set;
     let crops = synthetic_set(source, n, 0.0, seed).ok_or_else(|| {
-        crate::error::Error::invalid("the synthetic map is too small to cut a set from")
+        crate::support::error::Error::invalid("the synthetic map is too small to cut a set from")
     })?;
     let names: Vec<String> = (0..n).map(|k| format!("part-{k:02}")).collect();
     let mut truths = Vec::new();

@@ -8,12 +8,12 @@ use serde::Serialize;
 use super::calibrate::{Calibration, EdgeEvidence};
 use super::{Edge, GlobalOptions, Pairwise};
 use crate::backend::Backend;
-use crate::error::Result;
 use crate::map::OccupancyMap;
 use crate::merge::accept::Features;
 use crate::merge::align::{align_prepared_with, check, Prepared};
 use crate::merge::mosaic::compose_many;
 use crate::merge::transform::Rigid;
+use crate::support::error::Result;
 
 /// Candidates below this pair rule value are not used (the pair test accepts from 0).
 pub const WEAK_FROM: f64 = -16.0;
@@ -251,7 +251,7 @@ pub fn place(
     let mut contradicted = vec![false; n];
     loop {
         // Each round may run dense checks of mosaics: a raised stop (Ctrl-C in Python) ends it here.
-        crate::stop::check()?;
+        crate::support::stop::check()?;
         // Every pair of groups' best placement: those a trusted edge stands behind first, the strongest
         // first; then those only cycles or several pairs stand behind (the groups' mosaics must pass the
         // pair test).

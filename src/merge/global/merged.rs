@@ -8,10 +8,10 @@ use std::time::Instant;
 use super::report::{self, Poses};
 use super::{Cache, GlobalOptions, Run};
 use crate::backend::Backend;
-use crate::error::Result;
 use crate::map::OccupancyMap;
 use crate::merge::mosaic::{self, Frame};
 use crate::merge::{resample, Rigid};
+use crate::support::error::Result;
 
 /// Many maps placed, with what it takes to draw each group.
 #[derive(Clone, Debug)]
@@ -76,7 +76,7 @@ pub fn merge_maps_with(
     let mut scales = vec![None; maps.len()];
     if let Some(res) = maps.iter().find_map(|m| m.georef).map(|g| g.resolution) {
         for (m, s) in maps.iter_mut().zip(&mut scales) {
-            crate::stop::check()?;
+            crate::support::stop::check()?;
             let (at, scale) = resample::at_resolution(m, res)?;
             if let Cow::Owned(resampled) = at {
                 (*m, *s) = (resampled, scale);
@@ -158,6 +158,9 @@ impl ManyMerge {
             .into_iter()
             .map(|(m, c)| (crate::map::map_name(std::path::Path::new(m)), c))
             .collect();
-        Ok(crate::plot::with_legend(&self.overlay(g)?, &entries))
+        Ok(crate::support::plot::with_legend(
+            &self.overlay(g)?,
+            &entries,
+        ))
     }
 }

@@ -40,7 +40,7 @@ use serde::Serialize;
 use super::align::{align_prepared, MergeOptions, Prepared};
 use super::prescreen::{Prescreen, Signature};
 use super::transform::Rigid;
-use crate::error::Result;
+use crate::support::error::Result;
 pub use cache::{content_id, Cache, CacheUse, ContentId};
 pub use engine::{Engine, Local};
 pub use merged::{merge_maps, merge_maps_cached, merge_maps_with, ManyMerge};
@@ -178,7 +178,7 @@ pub struct Pairwise {
 
 /// Aligns every pair of `maps` (map `b` onto map `a` for `a < b`), the pairs in parallel; `progress` is
 /// told after each pair (pairs done, pairs in all) from whichever thread finished it. Under a raised
-/// [`crate::stop::Stop`] the pairs not started are skipped and the result is [`crate::Error::Interrupted`].
+/// [`crate::support::stop::Stop`] the pairs not started are skipped and the result is [`crate::Error::Interrupted`].
 pub fn align_all(
     maps: &[Prepared],
     options: &GlobalOptions,
@@ -211,12 +211,12 @@ pub(crate) fn align_pairs(
     let done = std::sync::atomic::AtomicUsize::new(0);
     let total = pairs.len();
     // A raised stop ends each pair at its next check and skips the pairs not started.
-    let stop = crate::stop::current();
+    let stop = crate::support::stop::current();
     let results: Vec<Result<PairRecord>> = pairs
         .par_iter()
         .map(|&(a, b)| {
-            crate::stop::with(stop.clone(), || {
-                crate::stop::check()?;
+            crate::support::stop::with(stop.clone(), || {
+                crate::support::stop::check()?;
                 // A pair too large to correlate is declined, not the whole set refused.
                 let al =
                     match super::coarse::check_size((maps[b].w, maps[b].h), (maps[a].w, maps[a].h))
@@ -348,12 +348,12 @@ fn why_not_each(
     options: &GlobalOptions,
 ) -> Result<Vec<Option<String>>> {
     use rayon::prelude::*;
-    let stop = crate::stop::current();
+    let stop = crate::support::stop::current();
     records
         .par_iter()
         .map(|&((a, b), r)| {
-            crate::stop::with(stop.clone(), || {
-                crate::stop::check()?;
+            crate::support::stop::with(stop.clone(), || {
+                crate::support::stop::check()?;
                 verify::why_not(&maps[a], &maps[b], r, options)
             })
         })
@@ -525,12 +525,14 @@ pub fn run_with(
     }
     // A map kept from a run that needed no signature gets one now that a screen needs it.
     if screen.is_some() {
-        let stop = crate::stop::current();
+        let stop = crate::support::stop::current();
         kept.par_iter_mut()
             .zip(unique.par_iter())
             .try_for_each(|(kept, &i)| -> Result<()> {
                 if let Some((_, s @ None)) = kept {
-                    *s = Some(crate::stop::with(stop.clone(), || Signature::of(&maps[i]))?);
+                    *s = Some(crate::support::stop::with(stop.clone(), || {
+                        Signature::of(&maps[i])
+                    })?);
                 }
                 Ok(())
             })?;
@@ -540,7 +542,7 @@ pub fn run_with(
         .map(|p| p.expect("every map prepared"))
         .unzip();
     let prepare = t.elapsed().as_secs_f64();
-    crate::stop::check()?;
+    crate::support::stop::check()?;
     let t = Instant::now();
     // An earlier run's records are claims: those the maps do not bear out are aligned again.
     let (start, refused) = vouched(&prepared, cache.carried(&keys), options)?;
@@ -566,12 +568,12 @@ pub fn run_with(
     let mut pairwise = pairwise_of(prepared.len(), &pairs);
     pairwise.rounds = rounds;
     let align = t.elapsed().as_secs_f64();
-    crate::stop::check()?;
+    crate::support::stop::check()?;
     let t = Instant::now();
     let images: Vec<&crate::map::OccupancyMap> = unique.iter().map(|&i| &maps[i]).collect();
     let mut placement = place(&pairwise, &prepared, &images, options, backend)?;
     // The placement's last round may have ended at a stop: no placement is returned then.
-    crate::stop::check()?;
+    crate::support::stop::check()?;
     let place = t.elapsed().as_secs_f64();
     let alignable: Vec<bool> = prepared.iter().map(Prepared::alignable).collect();
     let records: Vec<(usize, usize, PairRecord)> = pairs

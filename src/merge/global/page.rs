@@ -4,8 +4,8 @@
 use std::path::Path;
 
 use super::merged::ManyMerge;
-use crate::error::Result;
-use crate::report::{file_name, Cell, Report, Staged, Table};
+use crate::support::error::Result;
+use crate::support::report::{file_name, Cell, Report, Staged, Table};
 
 /// Width of the box a group's picture is fitted into, pixels.
 pub const GROUP_PICTURE: u32 = 1000;
@@ -155,13 +155,15 @@ pub fn write(mut page: Report, many: &ManyMerge) -> Result<Staged> {
         let legend = many.legend(g);
         page.legend(&legend);
         let full = many.overlay(g)?;
-        let full = crate::plot::crop_to_content(&full, crate::merge::compose::OVERLAY_UNKNOWN, 4);
+        let full =
+            crate::support::plot::crop_to_content(&full, crate::merge::compose::OVERLAY_UNKNOWN, 4);
         // Walls (any map's colour) survive a shrink before free space, free space before unknown.
-        let picture = crate::plot::fit_image(&full, GROUP_PICTURE, GROUP_PICTURE, |p| match p {
-            crate::merge::compose::OVERLAY_UNKNOWN => 0,
-            image::Rgb([255, 255, 255]) => 1,
-            _ => 2,
-        });
+        let picture =
+            crate::support::plot::fit_image(&full, GROUP_PICTURE, GROUP_PICTURE, |p| match p {
+                crate::merge::compose::OVERLAY_UNKNOWN => 0,
+                image::Rgb([255, 255, 255]) => 1,
+                _ => 2,
+            });
         let caption = vec![
             format!("group {g}: each map's walls in its colour"),
             "free space white, unknown grey".to_string(),

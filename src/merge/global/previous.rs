@@ -10,7 +10,7 @@ use std::collections::HashMap;
 use serde::Deserialize;
 
 use super::{report, Cache, ContentId, GlobalOptions, PairRecord};
-use crate::error::{Error, Result};
+use crate::support::error::{Error, Result};
 
 /// What a run reads of an earlier run's `--poses` file.
 #[derive(Clone, Debug)]

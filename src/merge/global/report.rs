@@ -224,7 +224,7 @@ pub fn poses(
 
 /// The text verdict: a line per map, then the groups and the totals.
 pub fn write_text(out: &mut dyn Write, doc: &Poses) -> io::Result<()> {
-    use crate::error::one_line;
+    use crate::support::error::one_line;
     for m in &doc.maps {
         // Names escaped, as errors are: a newline in a file name must not split a record, an escape
         // sequence must not reach the terminal.
@@ -282,8 +282,8 @@ pub fn write_text(out: &mut dyn Write, doc: &Poses) -> io::Result<()> {
 /// placed are listed as comments. A robot name that is not a plain identifier is written quoted (a
 /// newline or a colon in a file name stays inside its key); a pose that is not finite (an origin so
 /// large that it overflows) is refused, naming the map: a YAML reader would take `inf` for a string.
-pub fn init_poses_yaml(doc: &Poses) -> crate::error::Result<String> {
-    use crate::error::one_line;
+pub fn init_poses_yaml(doc: &Poses) -> crate::support::error::Result<String> {
+    use crate::support::error::one_line;
     let mut s = String::from(
         "# multirobot_map_merge with known_init_poses: each robot's map frame in the merged frame of its\n\
          # group (the frame of the group's first map), as found by ogm-corners merge.\n",
@@ -306,7 +306,7 @@ pub fn init_poses_yaml(doc: &Poses) -> crate::error::Result<String> {
         match (m.world, m.group) {
             (Some(w), Some(g)) => {
                 if ![w.x, w.y, w.yaw].iter().all(|v| v.is_finite()) {
-                    return Err(crate::error::Error::invalid(format!(
+                    return Err(crate::support::error::Error::invalid(format!(
                         "{}: its pose in the merged frame is not finite (x {}, y {}, yaw {}): its yaml's \
                          origin or resolution is out of range; no --init-poses written",
                         one_line(&m.map),

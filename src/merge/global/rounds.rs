@@ -8,10 +8,10 @@ use std::collections::{BTreeMap, BTreeSet};
 use serde::Serialize;
 
 use super::{pair_order, CacheUse, PairRecord};
-use crate::error::Result;
 use crate::merge::align::Prepared;
 use crate::merge::prescreen::{self, Prescreen, Signature};
 use crate::merge::transform::Rigid;
+use crate::support::error::Result;
 
 /// One round of a screened set's alignments.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
@@ -48,7 +48,7 @@ pub(super) fn align_rounds(
         prescreen::similarities(&s)
     });
     // Comparing thousands of signatures takes a while: a raised stop ends the run here.
-    crate::stop::check()?;
+    crate::support::stop::check()?;
     let mut chosen: Vec<(usize, usize)> = match (screen, &similar) {
         (Some(p), Some(similar)) => {
             let sizes: Vec<f64> = maps.iter().map(|m| m.walls.len() as f64).collect();

@@ -18,7 +18,6 @@
 
 use super::{GlobalOptions, PairRecord};
 use crate::cpu::CpuBackend;
-use crate::error::Result;
 use crate::merge::align::{
     accepts, alias, check, not_contradicted, overlap_centre, reference_rms, self_symmetry_with,
     Features, Prepared, Repeats, MAX_CANDIDATES, MAX_RATIO,
@@ -26,6 +25,7 @@ use crate::merge::align::{
 use crate::merge::local::local_both;
 use crate::merge::refine::{map_to_crop, polish};
 use crate::merge::transform::Rigid;
+use crate::support::error::Result;
 
 /// How far a candidate's rule value may stand above what the maps allow at its pose: a few pixels'
 /// rounding between the pose the aligner verified (in its crop) and the same pose as recorded (in the

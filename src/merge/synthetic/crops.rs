@@ -2,10 +2,10 @@
 //! overlapping by a share of their side or apart (then any merge of them is wrong).
 
 use super::{box_points, turned, written, SyntheticPair, SYNTHETIC_RMS_LIMIT_PX};
+use crate::map::states::{CellState, ClassTable, UNKNOWN};
+use crate::map::synthetic::Rng;
 use crate::map::{MapImage, OccupancyMap};
 use crate::merge::transform::Rigid;
-use crate::states::{CellState, ClassTable, UNKNOWN};
-use crate::synth::Rng;
 
 /// How to cut two small windows.
 #[derive(Clone, Copy, Debug, PartialEq)]

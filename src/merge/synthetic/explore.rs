@@ -6,9 +6,9 @@
 use std::collections::VecDeque;
 
 use super::{box_points, turned, SyntheticCrop};
+use crate::map::states::{CellState, ClassTable};
+use crate::map::synthetic::Rng;
 use crate::map::{MapImage, OccupancyMap};
-use crate::states::{CellState, ClassTable};
-use crate::synth::Rng;
 
 /// How the robots explore.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -253,7 +253,8 @@ mod tests {
 
     #[test]
     fn robots_see_overlapping_parts_within_range_and_their_poses_are_exact() {
-        let source = OccupancyMap::from_image(crate::synth::office_map(400, 300, 2).unwrap());
+        let source =
+            OccupancyMap::from_image(crate::map::synthetic::office_map(400, 300, 2).unwrap());
         let robots = explore(&source, &Exploration::default(), 7).unwrap();
         assert_eq!(robots.len(), 3);
         let classes = ClassTable::new(&source.thresholds);

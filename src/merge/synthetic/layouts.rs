@@ -5,10 +5,10 @@
 //! What breaks the period is what real buildings have: the outer walls against the unknown outside, a
 //! few walls left out, a few cabinets, a missing door. Everything else repeats exactly.
 
-use crate::error::Result;
+use crate::map::states::{FREE, OCCUPIED, UNKNOWN};
+use crate::map::synthetic::Rng;
 use crate::map::MapImage;
-use crate::states::{FREE, OCCUPIED, UNKNOWN};
-use crate::synth::Rng;
+use crate::support::error::Result;
 
 /// A generated layout: the map and the basis of its lattice of repeats (pixels).
 #[derive(Clone, Debug)]
@@ -242,8 +242,8 @@ pub fn doors(seed: u64) -> Result<Layout> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::map::states::{CellState, ClassTable};
     use crate::map::Thresholds;
-    use crate::states::{CellState, ClassTable};
 
     /// Away from the outer walls and the few breakers, each layout repeats under its lattice.
     #[test]

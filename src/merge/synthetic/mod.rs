@@ -22,9 +22,9 @@ pub use symmetric::{
 
 use super::pairs::TruePair;
 use super::transform::Rigid;
+use crate::map::states::{CellState, ClassTable, FREE, OCCUPIED, UNKNOWN};
+use crate::map::synthetic::Rng;
 use crate::map::{MapImage, OccupancyMap};
-use crate::states::{CellState, ClassTable, FREE, OCCUPIED, UNKNOWN};
-use crate::synth::Rng;
 
 /// How to cut a pair.
 #[derive(Clone, Copy, Debug, PartialEq)]

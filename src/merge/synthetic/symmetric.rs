@@ -7,10 +7,10 @@
 //! Drawn as a union of free rectangles (corridors, rooms, doors) and a regular polygon (the hall); walls
 //! are what is not free within [`WALL`] px of free space, the rest unknown, as a floor plan's map.
 
-use crate::error::Result;
+use crate::map::states::{FREE, OCCUPIED, UNKNOWN};
+use crate::map::synthetic::Rng;
 use crate::map::MapImage;
-use crate::states::{FREE, OCCUPIED, UNKNOWN};
-use crate::synth::Rng;
+use crate::support::error::Result;
 
 /// Wall thickness, pixels.
 const WALL: f64 = 3.0;

@@ -4,7 +4,7 @@
 
 use std::fmt;
 
-use crate::error::{Error, Result};
+use crate::support::error::{Error, Result};
 
 /// The environment variable that sets the limit when `--max-memory` is not given.
 pub const ENV_VAR: &str = "OGM_MAX_MEMORY";

@@ -9,7 +9,7 @@ use std::fs::File;
 use std::path::{Path, PathBuf};
 use std::ptr::NonNull;
 
-use crate::error::{Error, Result};
+use crate::support::error::{Error, Result};
 
 /// The alignment `O_DIRECT` asks of offsets, lengths and buffers: the page size, which every block
 /// device's logical block size divides.

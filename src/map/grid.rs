@@ -16,7 +16,7 @@
 //! is a tie. Anchored at a point fixed in the world (the map frame's origin), the samples of a crop of the
 //! map, or of the map grown by more rows and columns, are those of the map where both see it.
 
-use crate::error::{Error, Result};
+use crate::support::error::{Error, Result};
 
 /// Fraction bits of the fixed-point cosine and sine: angles are resolved to about 0.06 degrees, and the
 /// sample positions stay exact integers in `i32` up to [`MAX_SIDE`].

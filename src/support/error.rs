@@ -26,7 +26,7 @@ pub enum Error {
     Internal(String),
     /// `merge` was not confident enough to merge (the verdict has been printed; exit status 3).
     Declined(String),
-    /// The caller stopped the work ([`crate::stop`]; Ctrl-C in Python).
+    /// The caller stopped the work ([`crate::support::stop`]; Ctrl-C in Python).
     Interrupted,
 }
 

@@ -2,10 +2,10 @@
 //!
 //! The project ships no real maps; everything it needs to show or measure is generated here.
 
-use crate::error::{Error, Result};
 use crate::map::MapImage;
+use crate::support::error::{Error, Result};
 
-pub use crate::states::{FREE, OCCUPIED, UNKNOWN};
+pub use crate::map::states::{FREE, OCCUPIED, UNKNOWN};
 
 /// SplitMix64: small, fast and stable across versions, so a seed always gives the same map.
 #[derive(Clone, Debug)]

@@ -14,7 +14,7 @@ use std::io::{self, BufWriter, Read, Write};
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 
-use crate::error::{Error, Result};
+use crate::support::error::{Error, Result};
 
 /// Temporary files being written now, removed by [`remove_pending`] when the process is interrupted.
 static PENDING: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
@@ -424,7 +424,7 @@ pub fn write_png(path: &Path, img: &image::RgbImage) -> Result<()> {
     write_atomic(path, |w| encode_png(w, img))
 }
 
-/// `img` as a PNG into `w`, marked as the tool's picture (a `Software` text chunk, [`crate::marks`]) so
+/// `img` as a PNG into `w`, marked as the tool's picture (a `Software` text chunk, [`crate::support::marks`]) so
 /// that a folder run never reads it back as a map.
 pub fn encode_png(w: &mut dyn Write, img: &image::RgbImage) -> io::Result<()> {
     let mut encoder = png::Encoder::new(w, img.width(), img.height());
@@ -435,8 +435,8 @@ pub fn encode_png(w: &mut dyn Write, img: &image::RgbImage) -> io::Result<()> {
     encoder.set_filter(png::Filter::Adaptive);
     encoder
         .add_text_chunk(
-            crate::marks::PNG_KEYWORD.to_string(),
-            crate::marks::PICTURE.to_string(),
+            crate::support::marks::PNG_KEYWORD.to_string(),
+            crate::support::marks::PICTURE.to_string(),
         )
         .map_err(io::Error::other)?;
     let mut writer = encoder.write_header().map_err(io::Error::other)?;

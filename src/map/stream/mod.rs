@@ -3,8 +3,8 @@
 //! windows of rows with a small halo above and below, holding only a few windows in memory.
 //!
 //! - [`Rows`] is a band of a map's rows in memory, addressed by the map's own row numbers.
-//! - [`RowSource`] hands out a map's rows top to bottom: a decoder reading a file ([`crate::decode`]), the
-//!   synthetic generator ([`crate::synth::OfficeRows`]), or an image in memory.
+//! - [`RowSource`] hands out a map's rows top to bottom: a decoder reading a file ([`crate::map::decode`]), the
+//!   synthetic generator ([`crate::map::synthetic::OfficeRows`]), or an image in memory.
 //! - [`for_each_window`] cuts a source into [`Window`]s: a core of rows whose results a detector reports, and
 //!   [`HALO`] rows around it that only feed the core's neighbourhoods. A reader thread fills the next window
 //!   while the caller works on the current one, so disk reads overlap the kernels.
@@ -15,8 +15,8 @@ pub mod direct;
 
 use std::sync::mpsc;
 
-use crate::error::{Error, Result};
 use crate::map::MapImage;
+use crate::support::error::{Error, Result};
 use direct::{AlignedBuf, RawFile, ALIGN};
 
 /// Rows above and below a window's core that every detector's neighbourhood fits in: OGM reads 1, Harris
@@ -184,12 +184,12 @@ impl RowSource for crate::map::DecoderRows {
     }
 }
 
-impl RowSource for crate::synth::OfficeRows {
+impl RowSource for crate::map::synthetic::OfficeRows {
     fn width(&self) -> u32 {
-        crate::synth::OfficeRows::width(self)
+        crate::map::synthetic::OfficeRows::width(self)
     }
     fn height(&self) -> u32 {
-        crate::synth::OfficeRows::height(self)
+        crate::map::synthetic::OfficeRows::height(self)
     }
     fn read_rows(&mut self, out: &mut [u8]) -> Result<()> {
         let w = self.width() as usize;
@@ -199,11 +199,11 @@ impl RowSource for crate::synth::OfficeRows {
 }
 
 /// Writes the rows of `source` as a binary PGM (P5, maxval 255) to `path`, atomically
-/// ([`crate::files::AtomicFile`]), holding about a megabyte of rows at a time.
+/// ([`crate::support::files::AtomicFile`]), holding about a megabyte of rows at a time.
 pub fn write_pgm(path: &std::path::Path, source: &mut dyn RowSource) -> Result<()> {
     use std::io::Write;
     let (w, h) = (source.width(), source.height());
-    let mut file = crate::files::AtomicFile::create(path)?;
+    let mut file = crate::support::files::AtomicFile::create(path)?;
     let io = |e: std::io::Error| Error::write(path, e);
     crate::map::write_pgm_header(&mut file, w, h).map_err(io)?;
     // Whole rows a megabyte or so at a time: few calls, bounded memory.

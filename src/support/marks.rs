@@ -111,7 +111,7 @@ mod tests {
     fn a_picture_is_marked_in_its_png_text_and_a_cut_png_is_not_read_past_its_end() {
         let mut png = Vec::new();
         let img = image::RgbImage::new(3, 2);
-        crate::files::encode_png(&mut png, &img).unwrap();
+        crate::support::files::encode_png(&mut png, &img).unwrap();
         assert_eq!(mark_in(&png), Some(Written::Picture));
         // The same pixels without the text chunk.
         let mut plain = Vec::new();

@@ -15,8 +15,8 @@ use std::path::{Path, PathBuf};
 
 use image::RgbImage;
 
-use crate::error::Result;
-use crate::files;
+use crate::support::error::Result;
+use crate::support::files;
 
 pub use html::escape;
 
@@ -212,7 +212,7 @@ impl Report {
         self.blocks.push(Block::Table(table));
     }
 
-    /// A legend of colour swatches (the entries the pictures' legends take, [`crate::plot::draw_legend`]).
+    /// A legend of colour swatches (the entries the pictures' legends take, [`crate::support::plot::draw_legend`]).
     pub fn legend<S: AsRef<str>>(&mut self, entries: &[(S, image::Rgb<u8>)]) {
         self.blocks.push(Block::Legend(
             entries

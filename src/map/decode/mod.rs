@@ -65,7 +65,7 @@ pub struct Header {
 }
 
 /// Most pixels an image decoded into memory may have: 2^32, a 65536 x 65536 map ([`check_in_memory`]).
-/// A map read row by row ([`crate::stream`]) has no such limit: only its width and height, each below
+/// A map read row by row ([`crate::map::stream`]) has no such limit: only its width and height, each below
 /// 2^32 (keypoint coordinates are `u32`), bound it.
 pub const MAX_PIXELS: u64 = 1 << 32;
 
@@ -198,7 +198,7 @@ impl<R: BufRead> Decoder<R> {
 
     /// The byte offset in the input where the raster starts, when its bytes are the image's rows as they
     /// are (a binary PGM with maxval 255, the ROS maps) and no row has been read: a caller may then read
-    /// them straight from the file ([`crate::stream`] does, into its windows) and call
+    /// them straight from the file ([`crate::map::stream`] does, into its windows) and call
     /// [`Decoder::raster_read_elsewhere`].
     pub fn raw_raster(&self) -> Option<u64> {
         match &self.inner {
