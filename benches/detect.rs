@@ -20,9 +20,9 @@ use std::time::Duration;
 use criterion::{
     criterion_group, criterion_main, BenchmarkId, Criterion, SamplingMode, Throughput,
 };
-use ogm_corners::cpu::CpuBackend;
-use ogm_corners::fast::FastCpuBackend;
-use ogm_corners::gpu::{GpuBackend, GpuOptions};
+use ogm_corners::backend::fast::FastCpuBackend;
+use ogm_corners::backend::gpu::{GpuBackend, GpuOptions};
+use ogm_corners::backend::reference::ReferenceBackend;
 use ogm_corners::map::synthetic::office_map;
 use ogm_corners::{
     Backend, Baseline, BaselineParams, ClassTable, DetectorKind, OccupancyMap, RuleSet, RuleTable,
@@ -61,7 +61,7 @@ fn engines() -> Vec<Engine> {
         },
         Engine {
             name: "reference",
-            backend: Box::new(CpuBackend),
+            backend: Box::new(ReferenceBackend),
             slow: true,
         },
     ];
@@ -155,7 +155,7 @@ fn bench_map(
                 b.iter(|| {
                     match kind {
                         DetectorKind::Ogm => backend.detect(image, &classes, &rules, false),
-                        DetectorKind::OgmRobust => ogm_corners::robust::detect(
+                        DetectorKind::OgmRobust => ogm_corners::detect::robust::detect(
                             &mut **backend,
                             image,
                             &classes,

@@ -7,7 +7,7 @@
 
 use std::path::{Path, PathBuf};
 
-use ogm_corners::cpu::CpuBackend;
+use ogm_corners::backend::reference::ReferenceBackend;
 use ogm_corners::merge::global::{merge_maps, GlobalOptions};
 use ogm_corners::OccupancyMap;
 
@@ -32,7 +32,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         maps,
         &names,
         &GlobalOptions::default(),
-        &mut CpuBackend,
+        &mut ReferenceBackend,
         &|_, _| {},
     )?;
     let placement = &many.run.placement;

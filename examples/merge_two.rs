@@ -7,7 +7,7 @@
 
 use std::path::Path;
 
-use ogm_corners::cpu::CpuBackend;
+use ogm_corners::backend::reference::ReferenceBackend;
 use ogm_corners::merge::pair::{compose_pair, merge_pair};
 use ogm_corners::merge::MergeOptions;
 use ogm_corners::OccupancyMap;
@@ -22,7 +22,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         OccupancyMap::load(Path::new(b))?,
     );
     // B is brought to A's resolution first when they differ; the scoring runs on the CPU here.
-    let merged = merge_pair(&ma, &mb, &MergeOptions::default(), &mut CpuBackend)?;
+    let merged = merge_pair(&ma, &mb, &MergeOptions::default(), &mut ReferenceBackend)?;
     let v = merged.verdict();
     let t = v.transform;
     println!(

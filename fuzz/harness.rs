@@ -4,9 +4,10 @@
 //! backends (or two paths that must agree) that disagree.
 #![allow(dead_code)]
 
+use ogm_corners::backend::fast::FastCpuBackend;
+use ogm_corners::backend::reference::ReferenceBackend;
 use ogm_corners::backend::Backend;
-use ogm_corners::cpu::CpuBackend;
-use ogm_corners::fast::FastCpuBackend;
+use ogm_corners::detect::output::{self, Format};
 use ogm_corners::map::decode::{Decoder, ImageKind};
 use ogm_corners::map::{
     decode_image, grid_image, GridThresholds, MapYaml, GRID_FREE, GRID_OCCUPIED, GRID_UNKNOWN,
@@ -22,7 +23,6 @@ use ogm_corners::merge::pair::{
 };
 use ogm_corners::merge::pairs::PairSet;
 use ogm_corners::merge::Rigid;
-use ogm_corners::output::{self, Format};
 use ogm_corners::support::memory::Budget;
 use ogm_corners::{
     BaselineParams, CellState, ClassTable, DetectOptions, Detector, DetectorKind, GeoRef, MapImage,
@@ -149,7 +149,7 @@ pub fn detect(data: &[u8]) {
         t2: u32::from(*p2) * 300,
     };
     let map = OccupancyMap::from_image(image);
-    let robust = ogm_corners::robust::RobustParams {
+    let robust = ogm_corners::detect::robust::RobustParams {
         min_scale: u32::from(p0 % 4),
         max_scale: u32::from(p1 % 18),
         nms_radius: u32::from(p2 % 9),
@@ -158,13 +158,16 @@ pub fn detect(data: &[u8]) {
         angle: (flags & 8 != 0).then_some(f64::from(*p0) - 128.0),
         // Anchors near the map, far off it, and past the farthest allowed (refused).
         anchor: match flags >> 6 {
-            0 => ogm_corners::robust::Anchor::World,
-            1 => ogm_corners::robust::Anchor::Centre,
-            2 => ogm_corners::robust::Anchor::Point(f64::from(*p1) / 3.0 - 20.0, f64::from(*p2)),
-            _ => ogm_corners::robust::Anchor::Point(f64::from(*p3) * 8192.0 - 1e6, -3.5),
+            0 => ogm_corners::detect::robust::Anchor::World,
+            1 => ogm_corners::detect::robust::Anchor::Centre,
+            2 => ogm_corners::detect::robust::Anchor::Point(
+                f64::from(*p1) / 3.0 - 20.0,
+                f64::from(*p2),
+            ),
+            _ => ogm_corners::detect::robust::Anchor::Point(f64::from(*p3) * 8192.0 - 1e6, -3.5),
         },
         // Shares of 0 to 104 percent and gaps of 0 to 69: the out-of-range ones must be refused.
-        cells: ogm_corners::cpu::coarsen::CellRule {
+        cells: ogm_corners::backend::reference::coarsen::CellRule {
             occupied_pct: u32::from(*p1 % 105),
             free_pct: u32::from(*p2 % 105),
         },
@@ -190,7 +193,7 @@ pub fn detect(data: &[u8]) {
             max_corners: (flags & 0x20 != 0).then_some(usize::from(*p2 % 9)),
         };
         let fast = Detector::new(options).detect(&map);
-        let reference = Detector::with_backend(options, Box::new(CpuBackend)).detect(&map);
+        let reference = Detector::with_backend(options, Box::new(ReferenceBackend)).detect(&map);
         match (&fast, &reference) {
             (Ok(a), Ok(b)) => assert_eq!(a, b, "{detector:?} {options:?}: fast CPU != reference"),
             (Err(a), Err(b)) => assert_eq!(a.to_string(), b.to_string()),
@@ -553,7 +556,7 @@ fn merge_with(data: &[u8]) {
     }
     if flags & 0x10 != 0 {
         // Every backend scores the candidates with the same counts: the reference gives the same result.
-        let (reference, _) = run(&mut CpuBackend).expect("aligned once already");
+        let (reference, _) = run(&mut ReferenceBackend).expect("aligned once already");
         assert_eq!(
             format!("{reference:?}"),
             format!("{al:?}"),

@@ -8,11 +8,11 @@ use std::time::Instant;
 
 use indicatif::{ProgressBar, ProgressStyle};
 
+use ogm_corners::detect::output::{self, Format};
 pub use ogm_corners::map::{map_name, output_names};
-use ogm_corners::output::{self, Format};
 use ogm_corners::support::files::{self, Inputs};
 use ogm_corners::support::memory::Budget;
-use ogm_corners::{overlay, Detector, Error, OccupancyMap, Result};
+use ogm_corners::{detect::overlay, Detector, Error, OccupancyMap, Result};
 
 /// Maps decoded ahead of the detector: one waiting while one is detected. A batch holds up to three maps
 /// at once (one detected, one waiting, one being decoded); the budget is checked per map.

@@ -7,14 +7,14 @@ use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+use crate::backend::baselines::{self, BaselineParams};
+use crate::backend::fast::FastCpuBackend;
+use crate::backend::gpu::{GpuBackend, GpuOptions};
+use crate::backend::reference::{classify::classify, ogm_corners::ogm_corners, ReferenceBackend};
+use crate::backend::rules::{RuleSet, RuleTable};
 use crate::backend::{Backend, DetectorKind, Keypoint};
-use crate::baselines::{self, BaselineParams};
-use crate::cpu::{classify::classify, ogm_corners::ogm_corners, CpuBackend};
-use crate::fast::FastCpuBackend;
-use crate::gpu::{GpuBackend, GpuOptions};
 use crate::map::states::ClassTable;
 use crate::map::{map_name, OccupancyMap};
-use crate::rules::{RuleSet, RuleTable};
 use crate::support::error::{Error, Result};
 use crate::support::stats::median;
 
@@ -318,17 +318,19 @@ impl Runner {
         }
     }
 
-    /// Times `repeat` plain reads of the map's bytes on all threads ([`crate::fast::read::read_all`]), after
+    /// Times `repeat` plain reads of the map's bytes on all threads ([`crate::backend::fast::read::read_all`]), after
     /// one to warm up: the read bandwidth the CPU records are reported against. Taken before and after a
     /// map's detectors, so that a drift in the machine's speed over the run shows in both.
     pub fn read_times(&self, m: &BenchMap) -> ReadTimes {
         let px = m.map.image.pixels();
-        std::hint::black_box(crate::fast::read::read_all(px));
+        std::hint::black_box(crate::backend::fast::read::read_all(px));
         ReadTimes(
             (0..self.repeat)
                 .map(|_| {
                     let t = Instant::now();
-                    std::hint::black_box(crate::fast::read::read_all(std::hint::black_box(px)));
+                    std::hint::black_box(crate::backend::fast::read::read_all(
+                        std::hint::black_box(px),
+                    ));
                     t.elapsed().as_secs_f64() * 1e3
                 })
                 .collect(),
@@ -497,7 +499,7 @@ impl Runner {
             match kind {
                 DetectorKind::Ogm => b.detect(image, &classes, &rules, false),
                 DetectorKind::OgmRobust => {
-                    crate::robust::detect(b, image, &classes, &rules, &Default::default())
+                    crate::detect::robust::detect(b, image, &classes, &rules, &Default::default())
                         .map(|r| r.0)
                 }
                 DetectorKind::Baseline(k) => b.baseline_keypoints(k, image, &params),
@@ -539,7 +541,7 @@ impl Runner {
                 kps
             }
             Engine::Reference => {
-                let (kps, ms, mem) = timed(repeat, || end_to_end(&mut CpuBackend))?;
+                let (kps, ms, mem) = timed(repeat, || end_to_end(&mut ReferenceBackend))?;
                 records.push(record("end_to_end", ms, mem, kps.len()));
                 // The reference's "kernels" are the twins of the GPU kernels: the work before selection.
                 let (_, ms, mem) = timed(repeat, || {
@@ -548,8 +550,8 @@ impl Runner {
                             let states = classify(image, &classes);
                             ogm_corners(&states, w, h, &rules, false).len()
                         }
-                        DetectorKind::OgmRobust => crate::robust::detect(
-                            &mut CpuBackend,
+                        DetectorKind::OgmRobust => crate::detect::robust::detect(
+                            &mut ReferenceBackend,
                             image,
                             &classes,
                             &rules,
@@ -628,7 +630,7 @@ impl Runner {
             env!("CARGO_PKG_VERSION"),
             cpu_model(),
             threads(),
-            crate::fast::simd::Isa::active().name(),
+            crate::backend::fast::simd::Isa::active().name(),
             std::env::consts::OS,
             std::env::consts::ARCH,
             self.repeat
@@ -702,7 +704,7 @@ fn known_peak_bandwidth(adapter: &str) -> Option<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::baselines::Baseline;
+    use crate::backend::baselines::Baseline;
 
     fn runner(cpu: Want, reference: Want, gpu_want: Want, software: bool) -> Runner {
         Runner {

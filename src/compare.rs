@@ -4,10 +4,10 @@ use std::io::{self, Write};
 
 use image::RgbImage;
 
-use crate::detector::DetectorKind;
+use crate::detect::detector::DetectorKind;
+use crate::detect::output::{csv_field, md_cell, TableFormat};
 use crate::map::states::ClassTable;
 use crate::map::OccupancyMap;
-use crate::output::{csv_field, md_cell, TableFormat};
 
 /// One row of `compare`: a detector on a map.
 #[derive(serde::Serialize, Debug)]
@@ -60,9 +60,9 @@ pub const MARK_COLOUR: image::Rgb<u8> = image::Rgb([0, 170, 0]);
 /// Colour of a panel behind the map (not a grey a map can have, so the map's extent shows).
 pub const PANEL_BACKING: image::Rgb<u8> = image::Rgb([222, 228, 240]);
 
-/// The keypoint colours a sheet's legend lists ([`crate::overlay::rule_colour`]).
+/// The keypoint colours a sheet's legend lists ([`crate::detect::overlay::rule_colour`]).
 pub fn rule_legend() -> Vec<(&'static str, image::Rgb<u8>)> {
-    use crate::overlay::rule_colour;
+    use crate::detect::overlay::rule_colour;
     vec![
         ("OGM RULE 4", rule_colour(4)),
         ("RULE 5", rule_colour(5)),
@@ -131,7 +131,7 @@ pub fn labelled_sheet(
     found: &[(String, &[crate::Keypoint])],
     marks: &[(f64, f64)],
 ) -> RgbImage {
-    use crate::overlay::{fit_shrink, fit_zoom, OverlayCanvas};
+    use crate::detect::overlay::{fit_shrink, fit_zoom, OverlayCanvas};
     use crate::support::plot::{draw_text, fill};
     let (x0, y0, x1, y1) = explored_box(map);
     let (cw, ch) = (x1 - x0, y1 - y0);
@@ -196,7 +196,7 @@ pub fn labelled_sheet(
                 (px2 / f64::from(d) * zx).round() as i64,
                 (py2 / f64::from(d) * zy).round() as i64,
             );
-            crate::overlay::ring(&mut panel, cx2, cy2, radius, MARK_COLOUR);
+            crate::detect::overlay::ring(&mut panel, cx2, cy2, radius, MARK_COLOUR);
         }
         let (ox, oy) = (
             10 + (i as u32 % 2) * (PANEL + 10),
@@ -469,7 +469,7 @@ mod tests {
                     (0..ph).any(|y| (0..PANEL).any(|x| *sheet.get_pixel(ox + x, oy + y) == c))
                 };
                 assert!(
-                    has(crate::overlay::rule_colour(0)) && has(MARK_COLOUR),
+                    has(crate::detect::overlay::rule_colour(0)) && has(MARK_COLOUR),
                     "{w}x{h}"
                 );
             }

@@ -29,15 +29,15 @@
 //!    written whole, the marks the tool's own outputs carry, drawing, HTML pages.
 //! 2. **Maps** ([`map`]): images and their decoders (PGM/PNG), yaml, georeference and thresholds, maps
 //!    as rows (streamed), the three states, the synthetic office, a grid turned to the walls.
-//! 3. **Rules, the backend interface and the reference**: [`rules`] (the paper's 256-entry table),
-//!    [`baselines`] (Harris, Shi-Tomasi, Trajkovic-Hedley: parameters and selection), [`backend`] (the
-//!    trait every backend implements, keypoints, options), [`cpu`] (the CPU reference: one file per WGSL
-//!    kernel, its twin).
-//! 4. **Fast backends**: [`fast`] (the fast CPU path), [`gpu`] (wgpu compute kernels, bit-identical to
-//!    the reference).
-//! 5. **Detectors and their outputs**: [`robust`] (the robust form for real maps), [`detector`] (a
-//!    backend driven over a map, in memory or streamed), [`streamed`] (a map file to keypoint files),
-//!    [`output`] (keypoint files), [`overlay`] (keypoints drawn on a map).
+//! 3. **The backend interface and the reference** ([`backend`]): the trait every backend implements,
+//!    keypoints and options; the paper's 256-entry table ([`backend::rules`]); the baselines' parameters
+//!    and selection ([`backend::baselines`]: Harris, Shi-Tomasi, Trajkovic-Hedley); the CPU reference
+//!    ([`backend::reference`]: one file per WGSL kernel, its twin).
+//! 4. **Fast backends**: [`backend::fast`] (the fast CPU path), [`backend::gpu`] (wgpu compute kernels,
+//!    bit-identical to the reference).
+//! 5. **Detectors and their outputs** ([`detect`]): the detector (a backend driven over a map, in memory
+//!    or streamed), the robust form for real maps, a map file to keypoint files, keypoint files, keypoints
+//!    drawn on a map.
 //! 6. **Merging**: [`merge`] (two maps and many, with no initial poses).
 //! 7. **Measuring**: [`compare`], [`eval`], [`bench`](mod@bench).
 //!
@@ -57,20 +57,10 @@ macro_rules! say {
 pub mod support;
 // 2. Maps.
 pub mod map;
-// 3. Rules, the backend interface and the CPU reference.
+// 3-4. The backends: the rule table, the backend interface, the CPU reference, the fast CPU path, the GPU.
 pub mod backend;
-pub mod baselines;
-pub mod cpu;
-pub mod rules;
-// 4. Fast backends.
-pub mod fast;
-pub mod gpu;
 // 5. Detectors and their outputs.
-pub mod detector;
-pub mod output;
-pub mod overlay;
-pub mod robust;
-pub mod streamed;
+pub mod detect;
 // 6. Merging.
 pub mod merge;
 // 7. Measuring.
@@ -78,11 +68,11 @@ pub mod bench;
 pub mod compare;
 pub mod eval;
 
-pub use baselines::{Baseline, BaselineParams};
-pub use detector::{
+pub use backend::baselines::{Baseline, BaselineParams};
+pub use backend::rules::{RuleSet, RuleTable};
+pub use detect::detector::{
     Backend, BackendChoice, DetectOptions, Detection, Detector, DetectorKind, Keypoint,
 };
 pub use map::states::{CellState, ClassTable};
 pub use map::{GeoRef, MapImage, OccupancyMap, Thresholds};
-pub use rules::{RuleSet, RuleTable};
 pub use support::error::{Error, Result};

@@ -343,7 +343,7 @@ fn unwritable_output_exits_1() {
 }
 
 fn gpu_available() -> bool {
-    let ok = !ogm_corners::gpu::list_adapters().is_empty();
+    let ok = !ogm_corners::backend::gpu::list_adapters().is_empty();
     if !ok {
         assert!(
             std::env::var("CI").map_or(true, |v| v != "true"),

@@ -1,13 +1,13 @@
-//! The fast CPU baselines (`ogm_corners::fast::baselines`, behind the default `--backend cpu`) against the
-//! reference (`ogm_corners::baselines::cpu_scores` then `select`): the same score maps and the same
+//! The fast CPU baselines (`ogm_corners::backend::fast::baselines`, behind the default `--backend cpu`) against the
+//! reference (`ogm_corners::backend::baselines::cpu_scores` then `select`): the same score maps and the same
 //! keypoints, bit for bit, on tiny and odd sizes, noise, synthetic office maps, non-default parameters,
 //! different band splits (thread counts), random inputs (proptest) and every shared real map.
 
 mod common;
 
-use ogm_corners::baselines::{cpu_scores, select, Baseline, BaselineParams, ExactParams};
-use ogm_corners::cpu::CpuBackend;
-use ogm_corners::fast::{baselines as fast, FastCpuBackend};
+use ogm_corners::backend::baselines::{cpu_scores, select, Baseline, BaselineParams, ExactParams};
+use ogm_corners::backend::fast::{baselines as fast, FastCpuBackend};
+use ogm_corners::backend::reference::ReferenceBackend;
 use ogm_corners::map::synthetic::{office_map, Rng};
 use ogm_corners::{Backend, MapImage, OccupancyMap};
 use proptest::prelude::*;
@@ -307,12 +307,14 @@ fn the_backends_agree_through_the_backend_trait() {
     for kind in KINDS {
         assert_eq!(
             FastCpuBackend.baseline_keypoints(kind, &img, &d).unwrap(),
-            CpuBackend.baseline_keypoints(kind, &img, &d).unwrap(),
+            ReferenceBackend.baseline_keypoints(kind, &img, &d).unwrap(),
             "{kind:?}"
         );
         assert!(
             FastCpuBackend.baseline_scores(kind, &img, &exact).unwrap()
-                == CpuBackend.baseline_scores(kind, &img, &exact).unwrap(),
+                == ReferenceBackend
+                    .baseline_scores(kind, &img, &exact)
+                    .unwrap(),
             "{kind:?}"
         );
     }

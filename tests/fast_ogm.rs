@@ -3,13 +3,13 @@
 
 mod common;
 
-use ogm_corners::cpu::CpuBackend;
-use ogm_corners::fast::bitplanes::{
+use ogm_corners::backend::fast::bitplanes::{
     interval_scalar, plane_row, plane_rows2, plane_rows2_on, words, ValueSet,
 };
-use ogm_corners::fast::ogm::ogm_corners_on;
-use ogm_corners::fast::simd::Isa;
-use ogm_corners::fast::FastCpuBackend;
+use ogm_corners::backend::fast::ogm::ogm_corners_on;
+use ogm_corners::backend::fast::simd::Isa;
+use ogm_corners::backend::fast::FastCpuBackend;
+use ogm_corners::backend::reference::ReferenceBackend;
 use ogm_corners::map::synthetic::{office_map, Rng, FREE, OCCUPIED, UNKNOWN};
 use ogm_corners::{Backend, ClassTable, MapImage, OccupancyMap, RuleSet, RuleTable, Thresholds};
 use proptest::prelude::*;
@@ -46,7 +46,7 @@ fn assert_same(img: &MapImage, thresholds: &Thresholds, what: &str) -> usize {
     let mut n = 0;
     for (set, uao) in VARIANTS {
         let rules = RuleTable::new(set);
-        let want = CpuBackend.detect(img, &classes, &rules, uao).unwrap();
+        let want = ReferenceBackend.detect(img, &classes, &rules, uao).unwrap();
         let got = FastCpuBackend.detect(img, &classes, &rules, uao).unwrap();
         for isa in isas() {
             let on = ogm_corners_on(isa, img, &classes, &rules, uao);

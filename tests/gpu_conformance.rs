@@ -3,9 +3,9 @@
 
 mod common;
 
-use ogm_corners::baselines;
-use ogm_corners::cpu::CpuBackend;
-use ogm_corners::gpu::{GpuBackend, GpuOptions};
+use ogm_corners::backend::baselines;
+use ogm_corners::backend::gpu::{GpuBackend, GpuOptions};
+use ogm_corners::backend::reference::ReferenceBackend;
 use ogm_corners::map::synthetic::{office_map, Rng};
 use ogm_corners::{
     Backend, Baseline, BaselineParams, CellState, ClassTable, MapImage, OccupancyMap, RuleSet,
@@ -25,7 +25,7 @@ fn assert_same(gpu: &mut GpuBackend, img: &MapImage, thresholds: &Thresholds, wh
     let mut n = 0;
     for (set, uao) in VARIANTS {
         let rules = RuleTable::new(set);
-        let want = CpuBackend.detect(img, &classes, &rules, uao).unwrap();
+        let want = ReferenceBackend.detect(img, &classes, &rules, uao).unwrap();
         let got = gpu.detect(img, &classes, &rules, uao).unwrap();
         if got != want {
             let first = got.iter().zip(&want).position(|(a, b)| a != b);
@@ -140,7 +140,7 @@ fn class_tables_that_are_not_intervals() {
         for map in [&img, &grey] {
             for (set, uao) in VARIANTS {
                 let rules = RuleTable::new(set);
-                let want = CpuBackend.detect(map, &classes, &rules, uao).unwrap();
+                let want = ReferenceBackend.detect(map, &classes, &rules, uao).unwrap();
                 assert_eq!(gpu.detect(map, &classes, &rules, uao).unwrap(), want);
             }
         }
@@ -176,7 +176,7 @@ fn the_device_scan_matches_the_reference() {
         let counts: Vec<u32> = (0..n).map(|_| rng.range(0, 40)).collect();
         assert_eq!(
             gpu.scan(&counts).unwrap(),
-            ogm_corners::cpu::scan::exclusive_scan(&counts),
+            ogm_corners::backend::reference::scan::exclusive_scan(&counts),
             "{n} counts"
         );
     }
@@ -206,7 +206,9 @@ fn a_workgroup_scratch_overflow_reruns_with_more_room() {
         ..GpuOptions::default()
     })
     .unwrap();
-    let want = CpuBackend.detect(&img, &classes, &rules, false).unwrap();
+    let want = ReferenceBackend
+        .detect(&img, &classes, &rules, false)
+        .unwrap();
     assert_eq!(fresh.detect(&img, &classes, &rules, false).unwrap(), want);
     assert!(fresh.stats().scratch_reruns > 0, "{:?}", fresh.stats());
     assert_eq!(fresh.detect(&img, &classes, &rules, false).unwrap(), want);
@@ -280,7 +282,9 @@ fn output_grows_and_splits_instead_of_truncating() {
     let got = gpu.detect(&img, &classes, &rules, false).unwrap();
     assert_eq!(
         got,
-        CpuBackend.detect(&img, &classes, &rules, false).unwrap()
+        ReferenceBackend
+            .detect(&img, &classes, &rules, false)
+            .unwrap()
     );
     assert!(gpu.stats().keypoint_capacity >= got.len() as u64 && got.len() > 1);
 }
@@ -331,7 +335,9 @@ fn a_map_over_128_mib_is_tiled_and_exact() {
     let img = office_map(12_000, 11_500, 8).unwrap();
     let classes = ClassTable::default();
     let rules = RuleTable::new(RuleSet::Paper);
-    let want = CpuBackend.detect(&img, &classes, &rules, false).unwrap();
+    let want = ReferenceBackend
+        .detect(&img, &classes, &rules, false)
+        .unwrap();
     let got = gpu.detect(&img, &classes, &rules, false).unwrap();
     assert_eq!(got.len(), want.len());
     assert!(got == want, "GPU and CPU differ on the large map");
@@ -415,7 +421,9 @@ fn assert_same_keypoints(
     what: &str,
 ) {
     for kind in BASELINES {
-        let want = CpuBackend.baseline_keypoints(kind, img, params).unwrap();
+        let want = ReferenceBackend
+            .baseline_keypoints(kind, img, params)
+            .unwrap();
         let got = gpu.baseline_keypoints(kind, img, params).unwrap();
         assert!(
             got == want,
@@ -467,7 +475,7 @@ fn baseline_keypoints_are_selected_on_the_device_exactly() {
         let scores = baselines::cpu_scores(kind, &img, &exact);
         assert_eq!(
             tiled.baseline_candidates(kind, &img, &exact).unwrap(),
-            ogm_corners::cpu::select_maxima::select_maxima(&scores, 120, 90)
+            ogm_corners::backend::reference::select_maxima::select_maxima(&scores, 120, 90)
         );
     }
 }
@@ -587,7 +595,7 @@ fn maps_stream_through_in_bands_under_a_byte_budget() {
 /// in one tile and split into many small ones.
 #[test]
 fn coarsening_matches_the_reference_at_every_angle_and_scale() {
-    use ogm_corners::cpu::coarsen::coarsen;
+    use ogm_corners::backend::reference::coarsen::coarsen;
     use ogm_corners::map::grid::RotatedGrid;
     for max_tile_bytes in [64 << 20, 700] {
         let Some(mut gpu) = common::gpu_backend(GpuOptions {
@@ -628,7 +636,7 @@ fn coarsening_matches_the_reference_at_every_angle_and_scale() {
 /// The whole robust detector: the GPU backend's keypoints equal the reference's.
 #[test]
 fn robust_keypoints_match_the_reference() {
-    use ogm_corners::robust::{self, RobustParams};
+    use ogm_corners::detect::robust::{self, RobustParams};
     let Some(mut gpu) = common::gpu_backend(GpuOptions::default()) else {
         return;
     };
@@ -641,7 +649,7 @@ fn robust_keypoints_match_the_reference() {
     maps.push(common::random_map(90, 70, 2));
     for (i, img) in maps.iter().enumerate() {
         let params = RobustParams::default();
-        let want = robust::detect(&mut CpuBackend, img, &classes, &rules, &params).unwrap();
+        let want = robust::detect(&mut ReferenceBackend, img, &classes, &rules, &params).unwrap();
         let got = robust::detect(&mut gpu, img, &classes, &rules, &params).unwrap();
         assert!(!want.0.is_empty() || i == 4, "map {i} has corners");
         assert_eq!(got, want, "map {i}");
@@ -652,8 +660,8 @@ fn robust_keypoints_match_the_reference() {
 /// keypoints of the whole map on the CPU.
 #[test]
 fn robust_tiles_on_the_gpu_match_the_whole_map_on_the_cpu() {
-    use ogm_corners::robust::tiles::{detect_tiled, ImageReader, TilePlan};
-    use ogm_corners::robust::{self, RobustParams};
+    use ogm_corners::detect::robust::tiles::{detect_tiled, ImageReader, TilePlan};
+    use ogm_corners::detect::robust::{self, RobustParams};
     let Some(mut gpu) = common::gpu_backend(GpuOptions::default()) else {
         return;
     };
@@ -666,7 +674,7 @@ fn robust_tiles_on_the_gpu_match_the_whole_map_on_the_cpu() {
         max_scale: 3,
         ..RobustParams::default()
     };
-    let want = robust::detect(&mut CpuBackend, &img, &classes, &rules, &params).unwrap();
+    let want = robust::detect(&mut ReferenceBackend, &img, &classes, &rules, &params).unwrap();
     let plan = TilePlan::with_tile(&params, 60).unwrap();
     // Windows smaller than the turned grid (about 900 samples a side here): crops of the map.
     assert!(plan.window_side() < 750, "{plan:?}");
@@ -690,11 +698,11 @@ fn scoring_case(
     h: u32,
     seed: u64,
 ) -> (
-    ogm_corners::cpu::merge_score::ScoreTarget,
+    ogm_corners::backend::reference::merge_score::ScoreTarget,
     Vec<[u32; 2]>,
-    Vec<ogm_corners::cpu::merge_score::FixedRigid>,
+    Vec<ogm_corners::backend::reference::merge_score::FixedRigid>,
 ) {
-    use ogm_corners::cpu::merge_score::{FixedRigid, ScoreTarget, MAX_SCORE_SIDE};
+    use ogm_corners::backend::reference::merge_score::{FixedRigid, ScoreTarget, MAX_SCORE_SIDE};
     let mut rng = Rng::new(seed);
     let flags = (0..w * h).map(|_| rng.range(0, 256) as u8).collect();
     let target = ScoreTarget::new(w, h, flags).unwrap();
@@ -730,7 +738,7 @@ fn scoring_case(
 /// and in many small bands and point chunks.
 #[test]
 fn transform_scores_match_the_reference() {
-    use ogm_corners::cpu::merge_score::score_transforms;
+    use ogm_corners::backend::reference::merge_score::score_transforms;
     let sizes = [
         (1, 1),
         (1, 7),
@@ -784,7 +792,7 @@ fn transform_scores_match_the_reference() {
 /// them.
 #[test]
 fn transform_scores_are_batched_beyond_the_dispatch_limit() {
-    use ogm_corners::cpu::merge_score::{score_transforms, FixedRigid, ScoreTarget};
+    use ogm_corners::backend::reference::merge_score::{score_transforms, FixedRigid, ScoreTarget};
     let Some(mut gpu) = common::gpu_backend(GpuOptions::default()) else {
         return;
     };
@@ -893,7 +901,7 @@ fn more_candidates_than_the_first_list_buffer_holds() {
         }
         assert_eq!(
             got,
-            ogm_corners::cpu::select_maxima::select_maxima(&scores, 400, 300)
+            ogm_corners::backend::reference::select_maxima::select_maxima(&scores, 400, 300)
         );
     }
     for p in [

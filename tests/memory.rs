@@ -4,7 +4,7 @@
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicUsize, Ordering::Relaxed};
 
-use ogm_corners::fast::FastCpuBackend;
+use ogm_corners::backend::fast::FastCpuBackend;
 use ogm_corners::map::synthetic::office_map;
 use ogm_corners::{Backend, Baseline, BaselineParams, ClassTable, RuleSet, RuleTable, Thresholds};
 

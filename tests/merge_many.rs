@@ -4,7 +4,7 @@
 
 mod common;
 
-use ogm_corners::cpu::CpuBackend;
+use ogm_corners::backend::reference::ReferenceBackend;
 use ogm_corners::merge::align::Prepared;
 use ogm_corners::merge::global::eval::{run_maps, score, synthetic_maps, synthetic_maps_of};
 use ogm_corners::merge::global::graph::Placement;
@@ -113,11 +113,11 @@ fn a_wrong_pairwise_accept_is_dropped_by_the_cycles_and_the_placement_is_repeata
     let refs: Vec<&OccupancyMap> = maps.iter().collect();
     let options = GlobalOptions::default();
     let pairwise = align_all(&prepared, &options, &|_, _| {}).unwrap();
-    let placed = place(&pairwise, &prepared, &refs, &options, &mut CpuBackend).unwrap();
+    let placed = place(&pairwise, &prepared, &refs, &options, &mut ReferenceBackend).unwrap();
     // Deterministic: the same placement again, to the bit.
     assert_eq!(
         placed,
-        place(&pairwise, &prepared, &refs, &options, &mut CpuBackend).unwrap()
+        place(&pairwise, &prepared, &refs, &options, &mut ReferenceBackend).unwrap()
     );
     let again = align_all(&prepared, &options, &|_, _| {}).unwrap();
     assert_eq!(
@@ -142,7 +142,7 @@ fn a_wrong_pairwise_accept_is_dropped_by_the_cycles_and_the_placement_is_repeata
     e.transform = e.transform.after(&turn);
     e.score = top + 20.0;
     let (wrong_a, wrong_b) = (e.a, e.b);
-    let placed = place(&bad, &prepared, &refs, &options, &mut CpuBackend).unwrap();
+    let placed = place(&bad, &prepared, &refs, &options, &mut ReferenceBackend).unwrap();
     let poses = placed_poses(&placed);
     assert!(poses.iter().all(Option::is_some), "{:?}", placed.maps);
     assert_placed_within(&names, &poses, &truths, 0.5, 1.0);
@@ -177,7 +177,7 @@ fn cycles_and_the_mosaic_place_a_map_whose_pairs_no_pair_test_accepted() {
         demoted >= 2,
         "the set should give the last map two accepted pairs"
     );
-    let placed = place(&pairwise, &prepared, &refs, &options, &mut CpuBackend).unwrap();
+    let placed = place(&pairwise, &prepared, &refs, &options, &mut ReferenceBackend).unwrap();
     let poses = placed_poses(&placed);
     assert!(poses[last].is_some(), "{:?}", placed.maps[last]);
     assert!(placed
@@ -480,10 +480,17 @@ fn a_cached_run_redoes_only_the_changed_maps_and_pairs_and_equals_a_fresh_run() 
         assert_eq!(a.placement, b.placement);
     };
     let mut cache = Cache::new();
-    let first = run_cached(&maps, &options, &mut CpuBackend, &|_, _| {}, &mut cache).unwrap();
+    let first = run_cached(
+        &maps,
+        &options,
+        &mut ReferenceBackend,
+        &|_, _| {},
+        &mut cache,
+    )
+    .unwrap();
     same(
         &first,
-        &run(&maps, &options, &mut CpuBackend, &|_, _| {}).unwrap(),
+        &run(&maps, &options, &mut ReferenceBackend, &|_, _| {}).unwrap(),
     );
     let use_of = |r, p, rr, a| CacheUse {
         maps_reused: r,
@@ -493,40 +500,68 @@ fn a_cached_run_redoes_only_the_changed_maps_and_pairs_and_equals_a_fresh_run() 
         pairs_refused: 0,
     };
     assert_eq!(cache.last_use(), use_of(0, 5, 0, 10));
-    let again = run_cached(&maps, &options, &mut CpuBackend, &|_, _| {}, &mut cache).unwrap();
+    let again = run_cached(
+        &maps,
+        &options,
+        &mut ReferenceBackend,
+        &|_, _| {},
+        &mut cache,
+    )
+    .unwrap();
     same(&again, &first);
     assert_eq!(cache.last_use(), use_of(5, 0, 10, 0));
     // Map 2 changes by one pixel: it and its four pairs are redone, nothing else.
     let px = maps[2].image.pixels_mut();
     let i = px.iter().position(|&v| v > 250).unwrap();
     px[i] = 0;
-    let changed = run_cached(&maps, &options, &mut CpuBackend, &|_, _| {}, &mut cache).unwrap();
+    let changed = run_cached(
+        &maps,
+        &options,
+        &mut ReferenceBackend,
+        &|_, _| {},
+        &mut cache,
+    )
+    .unwrap();
     assert_eq!(cache.last_use(), use_of(4, 1, 6, 4));
     same(
         &changed,
-        &run(&maps, &options, &mut CpuBackend, &|_, _| {}).unwrap(),
+        &run(&maps, &options, &mut ReferenceBackend, &|_, _| {}).unwrap(),
     );
     // A sixth map that copies the first: no new preparation, no new pair; placed with its first copy.
     maps.push(maps[0].clone());
-    let copied = run_cached(&maps, &options, &mut CpuBackend, &|_, _| {}, &mut cache).unwrap();
+    let copied = run_cached(
+        &maps,
+        &options,
+        &mut ReferenceBackend,
+        &|_, _| {},
+        &mut cache,
+    )
+    .unwrap();
     assert_eq!(cache.last_use(), use_of(5, 0, 10, 0));
     same(
         &copied,
-        &run(&maps, &options, &mut CpuBackend, &|_, _| {}).unwrap(),
+        &run(&maps, &options, &mut ReferenceBackend, &|_, _| {}).unwrap(),
     );
     // Other options: nothing is reused.
     let other = GlobalOptions {
         loop_px: options.loop_px + 1.0,
         ..options
     };
-    run_cached(&maps, &other, &mut CpuBackend, &|_, _| {}, &mut cache).unwrap();
+    run_cached(&maps, &other, &mut ReferenceBackend, &|_, _| {}, &mut cache).unwrap();
     assert_eq!(cache.last_use(), use_of(0, 5, 0, 10));
     // Another pre-screen only: a preparation and an alignment do not depend on it, everything is reused.
     let unscreened = GlobalOptions {
         prescreen: None,
         ..other
     };
-    run_cached(&maps, &unscreened, &mut CpuBackend, &|_, _| {}, &mut cache).unwrap();
+    run_cached(
+        &maps,
+        &unscreened,
+        &mut ReferenceBackend,
+        &|_, _| {},
+        &mut cache,
+    )
+    .unwrap();
     assert_eq!(cache.last_use(), use_of(5, 0, 10, 0));
 }
 
@@ -637,7 +672,7 @@ fn a_map_added_to_an_earlier_merge_aligns_only_its_pairs_and_places_as_a_full_ru
         maps[..15].to_vec(),
         &names[..15],
         &options,
-        &mut CpuBackend,
+        &mut ReferenceBackend,
         &|_, _| {},
         &mut Cache::new(),
     )
@@ -650,7 +685,14 @@ fn a_map_added_to_an_earlier_merge_aligns_only_its_pairs_and_places_as_a_full_ru
     assert_eq!(previous.maps, names[..15]);
     assert!(previous.fits(&options));
     let mut cache = previous.cache(&options);
-    let added = run_cached(&maps, &options, &mut CpuBackend, &|_, _| {}, &mut cache).unwrap();
+    let added = run_cached(
+        &maps,
+        &options,
+        &mut ReferenceBackend,
+        &|_, _| {},
+        &mut cache,
+    )
+    .unwrap();
     let used = cache.last_use();
     assert_eq!(used.pairs_reused, old_pairs, "{used:?}");
     assert!(
@@ -668,7 +710,14 @@ fn a_map_added_to_an_earlier_merge_aligns_only_its_pairs_and_places_as_a_full_ru
             .iter()
             .map(|(a, b, r)| (content_id(&maps[*a]), content_id(&maps[*b]), r.clone())),
     );
-    let again = run_cached(&maps, &options, &mut CpuBackend, &|_, _| {}, &mut direct).unwrap();
+    let again = run_cached(
+        &maps,
+        &options,
+        &mut ReferenceBackend,
+        &|_, _| {},
+        &mut direct,
+    )
+    .unwrap();
     assert_eq!(again.placement, added.placement);
     // As good as a full run.
     let poses = placed_poses(&added.placement);
@@ -681,7 +730,7 @@ fn a_map_added_to_an_earlier_merge_aligns_only_its_pairs_and_places_as_a_full_ru
         assert_placed_within(&names, &poses, &truths, 1.0, 3.0),
         8 * 7 + 8 * 7
     );
-    let full = run(&maps, &options, &mut CpuBackend, &|_, _| {}).unwrap();
+    let full = run(&maps, &options, &mut ReferenceBackend, &|_, _| {}).unwrap();
     assert_eq!(added.placement.groups, full.placement.groups);
     // Other options: the file's alignments are not taken up.
     let other = GlobalOptions {
@@ -691,7 +740,7 @@ fn a_map_added_to_an_earlier_merge_aligns_only_its_pairs_and_places_as_a_full_ru
     let previous = Previous::parse(&text, "test").unwrap();
     assert!(!previous.fits(&other));
     let mut cache = previous.cache(&other);
-    run_cached(&maps, &other, &mut CpuBackend, &|_, _| {}, &mut cache).unwrap();
+    run_cached(&maps, &other, &mut ReferenceBackend, &|_, _| {}, &mut cache).unwrap();
     assert_eq!(cache.last_use().pairs_reused, 0);
 }
 
@@ -713,7 +762,7 @@ fn a_real_map_added_to_an_earlier_merge_is_placed_as_in_a_full_run() {
     let old = run_cached(
         &maps[..21],
         &options,
-        &mut CpuBackend,
+        &mut ReferenceBackend,
         &|_, _| {},
         &mut Cache::new(),
     )
@@ -724,7 +773,14 @@ fn a_real_map_added_to_an_earlier_merge_is_placed_as_in_a_full_run() {
             .iter()
             .map(|(a, b, r)| (content_id(&maps[*a]), content_id(&maps[*b]), r.clone())),
     );
-    let added = run_cached(&maps, &options, &mut CpuBackend, &|_, _| {}, &mut cache).unwrap();
+    let added = run_cached(
+        &maps,
+        &options,
+        &mut ReferenceBackend,
+        &|_, _| {},
+        &mut cache,
+    )
+    .unwrap();
     assert_eq!(cache.last_use().pairs_reused, old.pairwise.pairs.len());
     assert!(
         cache.last_use().pairs_aligned <= 21,
@@ -876,12 +932,12 @@ fn an_engine_moving_bytes_places_as_the_local_threads_to_the_bit() {
     }
     let (_, maps, _) = synthetic_mixed(14, 2, 9).unwrap();
     let options = GlobalOptions::default();
-    let local = run(&maps, &options, &mut CpuBackend, &|_, _| {}).unwrap();
+    let local = run(&maps, &options, &mut ReferenceBackend, &|_, _| {}).unwrap();
     let mut engine = Bytes::default();
     let far = run_with(
         &maps,
         &options,
-        &mut CpuBackend,
+        &mut ReferenceBackend,
         &|_, _| {},
         &mut Cache::new(),
         &mut engine,

@@ -6,7 +6,7 @@
 
 mod common;
 
-use ogm_corners::cpu::CpuBackend;
+use ogm_corners::backend::reference::ReferenceBackend;
 use ogm_corners::merge::align::Prepared;
 use ogm_corners::merge::global::eval::synthetic_maps;
 use ogm_corners::merge::global::graph::Placement;
@@ -60,7 +60,7 @@ fn merged_set(seed: u64) -> (Vec<String>, Vec<OccupancyMap>, Vec<TruePair>, Valu
         maps.clone(),
         &names,
         &GlobalOptions::default(),
-        &mut CpuBackend,
+        &mut ReferenceBackend,
         &|_, _| {},
         &mut Cache::new(),
     )
@@ -74,7 +74,14 @@ fn from_doc(doc: &Value, maps: &[OccupancyMap]) -> Option<(Placement, Cache)> {
     let options = GlobalOptions::default();
     let previous = Previous::parse(&doc.to_string(), "test").ok()?;
     let mut cache = previous.cache(&options);
-    let run = run_cached(maps, &options, &mut CpuBackend, &|_, _| {}, &mut cache).unwrap();
+    let run = run_cached(
+        maps,
+        &options,
+        &mut ReferenceBackend,
+        &|_, _| {},
+        &mut cache,
+    )
+    .unwrap();
     Some((run.placement, cache))
 }
 
@@ -268,7 +275,7 @@ fn an_engine_whose_records_do_not_hold_on_the_maps_is_refused() {
         let e = run_with(
             &maps,
             &options,
-            &mut CpuBackend,
+            &mut ReferenceBackend,
             &|_, _| {},
             &mut Cache::new(),
             &mut Spoiled { how },

@@ -488,7 +488,7 @@ fn a_report_folder_holds_one_whole_report_and_a_stopped_run_leaves_the_previous_
 /// joins) stays within `partners + rounds x (per_round / 2 + 1)` pairs a map.
 #[test]
 fn the_pre_screen_aligns_a_bounded_number_of_pairs_a_map_for_maps_that_share_nothing() {
-    use ogm_corners::cpu::CpuBackend;
+    use ogm_corners::backend::reference::ReferenceBackend;
     use ogm_corners::merge::global::{run, GlobalOptions};
     use ogm_corners::merge::prescreen::Prescreen;
     use ogm_corners::{MapImage, OccupancyMap};
@@ -509,7 +509,7 @@ fn the_pre_screen_aligns_a_bounded_number_of_pairs_a_map_for_maps_that_share_not
     let r = run(
         &maps,
         &GlobalOptions::default(),
-        &mut CpuBackend,
+        &mut ReferenceBackend,
         &|_, _| {},
     )
     .unwrap();

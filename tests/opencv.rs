@@ -9,7 +9,7 @@ use std::collections::HashSet;
 use std::path::PathBuf;
 use std::process::Command;
 
-use ogm_corners::cpu::gaussian_blur::{gaussian_blur, gaussian_kernel};
+use ogm_corners::backend::reference::gaussian_blur::{gaussian_blur, gaussian_kernel};
 use ogm_corners::{Baseline, DetectOptions, Detector, DetectorKind, OccupancyMap};
 
 fn python() -> Option<PathBuf> {

@@ -102,7 +102,7 @@ fn cli_csv_and_overlay_on_a_real_map() {
         assert!(wy > g.origin[1] && wy < g.origin[1] + 544.0 * 0.05, "{wy}");
     }
     let img = image::open(&png).unwrap().to_rgb8();
-    let s = ogm_corners::overlay::overlay_scale(576, 544);
+    let s = ogm_corners::detect::overlay::overlay_scale(576, 544);
     assert_eq!(s, 2, "a 576 px map is shown at twice its size");
     assert_eq!((img.width(), img.height()), (576 * s, 544 * s));
     let red = img.pixels().filter(|p| p[0] > 200 && p[1] < 60).count();

@@ -3,12 +3,12 @@
 
 mod common;
 
-use ogm_corners::cpu::coarsen::{self, CellRule};
-use ogm_corners::cpu::CpuBackend;
-use ogm_corners::fast::FastCpuBackend;
+use ogm_corners::backend::fast::FastCpuBackend;
+use ogm_corners::backend::reference::coarsen::{self, CellRule};
+use ogm_corners::backend::reference::ReferenceBackend;
+use ogm_corners::detect::robust::{self, orientation, Anchor, RobustParams};
 use ogm_corners::map::grid::RotatedGrid;
 use ogm_corners::map::synthetic::Rng;
-use ogm_corners::robust::{self, orientation, Anchor, RobustParams};
 use ogm_corners::{
     Backend, ClassTable, DetectOptions, Detector, DetectorKind, Keypoint, MapImage, OccupancyMap,
     RuleSet, RuleTable,
@@ -122,7 +122,8 @@ fn the_fast_path_and_the_reference_find_the_same_robust_keypoints() {
                 wall_gap: 3,
             },
         ] {
-            let want = robust::detect(&mut CpuBackend, img, &classes, &rules, &params).unwrap();
+            let want =
+                robust::detect(&mut ReferenceBackend, img, &classes, &rules, &params).unwrap();
             let got = robust::detect(&mut FastCpuBackend, img, &classes, &rules, &params).unwrap();
             assert_eq!(got, want, "map {i}, {params:?}");
         }
@@ -588,7 +589,7 @@ fn a_grown_or_cropped_map_in_its_world_frame_keeps_its_keypoints() {
     // Cropped: the left 250 columns and the bottom 30 rows cut off. The keypoints far enough from the
     // cuts (a window's halo and ring, as the tiles need) are the map's.
     let cut = reframed(&turned, 250, 0, w - 250, h - 30);
-    let tiles = ogm_corners::robust::tiles::TilePlan::with_tile(&params, 256).unwrap();
+    let tiles = ogm_corners::detect::robust::tiles::TilePlan::with_tile(&params, 256).unwrap();
     let reach = i64::from(tiles.halo + tiles.ring);
     let inner = |kps: &[Keypoint]| -> Vec<Keypoint> {
         kps.iter()

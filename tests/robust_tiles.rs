@@ -3,9 +3,9 @@
 
 mod common;
 
-use ogm_corners::fast::FastCpuBackend;
-use ogm_corners::robust::tiles::{detect_tiled, ImageReader, TilePlan};
-use ogm_corners::robust::{self, Anchor, RobustParams};
+use ogm_corners::backend::fast::FastCpuBackend;
+use ogm_corners::detect::robust::tiles::{detect_tiled, ImageReader, TilePlan};
+use ogm_corners::detect::robust::{self, Anchor, RobustParams};
 use ogm_corners::{ClassTable, MapImage, OccupancyMap, RuleSet, RuleTable};
 
 /// Keypoints in memory and in tiles, and the tiles' count.
@@ -131,7 +131,7 @@ fn a_plan_fits_its_bytes() {
     assert!(bigger.bytes() > 256 << 20);
     assert!(plan.tile >= 2000, "{plan:?}");
     let tiny = TilePlan::with_bytes(&params, 1 << 20).unwrap();
-    assert_eq!(tiny.tile, ogm_corners::robust::tiles::MIN_TILE);
+    assert_eq!(tiny.tile, ogm_corners::detect::robust::tiles::MIN_TILE);
 }
 
 /// Two cells of an even scale share a middle sample beside the grid's centre; when a tile's edge falls

@@ -3,7 +3,9 @@
 mod common;
 
 use common::{art, detect};
-use ogm_corners::rules::{canonical_rule, code_picture, mirror_code, rotate_code, RuleTable};
+use ogm_corners::backend::rules::{
+    canonical_rule, code_picture, mirror_code, rotate_code, RuleTable,
+};
 use ogm_corners::RuleSet;
 
 #[test]

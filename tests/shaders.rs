@@ -3,7 +3,7 @@
 
 /// Parses and validates a kernel exactly as the GPU backend assembles it.
 fn validate_kernel(kernel: &str, native_int64: bool) -> naga::Module {
-    let src = ogm_corners::gpu::shader_source(kernel, native_int64).expect("known kernel");
+    let src = ogm_corners::backend::gpu::shader_source(kernel, native_int64).expect("known kernel");
     let module = naga::front::wgsl::parse_str(&src)
         .unwrap_or_else(|e| panic!("{kernel}: {}", e.emit_to_string(&src)));
     let caps = if native_int64 {
@@ -36,11 +36,11 @@ fn entries(m: &naga::Module) -> Vec<String> {
 #[test]
 fn ogm_kernels_validate_and_their_parameters_match_the_host() {
     let corners = validate_kernel("ogm_corners", false);
-    // src/gpu/ogm.rs OgmParams: 24 four-byte fields.
+    // src/backend/gpu/ogm.rs OgmParams: 24 four-byte fields.
     assert_eq!(struct_size(&corners, "Params"), 96);
     assert_eq!(entries(&corners), ["detect", "scatter", "finish"]);
     let scan = validate_kernel("scan", false);
-    // src/gpu/scan.rs ScanParams: 4 four-byte fields.
+    // src/backend/gpu/scan.rs ScanParams: 4 four-byte fields.
     assert_eq!(struct_size(&scan, "Params"), 16);
     assert_eq!(entries(&scan), ["scan_blocks", "scan_add"]);
 }
@@ -49,7 +49,7 @@ fn ogm_kernels_validate_and_their_parameters_match_the_host() {
 fn the_selection_kernel_validates_and_its_parameters_match_the_host() {
     let m = validate_kernel("select_maxima", false);
     assert_eq!(entries(&m), ["count", "reduce_max", "scatter"]);
-    // src/gpu/select.rs SelParams: 16 four-byte fields.
+    // src/backend/gpu/select.rs SelParams: 16 four-byte fields.
     assert_eq!(struct_size(&m, "Params"), 64);
 }
 
@@ -57,7 +57,7 @@ fn the_selection_kernel_validates_and_its_parameters_match_the_host() {
 fn the_coarsening_kernel_validates_and_its_parameters_match_the_host() {
     let m = validate_kernel("coarsen", false);
     assert_eq!(entries(&m), ["coarsen"]);
-    // src/gpu/coarsen.rs CParams: 28 four-byte fields.
+    // src/backend/gpu/coarsen.rs CParams: 28 four-byte fields.
     assert_eq!(struct_size(&m, "Params"), 112);
 }
 
@@ -65,7 +65,7 @@ fn the_coarsening_kernel_validates_and_its_parameters_match_the_host() {
 fn the_scoring_kernel_validates_and_its_parameters_match_the_host() {
     let m = validate_kernel("merge_score", false);
     assert_eq!(entries(&m), ["merge_score"]);
-    // src/gpu/merge_score.rs SParams: 8 four-byte fields.
+    // src/backend/gpu/merge_score.rs SParams: 8 four-byte fields.
     assert_eq!(struct_size(&m, "Params"), 32);
 }
 
@@ -99,13 +99,13 @@ fn every_kernel_has_a_cpu_twin_of_the_same_name() {
         let stem = name
             .strip_suffix(".wgsl")
             .expect("only .wgsl files in shaders/");
-        let twin = format!("{root}/src/cpu/{stem}.rs");
+        let twin = format!("{root}/src/backend/reference/{stem}.rs");
         assert!(
             std::path::Path::new(&twin).is_file(),
             "{name} has no CPU twin at {twin}"
         );
         assert!(
-            ogm_corners::gpu::shader_source(stem, false).is_some(),
+            ogm_corners::backend::gpu::shader_source(stem, false).is_some(),
             "{name} is not built"
         );
         kernels += 1;

@@ -3,8 +3,8 @@
 
 use std::sync::atomic::{AtomicUsize, Ordering};
 
-use ogm_corners::cpu::CpuBackend;
-use ogm_corners::detector::{DetectOptions, DetectorKind};
+use ogm_corners::backend::reference::ReferenceBackend;
+use ogm_corners::detect::detector::{DetectOptions, DetectorKind};
 use ogm_corners::map::synthetic::office_map;
 use ogm_corners::merge::global::eval::synthetic_maps;
 use ogm_corners::merge::global::{merge_maps, GlobalOptions};
@@ -42,7 +42,7 @@ fn a_stop_raised_midway_ends_a_many_map_merge_before_its_remaining_pairs() {
             maps.clone(),
             &names,
             &GlobalOptions::default(),
-            &mut CpuBackend,
+            &mut ReferenceBackend,
             &|k, _| {
                 pairs_done.fetch_add(1, Ordering::Relaxed);
                 if k >= 3 {
@@ -64,7 +64,7 @@ fn a_stop_raised_midway_ends_a_many_map_merge_before_its_remaining_pairs() {
                 maps,
                 &names,
                 &GlobalOptions::default(),
-                &mut CpuBackend,
+                &mut ReferenceBackend,
                 &|_, _| {},
             )
         })

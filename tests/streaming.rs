@@ -7,13 +7,13 @@ mod common;
 
 use std::path::Path;
 
-use ogm_corners::baselines::{cpu_scores, select, Baseline, BaselineParams};
-use ogm_corners::cpu::CpuBackend;
-use ogm_corners::detector::strongest;
-use ogm_corners::fast::FastCpuBackend;
+use ogm_corners::backend::baselines::{cpu_scores, select, Baseline, BaselineParams};
+use ogm_corners::backend::fast::FastCpuBackend;
+use ogm_corners::backend::reference::ReferenceBackend;
+use ogm_corners::detect::detector::strongest;
+use ogm_corners::detect::output::{self, Format};
 use ogm_corners::map::stream::{RowSource, SliceRows};
 use ogm_corners::map::synthetic::{office_map, OfficeRows};
-use ogm_corners::output::{self, Format};
 use ogm_corners::{
     Backend, ClassTable, DetectOptions, Detector, DetectorKind, Keypoint, MapImage, OccupancyMap,
     RuleSet, RuleTable, Thresholds,
@@ -38,7 +38,7 @@ fn oracle(image: &MapImage, o: &DetectOptions) -> Vec<Keypoint> {
                 .map(|(x, y, v)| Keypoint::scored(x, y, v))
                 .collect()
         }
-        _ => CpuBackend
+        _ => ReferenceBackend
             .detect(
                 image,
                 &classes,
@@ -174,7 +174,7 @@ fn streamed_keypoints_are_the_whole_maps_on_the_reference() {
             for o in options(detector) {
                 let want = oracle(&image, &o);
                 for window in [Some(w), Some(30 * w)] {
-                    let (got, _, _) = streamed(Box::new(CpuBackend), &o, &image, window);
+                    let (got, _, _) = streamed(Box::new(ReferenceBackend), &o, &image, window);
                     assert!(got == want, "{name}, {}, {window:?}", detector.name());
                 }
             }
@@ -362,7 +362,7 @@ fn an_overlay_is_drawn_while_streaming() {
     let det = Detector::new(DetectOptions::default())
         .detect(&map)
         .unwrap();
-    let want = ogm_corners::overlay::render_overlay(&map.image, &det.keypoints);
+    let want = ogm_corners::detect::overlay::render_overlay(&map.image, &det.keypoints);
     assert!(
         got == want,
         "the streamed overlay differs from the in-memory one"

@@ -3,8 +3,8 @@
 mod common;
 
 use common::detect;
+use ogm_corners::backend::rules::{mirror_code, rotate_code};
 use ogm_corners::map::synthetic::{FREE, OCCUPIED, UNKNOWN};
-use ogm_corners::rules::{mirror_code, rotate_code};
 use ogm_corners::{Keypoint, MapImage, RuleSet};
 use proptest::prelude::*;
 

@@ -7,9 +7,9 @@ use bytemuck::{Pod, Zeroable};
 use numpy::{IntoPyArray, PyArray1, PyReadonlyArray2};
 use pyo3::prelude::*;
 
-use ogm_corners::cpu::coarsen::CellRule;
+use ogm_corners::backend::reference::coarsen::CellRule;
+use ogm_corners::detect::robust::{Anchor, RobustParams};
 use ogm_corners::map::GridThresholds;
-use ogm_corners::robust::{Anchor, RobustParams};
 use ogm_corners::{
     BackendChoice, Baseline, BaselineParams, DetectOptions, Detection, DetectorKind, Error, GeoRef,
     RuleSet,

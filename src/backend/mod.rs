@@ -1,20 +1,25 @@
 //! What every backend implements and shares: keypoints, detection options and the [`Backend`] trait.
 //!
-//! This is the lower layer: the CPU reference ([`crate::cpu`]), the fast CPU path ([`crate::fast`]) and
-//! the GPU ([`crate::gpu`]) implement it, and [`crate::detector`] drives them.
+//! This is the lower layer: the CPU reference ([`crate::backend::reference`]), the fast CPU path ([`crate::backend::fast`]) and
+//! the GPU ([`crate::backend::gpu`]) implement it, and [`crate::detect::detector`] drives them.
 
+pub mod baselines;
+pub mod fast;
+pub mod gpu;
+pub mod reference;
 pub mod robust_params;
+pub mod rules;
 
 use serde::Serialize;
 
-use crate::baselines::streamed::CandidateList;
-use crate::baselines::{Baseline, BaselineParams, Candidate, ExactParams};
-use crate::cpu::merge_score::{FixedRigid, ScoreTarget};
+use crate::backend::baselines::streamed::CandidateList;
+use crate::backend::baselines::{Baseline, BaselineParams, Candidate, ExactParams};
+use crate::backend::reference::merge_score::{FixedRigid, ScoreTarget};
+use crate::backend::rules::{RuleSet, RuleTable};
 use crate::map::grid::RotatedGrid;
 use crate::map::states::ClassTable;
 use crate::map::stream::Rows;
 use crate::map::MapImage;
-use crate::rules::{RuleSet, RuleTable};
 use crate::support::error::Result;
 use robust_params::RobustParams;
 
@@ -27,9 +32,9 @@ pub struct Keypoint {
     pub x: u32,
     /// The rule that accepted the neighbourhood: 4, 5 or 6 occupied neighbours.
     pub rule: u8,
-    /// The 8-neighbour code (bit order in [`crate::rules`]); 0 for the baselines.
+    /// The 8-neighbour code (bit order in [`crate::backend::rules`]); 0 for the baselines.
     pub code: u8,
-    /// The baselines' integer response (see [`crate::baselines`]); the robust detector's strength (the
+    /// The baselines' integer response (see [`crate::backend::baselines`]); the robust detector's strength (the
     /// shorter wall of the corner, pixels); 0 for the paper's OGM detector.
     pub score: i64,
     /// The robust detector's coarse scale (map pixels a cell side) the rule fired at; 1 otherwise.
@@ -73,7 +78,7 @@ pub enum DetectorKind {
     #[default]
     Ogm,
     /// The OGM rules made robust for real maps: turned to the walls, at several scales, concave and
-    /// convex corners, ranked by strength ([`crate::robust`]).
+    /// convex corners, ranked by strength ([`crate::detect::robust`]).
     OgmRobust,
     /// One of the paper's baselines.
     Baseline(Baseline),
@@ -130,7 +135,7 @@ pub trait Backend: Send {
     ) -> Result<Vec<Keypoint>>;
 
     /// The score map of a baseline detector: one integer per pixel, row-major, exactly as
-    /// [`crate::baselines::cpu_scores`] computes it.
+    /// [`crate::backend::baselines::cpu_scores`] computes it.
     fn baseline_scores(
         &mut self,
         kind: Baseline,
@@ -202,30 +207,30 @@ pub trait Backend: Send {
     }
 
     /// The coarse maps of `image` sampled on `grid`, one per scale, exactly as
-    /// [`crate::cpu::coarsen::coarsen`] computes them (the default).
+    /// [`crate::backend::reference::coarsen::coarsen`] computes them (the default).
     fn coarsen(
         &mut self,
         image: &MapImage,
         classes: &ClassTable,
         grid: &RotatedGrid,
         scales: &[u32],
-        rule: crate::cpu::coarsen::CellRule,
+        rule: crate::backend::reference::coarsen::CellRule,
     ) -> Result<Vec<MapImage>> {
         Ok(scales
             .iter()
-            .map(|&s| crate::cpu::coarsen::coarsen(image, classes, grid, s, rule))
+            .map(|&s| crate::backend::reference::coarsen::coarsen(image, classes, grid, s, rule))
             .collect())
     }
 
     /// Per transform, the counts of `points` landing on each flag of `target` (inside, near, deep),
-    /// exactly as [`crate::cpu::merge_score::score_transforms`] computes them (the default).
+    /// exactly as [`crate::backend::reference::merge_score::score_transforms`] computes them (the default).
     fn score_transforms(
         &mut self,
         target: &ScoreTarget,
         points: &[[u32; 2]],
         transforms: &[FixedRigid],
     ) -> Result<Vec<[u32; 3]>> {
-        crate::cpu::merge_score::score_transforms(target, points, transforms)
+        crate::backend::reference::merge_score::score_transforms(target, points, transforms)
     }
 
     /// Bytes this backend allocates on the host to detect with `options` in a `width` x `height` map,
@@ -275,7 +280,7 @@ pub fn window_maxima(scores: &[i64], rows: Rows, core: (usize, usize)) -> (Vec<C
         for (x, &v) in scores[r * w..(r + 1) * w].iter().enumerate() {
             max = max.max(v);
             // The window's own edges are the map's wherever a core row touches them.
-            if v > 0 && crate::cpu::select_maxima::local_max(scores, w, held, x, r) {
+            if v > 0 && crate::backend::reference::select_maxima::local_max(scores, w, held, x, r) {
                 out.push((x as u32, y as u32, v));
             }
         }

@@ -1,8 +1,8 @@
 //! The robust detector's options and working memory, kept with the backend interface: the options every
 //! backend is given ([`crate::backend::DetectOptions`]) and the memory each one budgets must not depend on
-//! the detector ([`crate::robust`]) that sits a layer above the backends.
+//! the detector ([`crate::detect::robust`]) that sits a layer above the backends.
 
-use crate::cpu::coarsen::{CellRule, MAX_SCALE};
+use crate::backend::reference::coarsen::{CellRule, MAX_SCALE};
 #[cfg(doc)]
 use crate::map::grid::RotatedGrid;
 use crate::map::grid::MAX_ANCHOR;

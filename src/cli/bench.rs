@@ -306,7 +306,7 @@ pub(super) fn bench(a: BenchArgs, budget: &Budget) -> Result<()> {
             lines.push(format!(
                 "# read: a plain read of the map's bytes on all threads ({} loads), timed before and after its \
                  detectors; % read: a CPU record's pixels a second (one byte each) over the read's bytes a second",
-                ogm_corners::fast::simd::Isa::best().name()
+                ogm_corners::backend::fast::simd::Isa::best().name()
             ));
         }
         lines.push(format!(
@@ -425,7 +425,7 @@ pub(super) fn bench(a: BenchArgs, budget: &Budget) -> Result<()> {
             threads: threads(),
             os: std::env::consts::OS,
             arch: std::env::consts::ARCH,
-            isa: ogm_corners::fast::simd::Isa::active().name(),
+            isa: ogm_corners::backend::fast::simd::Isa::active().name(),
             gpu: runner.gpu_label(),
             repeat: a.repeat,
             records: &all,

@@ -7,11 +7,13 @@ use std::time::Instant;
 
 use clap::Args;
 
-use ogm_corners::output::{self, Format};
-use ogm_corners::overlay::OverlayCanvas;
+use ogm_corners::detect::output::{self, Format};
+use ogm_corners::detect::overlay::OverlayCanvas;
 use ogm_corners::support::files::{self, AtomicFile};
 use ogm_corners::support::memory::Budget;
-use ogm_corners::{map::synthetic, overlay, streamed, DetectorKind, OccupancyMap, Result};
+use ogm_corners::{
+    detect::overlay, detect::streamed, map::synthetic, DetectorKind, OccupancyMap, Result,
+};
 
 use super::{parse_size, write_stdout, DetectOpts};
 

@@ -7,12 +7,12 @@ use clap::Args;
 
 use crate::batch;
 
+use ogm_corners::detect::output::{self, Format};
+use ogm_corners::detect::overlay::OverlayCanvas;
 use ogm_corners::map::find_maps;
-use ogm_corners::output::{self, Format};
-use ogm_corners::overlay::OverlayCanvas;
 use ogm_corners::support::files::{self, AtomicFile, Inputs};
 use ogm_corners::support::memory::Budget;
-use ogm_corners::{overlay, streamed, DetectorKind, Error, OccupancyMap, Result};
+use ogm_corners::{detect::overlay, detect::streamed, DetectorKind, Error, OccupancyMap, Result};
 
 use super::{write_stdout, DetectOpts, FormatArg};
 

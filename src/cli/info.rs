@@ -2,7 +2,7 @@
 
 use clap::Args;
 
-use ogm_corners::gpu;
+use ogm_corners::backend::gpu;
 use ogm_corners::Result;
 
 use super::{write_stdout, TextOrJson};

@@ -18,12 +18,12 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
 
-use ogm_corners::cpu::coarsen::CellRule;
-use ogm_corners::cpu::CpuBackend;
-use ogm_corners::detector::BackendChoice;
-use ogm_corners::fast::FastCpuBackend;
-use ogm_corners::gpu::GpuOptions;
-use ogm_corners::robust::{Anchor, RobustParams};
+use ogm_corners::backend::fast::FastCpuBackend;
+use ogm_corners::backend::gpu::GpuOptions;
+use ogm_corners::backend::reference::coarsen::CellRule;
+use ogm_corners::backend::reference::ReferenceBackend;
+use ogm_corners::detect::detector::BackendChoice;
+use ogm_corners::detect::robust::{Anchor, RobustParams};
 use ogm_corners::support::memory::{self, Budget};
 use ogm_corners::{
     Backend, Baseline, BaselineParams, DetectOptions, Detector, DetectorKind, Error, Result,
@@ -192,7 +192,7 @@ fn parse_anchor(s: &str) -> std::result::Result<Anchor, String> {
         .ok_or_else(|| format!("expected world, centre or a point X,Y in pixels, got {s:?}"))
 }
 
-/// The robust detector's options ([`ogm_corners::robust::RobustParams`]).
+/// The robust detector's options ([`ogm_corners::detect::robust::RobustParams`]).
 #[derive(Args, Debug, Clone)]
 pub(super) struct RobustArgs {
     /// Robust detector: smallest coarse scale, pixels a cell side.
@@ -290,10 +290,10 @@ impl DetectOpts {
     /// and the CPU's), known before the backend is opened, so a map can be refused from its header.
     fn working_bytes(&self, w: u32, h: u32) -> u64 {
         let o = self.options();
-        let gpu = || ogm_corners::gpu::gpu_working_bytes(&GpuOptions::default(), &o, w, h);
+        let gpu = || ogm_corners::backend::gpu::gpu_working_bytes(&GpuOptions::default(), &o, w, h);
         match self.backend {
             BackendArg::Cpu => FastCpuBackend.working_bytes(&o, w, h),
-            BackendArg::Reference => CpuBackend.working_bytes(&o, w, h),
+            BackendArg::Reference => ReferenceBackend.working_bytes(&o, w, h),
             BackendArg::Gpu => gpu(),
             BackendArg::Auto => FastCpuBackend.working_bytes(&o, w, h).max(gpu()),
         }
@@ -387,7 +387,7 @@ fn parse_size(s: &str) -> std::result::Result<(u32, u32), String> {
 pub fn run(cli: Cli) -> Result<()> {
     let budget = Budget::from_option(cli.max_memory)?;
     // A misspelt instruction-set cap would otherwise be ignored: the user asked for something specific.
-    ogm_corners::fast::simd::Isa::from_env().map_err(Error::invalid)?;
+    ogm_corners::backend::fast::simd::Isa::from_env().map_err(Error::invalid)?;
     match cli.command {
         Command::Detect(a) => detect::run(a, &budget),
         Command::Demo(a) if a.detect_only => demo::run(a, &budget),
@@ -459,7 +459,7 @@ enum TableFormat {
     Json,
 }
 
-impl From<TableFormat> for ogm_corners::output::TableFormat {
+impl From<TableFormat> for ogm_corners::detect::output::TableFormat {
     fn from(f: TableFormat) -> Self {
         match f {
             TableFormat::Md => Self::Md,

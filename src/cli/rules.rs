@@ -2,7 +2,7 @@
 
 use clap::{Args, ValueEnum};
 
-use ogm_corners::rules::code_picture;
+use ogm_corners::backend::rules::code_picture;
 use ogm_corners::{Result, RuleTable};
 
 use super::{write_stdout, RulesArg};

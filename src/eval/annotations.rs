@@ -14,7 +14,7 @@ use std::path::Path;
 use serde::Serialize;
 
 use crate::backend::Keypoint;
-use crate::output::{csv_field, md_cell, TableFormat};
+use crate::detect::output::{csv_field, md_cell, TableFormat};
 use crate::support::error::{Error, Result};
 
 /// Largest annotation file read: the shared one is 20 KB.
@@ -247,7 +247,7 @@ pub fn marked_sheet(
 ) -> image::RgbImage {
     let budget = BUDGETS[1] * points.len();
     let strongest =
-        crate::detector::strongest(robust.to_vec(), budget, crate::DetectorKind::OgmRobust)
+        crate::detect::detector::strongest(robust.to_vec(), budget, crate::DetectorKind::OgmRobust)
             .unwrap_or_default();
     let panels = [
         (format!("PAPER OGM: {} KEYPOINTS", paper.len()), paper),

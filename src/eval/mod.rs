@@ -12,10 +12,10 @@ use std::io::{self, Write};
 use image::{Rgb, RgbImage};
 use serde::Serialize;
 
-use crate::detector::{DetectOptions, Detector, DetectorKind, Keypoint};
+use crate::detect::detector::{DetectOptions, Detector, DetectorKind, Keypoint};
+use crate::detect::output::{csv_field, md_cell, TableFormat};
 use crate::map::synthetic::{Rng, FREE, OCCUPIED, UNKNOWN};
 use crate::map::{GeoRef, MapImage, OccupancyMap};
-use crate::output::{csv_field, md_cell, TableFormat};
 use crate::support::error::{Error, Result};
 
 /// Most random trials per condition `evaluate` runs (each trial is a transformed copy of the map).

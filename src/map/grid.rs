@@ -1,4 +1,4 @@
-//! The rotated sampling grid of the robust detector ([`crate::robust`]): the map resampled, by nearest
+//! The rotated sampling grid of the robust detector ([`crate::detect::robust`]): the map resampled, by nearest
 //! neighbour, on a grid turned to the map's dominant wall direction, so that walls run along rows and
 //! columns.
 //!
@@ -196,7 +196,7 @@ impl RotatedGrid {
     /// `crop.2` x `crop.3`. Its samples are this grid's, bit for bit (the fixed-point origin moves by whole
     /// samples and whole pixels; ties still round towards the anchor), wherever the crop holds
     /// the pixels they read; [`RotatedGrid::round_pixel`] still gives the whole map's pixels. The robust
-    /// detector works on a map of any size in such windows ([`crate::robust::tiles`]).
+    /// detector works on a map of any size in such windows ([`crate::detect::robust::tiles`]).
     pub fn window(
         &self,
         offset: (i32, i32),

@@ -34,8 +34,8 @@ pub use super::prepare::{kept_bytes, prepared_bytes, Prepared, Symmetry, CELLS};
 use super::refine::{crop_to_map, icp, map_to_crop, polish, verify};
 use super::symmetry::NEAR_IDENTITY_DEG;
 use super::transform::{signed_deg, transform_distance, Rigid, DISTINCT_PX};
+use crate::backend::reference::ReferenceBackend;
 use crate::backend::Backend;
-use crate::cpu::CpuBackend;
 use crate::map::OccupancyMap;
 use crate::support::error::{Error, Result};
 
@@ -111,7 +111,7 @@ pub struct Alignment {
 
 /// Aligns B onto A: the best transform from B's pixels to A's, verified.
 pub fn align(a: &OccupancyMap, b: &OccupancyMap, options: &MergeOptions) -> Result<Alignment> {
-    align_with(a, b, options, &mut CpuBackend)
+    align_with(a, b, options, &mut ReferenceBackend)
 }
 
 /// `map` prepared as `options` need it: with its corners when the hypotheses use them.
@@ -139,7 +139,7 @@ pub fn align_with(
 
 /// [`align`] on prepared maps (prepare each map once when aligning it with many).
 pub fn align_prepared(a: &Prepared, b: &Prepared, options: &MergeOptions) -> Result<Alignment> {
-    align_prepared_with(a, b, options, &mut CpuBackend)
+    align_prepared_with(a, b, options, &mut ReferenceBackend)
 }
 
 /// [`align_prepared`] with the dense scoring of the candidates on `backend` (the transform-scoring
@@ -535,7 +535,7 @@ pub(super) fn overlap_centre(a: &Prepared, b: &Prepared, t: &Rigid) -> (f64, f64
 /// times the share of the map's wall pixels it was measured on. A map that looks the same turned or
 /// shifted (a symmetric arena) can be merged either way; [`MAX_SELF_SYMMETRY`] declines it.
 pub fn self_symmetry(p: &Prepared) -> Result<f64> {
-    Ok(self_symmetry_with(p, &mut CpuBackend)?.value)
+    Ok(self_symmetry_with(p, &mut ReferenceBackend)?.value)
 }
 
 /// [`self_symmetry`] with the self-alignment's scoring on `backend` (the same counts on every backend),

@@ -12,7 +12,7 @@ use std::collections::HashMap;
 
 use super::transform::Rigid;
 use crate::backend::{DetectOptions, DetectorKind};
-use crate::detector::Detector;
+use crate::detect::detector::Detector;
 use crate::map::OccupancyMap;
 use crate::support::error::Result;
 

@@ -21,9 +21,9 @@ use rayon::prelude::*;
 
 use super::prepare::Prepared;
 use super::transform::Rigid;
+use crate::backend::reference::merge_score::FLAG_INSIDE;
 use crate::backend::{DetectOptions, DetectorKind};
-use crate::cpu::merge_score::FLAG_INSIDE;
-use crate::detector::Detector;
+use crate::detect::detector::Detector;
 use crate::map::{MapImage, OccupancyMap};
 use crate::support::error::Result;
 
@@ -84,7 +84,7 @@ pub struct Signature {
 /// The quadrant of an 8-neighbour code's occupied cells: the one whose three cells (its diagonal and the
 /// two beside it) hold the most, when one does.
 pub fn quadrant(code: u8) -> u8 {
-    // Bit order of crate::rules: Q (-1,-1), B (0,-1), P (1,-1), A (1,0), Q' (1,1), B' (0,1), P' (-1,1),
+    // Bit order of crate::backend::rules: Q (-1,-1), B (0,-1), P (1,-1), A (1,0), Q' (1,1), B' (0,1), P' (-1,1),
     // A' (-1,0). Quadrant 0 is +p +q: A, Q', B'.
     const CELLS: [[u8; 3]; 4] = [[3, 4, 5], [5, 6, 7], [7, 0, 1], [1, 2, 3]];
     let counts = CELLS.map(|c| c.iter().filter(|&&b| (code >> b) & 1 == 1).count());
@@ -493,7 +493,7 @@ mod tests {
     use super::*;
     use crate::map::OccupancyMap;
 
-    /// Bits of the neighbours named (crate::rules' order: Q B P A Q' B' P' A').
+    /// Bits of the neighbours named (crate::backend::rules' order: Q B P A Q' B' P' A').
     fn code(bits: &[u8]) -> u8 {
         bits.iter().fold(0, |c, &b| c | (1 << b))
     }

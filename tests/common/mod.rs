@@ -13,11 +13,11 @@ use ogm_corners::{DetectOptions, Detector, Keypoint, MapImage, OccupancyMap, Rul
 pub fn some_cell_rule(
     seed: u64,
     rng: &mut ogm_corners::map::synthetic::Rng,
-) -> ogm_corners::cpu::coarsen::CellRule {
+) -> ogm_corners::backend::reference::coarsen::CellRule {
     if seed.is_multiple_of(2) {
-        ogm_corners::cpu::coarsen::CellRule::default()
+        ogm_corners::backend::reference::coarsen::CellRule::default()
     } else {
-        ogm_corners::cpu::coarsen::CellRule {
+        ogm_corners::backend::reference::coarsen::CellRule {
             occupied_pct: rng.range(1, 121),
             free_pct: rng.range(1, 121),
         }
@@ -199,8 +199,10 @@ pub fn real_maps(dir: &std::path::Path) -> Vec<PathBuf> {
 
 /// A GPU backend for conformance tests, or None with a loud message. Under CI=true a missing adapter is
 /// a failure: GPU tests never silently skip there.
-pub fn gpu_backend(options: ogm_corners::gpu::GpuOptions) -> Option<ogm_corners::gpu::GpuBackend> {
-    match ogm_corners::gpu::GpuBackend::new(options) {
+pub fn gpu_backend(
+    options: ogm_corners::backend::gpu::GpuOptions,
+) -> Option<ogm_corners::backend::gpu::GpuBackend> {
+    match ogm_corners::backend::gpu::GpuBackend::new(options) {
         Ok(b) => Some(b),
         Err(e) => {
             if std::env::var("CI").is_ok_and(|v| v == "true") {

@@ -1,5 +1,5 @@
 //! Maps read as a stream of rows: every detector except the robust one (which works in tiles of its turned
-//! grid, [`crate::robust::tiles`]) looks at a few rows at a time, so a map of any size is detected in
+//! grid, [`crate::detect::robust::tiles`]) looks at a few rows at a time, so a map of any size is detected in
 //! windows of rows with a small halo above and below, holding only a few windows in memory.
 //!
 //! - [`Rows`] is a band of a map's rows in memory, addressed by the map's own row numbers.

@@ -344,7 +344,7 @@ pub fn write_folds(out: &mut dyn Write, rows: &[FoldRow]) -> io::Result<()> {
         writeln!(
             out,
             "| {} | {} | {} ({:.1}%) | {} | {} | {} | {} ({:.1}%) | {} | {} of {} | {} | {}, {} | {rule} |",
-            crate::output::md_cell(&r.building),
+            crate::detect::output::md_cell(&r.building),
             r.pairs,
             r.accepted_accurate,
             pct(r.accepted_accurate),

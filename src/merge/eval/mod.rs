@@ -18,8 +18,8 @@ use super::hypotheses::Hypotheses;
 use super::pairs::{PairSet, TruePair};
 use super::synthetic::{furnished_pair, synthetic_pair, SyntheticPair, SyntheticSpec};
 use super::transform::Rigid;
+use crate::backend::baselines::Baseline;
 use crate::backend::DetectorKind;
-use crate::baselines::Baseline;
 use crate::map::OccupancyMap;
 use crate::support::error::Result;
 
@@ -817,7 +817,7 @@ pub fn write_summary(out: &mut dyn Write, rows: &[PairRecord], costs: &MapCosts)
         writeln!(
             out,
             "| {} | {n} | {ok} ({:.1}%) | {could} ({:.1}%) | {found} ({:.1}%) | {wrong} | {:.0} | {:.0} |",
-            crate::output::md_cell(g),
+            crate::detect::output::md_cell(g),
             pct(ok),
             pct(could),
             pct(found),

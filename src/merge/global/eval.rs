@@ -7,7 +7,7 @@ use serde::Serialize;
 
 use super::graph::Placement;
 use super::{GlobalOptions, Pairwise, Timing};
-use crate::cpu::CpuBackend;
+use crate::backend::reference::ReferenceBackend;
 use crate::map::OccupancyMap;
 use crate::merge::pairs::TruePair;
 use crate::merge::transform::Rigid;
@@ -33,7 +33,7 @@ pub fn run_maps(
     options: &GlobalOptions,
     progress: &(dyn Fn(usize, usize) + Sync),
 ) -> Result<SetResult> {
-    let r = super::run(maps, options, &mut CpuBackend, progress)?;
+    let r = super::run(maps, options, &mut ReferenceBackend, progress)?;
     Ok(SetResult {
         names,
         pairwise: r.pairwise,
@@ -242,7 +242,7 @@ pub fn write_rows(out: &mut dyn Write, rows: &[SetRow]) -> io::Result<()> {
         writeln!(
             out,
             "| {} | {} | {} | {} | {} | {} | {} | {} | {} ({:.1}%) | {} | {} ({:.1}%) | {} | {} ({:.1}%) | {} | {} | {} | {} | {:.2} | {:.2} | {:.2} | {:.2} |",
-            crate::output::md_cell(&r.label),
+            crate::detect::output::md_cell(&r.label),
             r.maps,
             r.placed,
             r.correct,

@@ -179,7 +179,8 @@ pub fn write(mut page: Report, many: &ManyMerge) -> Result<Staged> {
     page.heading("Each map as given (at the merge's resolution)");
     let mut figures = Vec::new();
     for (m, (map, e)) in many.maps.iter().zip(&doc.maps).enumerate() {
-        let picture = crate::overlay::render_overlay_fit(&map.image, &[], MAP_PICTURE, MAP_PICTURE);
+        let picture =
+            crate::detect::overlay::render_overlay_fit(&map.image, &[], MAP_PICTURE, MAP_PICTURE);
         let status = match e.group {
             Some(g) => format!("group {g}"),
             None => "not placed".to_string(),

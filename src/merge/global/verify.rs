@@ -17,7 +17,7 @@
 //! among all the others: a record that passes keeps it as it says.
 
 use super::{GlobalOptions, PairRecord};
-use crate::cpu::CpuBackend;
+use crate::backend::reference::ReferenceBackend;
 use crate::merge::align::{
     accepts, alias, check, not_contradicted, overlap_centre, reference_rms, self_symmetry_with,
     Features, Prepared, Repeats, MAX_CANDIDATES, MAX_RATIO,
@@ -68,7 +68,7 @@ pub(super) fn why_not(
             "a map has (almost) no walls to align, yet it carries candidates".to_string()
         }));
     }
-    let mut backend = CpuBackend;
+    let mut backend = ReferenceBackend;
     for e in &r.edges {
         let f = check(pa, pb, &e.transform, &mut backend)?;
         let k = e.rank;
@@ -135,7 +135,7 @@ fn polished_again(pa: &Prepared, pb: &Prepared, t: &Rigid) -> Result<f64> {
     let start = map_to_crop(pb, pa, t);
     let mut at = start;
     for _ in 0..POLISH_ROUNDS {
-        let next = polish(pb, pa, &at, 1.0, &mut CpuBackend)?;
+        let next = polish(pb, pa, &at, 1.0, &mut ReferenceBackend)?;
         if next == at {
             break;
         }
@@ -155,7 +155,7 @@ fn accepted_holds(
     score: f64,
 ) -> Result<Option<String>> {
     if pa.can_align() && pb.can_align() {
-        let mut backend = CpuBackend;
+        let mut backend = ReferenceBackend;
         let (sa, sb) = (
             self_symmetry_with(pa, &mut backend)?,
             self_symmetry_with(pb, &mut backend)?,

@@ -28,13 +28,13 @@ use std::time::Duration;
 
 use wgpu::util::DeviceExt;
 
+use crate::backend::baselines::{Baseline, ExactParams};
+use crate::backend::reference::merge_score::{FixedRigid, ScoreTarget};
+use crate::backend::rules::RuleTable;
 use crate::backend::{Backend, DetectOptions, DetectorKind, Keypoint};
-use crate::baselines::{Baseline, ExactParams};
-use crate::cpu::merge_score::{FixedRigid, ScoreTarget};
 use crate::map::states::ClassTable;
 use crate::map::stream::Rows;
 use crate::map::MapImage;
-use crate::rules::RuleTable;
 use crate::support::error::{Error, Result};
 
 /// Workgroup size of the baseline, coarsening and scoring kernels.
@@ -45,28 +45,32 @@ const WORKGROUP: u32 = 256;
 /// name.
 pub fn shader_source(kernel: &str, native_int64: bool) -> Option<String> {
     let body = match kernel {
-        "coarsen" => return Some(include_str!("../../shaders/coarsen.wgsl").to_string()),
-        "merge_score" => return Some(include_str!("../../shaders/merge_score.wgsl").to_string()),
-        "ogm_corners" => return Some(include_str!("../../shaders/ogm_corners.wgsl").to_string()),
-        "scan" => return Some(include_str!("../../shaders/scan.wgsl").to_string()),
-        "select_maxima" => {
-            return Some(include_str!("../../shaders/select_maxima.wgsl").to_string())
+        "coarsen" => return Some(include_str!("../../../shaders/coarsen.wgsl").to_string()),
+        "merge_score" => {
+            return Some(include_str!("../../../shaders/merge_score.wgsl").to_string())
         }
-        "gaussian_blur" => include_str!("../../shaders/gaussian_blur.wgsl"),
-        "structure_tensor" => include_str!("../../shaders/structure_tensor.wgsl"),
-        "harris" => include_str!("../../shaders/harris.wgsl"),
-        "shi_tomasi" => include_str!("../../shaders/shi_tomasi.wgsl"),
-        "trajkovic" => include_str!("../../shaders/trajkovic.wgsl"),
+        "ogm_corners" => {
+            return Some(include_str!("../../../shaders/ogm_corners.wgsl").to_string())
+        }
+        "scan" => return Some(include_str!("../../../shaders/scan.wgsl").to_string()),
+        "select_maxima" => {
+            return Some(include_str!("../../../shaders/select_maxima.wgsl").to_string())
+        }
+        "gaussian_blur" => include_str!("../../../shaders/gaussian_blur.wgsl"),
+        "structure_tensor" => include_str!("../../../shaders/structure_tensor.wgsl"),
+        "harris" => include_str!("../../../shaders/harris.wgsl"),
+        "shi_tomasi" => include_str!("../../../shaders/shi_tomasi.wgsl"),
+        "trajkovic" => include_str!("../../../shaders/trajkovic.wgsl"),
         _ => return None,
     };
     let int64 = if native_int64 {
-        include_str!("../../shaders/lib/int64_native.wgsl")
+        include_str!("../../../shaders/lib/int64_native.wgsl")
     } else {
-        include_str!("../../shaders/lib/int64_emulated.wgsl")
+        include_str!("../../../shaders/lib/int64_emulated.wgsl")
     };
     Some(format!(
         "{}\n{int64}\n{body}",
-        include_str!("../../shaders/lib/baseline_common.wgsl")
+        include_str!("../../../shaders/lib/baseline_common.wgsl")
     ))
 }
 
@@ -486,7 +490,7 @@ impl Backend for GpuBackend {
         classes: &ClassTable,
         grid: &crate::map::grid::RotatedGrid,
         scales: &[u32],
-        rule: crate::cpu::coarsen::CellRule,
+        rule: crate::backend::reference::coarsen::CellRule,
     ) -> Result<Vec<MapImage>> {
         self.coarsen_maps(image, classes, grid, scales, rule)
     }
@@ -537,9 +541,9 @@ impl Backend for GpuBackend {
         kind: Baseline,
         rows: Rows,
         core: (usize, usize),
-        params: &crate::baselines::BaselineParams,
+        params: &crate::backend::baselines::BaselineParams,
         _known_max: i64,
-    ) -> Result<(Vec<crate::baselines::Candidate>, i64)> {
+    ) -> Result<(Vec<crate::backend::baselines::Candidate>, i64)> {
         self.baseline_candidates_rows(kind, rows, core, &params.exact()?)
     }
 

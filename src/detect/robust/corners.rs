@@ -3,7 +3,7 @@
 //!
 //! Host code over the few cells where a rule fired, shared by every backend.
 
-use crate::cpu::coarsen::{sample, FREE, OCCUPIED};
+use crate::backend::reference::coarsen::{sample, FREE, OCCUPIED};
 use crate::map::grid::RotatedGrid;
 use crate::map::states::{CellState, ClassTable};
 use crate::map::MapImage;
@@ -35,7 +35,7 @@ impl<'a> Cells<'a> {
     fn at(&self, u: i32, v: i32) -> u8 {
         let (w, h) = (self.map.width(), self.map.height());
         if u < 0 || v < 0 || u as u32 >= w || v as u32 >= h {
-            crate::cpu::coarsen::UNKNOWN
+            crate::backend::reference::coarsen::UNKNOWN
         } else {
             self.map.pixels()[v as usize * w as usize + u as usize]
         }
@@ -145,7 +145,7 @@ pub struct Sampler<'a> {
     /// The grid.
     pub grid: &'a RotatedGrid,
     /// Unknown samples a wall's cross-section bridges between occupied ones
-    /// ([`crate::robust::RobustParams::wall_gap`]): a person marks the middle of a wall seen from both
+    /// ([`crate::detect::robust::RobustParams::wall_gap`]): a person marks the middle of a wall seen from both
     /// sides.
     pub wall_gap: i32,
 }

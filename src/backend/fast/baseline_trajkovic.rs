@@ -1,11 +1,11 @@
 //! Trajkovic-Hedley scores row by row, lazily: the reference's score is 0 unless the full-resolution
-//! min(r_A, r_B) exceeds T2 ([`crate::cpu::trajkovic::full_res_score`] returns 0 first thing otherwise), so
+//! min(r_A, r_B) exceeds T2 ([`crate::backend::reference::trajkovic::full_res_score`] returns 0 first thing otherwise), so
 //! each row first computes that cheap test for every pixel in one vectorised pass. Only rows with a hit
 //! look at the low-resolution candidates (two rows of low-resolution cornerness > T1, cached while the
 //! band moves down), and only hits that are candidates run the reference's own score function, so the
 //! score is the reference's by construction. On maps most rows have no hit at all.
 
-use crate::cpu::trajkovic::full_res_score;
+use crate::backend::reference::trajkovic::full_res_score;
 use crate::map::stream::Rows;
 
 /// Marks no row (a cache tag).

@@ -1,4 +1,4 @@
-//! The fast CPU baselines: the reference's score maps and keypoints ([`crate::baselines`]), bit for bit,
+//! The fast CPU baselines: the reference's score maps and keypoints ([`crate::backend::baselines`]), bit for bit,
 //! computed in bands of rows on every core without full-size intermediates.
 //!
 //! Each band streams its rows through a rolling pipeline (`TensorRows` for Harris and Shi-Tomasi,
@@ -19,7 +19,7 @@ use rayon::prelude::*;
 
 use super::baseline_tensor::{kernel_supported, TensorRows, TensorScore};
 use super::baseline_trajkovic::TrajkovicRows;
-use crate::baselines::{self, Baseline, BaselineParams, Candidate, ExactParams};
+use crate::backend::baselines::{self, Baseline, BaselineParams, Candidate, ExactParams};
 use crate::map::stream::Rows;
 use crate::map::MapImage;
 use crate::support::error::Result;
@@ -73,7 +73,7 @@ fn band_rows(h: usize) -> usize {
     h.div_ceil(threads * BANDS_PER_THREAD).max(MIN_BAND_ROWS)
 }
 
-/// The score map of `kind`, identical to [`crate::baselines::cpu_scores`].
+/// The score map of `kind`, identical to [`crate::backend::baselines::cpu_scores`].
 pub fn scores(kind: Baseline, image: &MapImage, params: &ExactParams) -> Vec<i64> {
     if !supported(kind, params) {
         return baselines::cpu_scores(kind, image, params);

@@ -1,14 +1,14 @@
 //! The detector API: a [`Detector`] runs one of the detectors on a backend and returns a [`Detection`].
 
+use crate::backend::baselines::streamed::CandidateList;
+use crate::backend::baselines::Candidate;
+use crate::backend::fast::FastCpuBackend;
+use crate::backend::rules::RuleTable;
 pub use crate::backend::{Backend, DetectOptions, DetectorKind, Keypoint};
-use crate::baselines::streamed::CandidateList;
-use crate::baselines::Candidate;
-use crate::fast::FastCpuBackend;
+use crate::detect::robust::RobustInfo;
 use crate::map::states::ClassTable;
 use crate::map::stream::{for_each_window, RowSource, Rows, Window, WindowPlan};
 use crate::map::{GeoRef, MapImage, OccupancyMap, Thresholds};
-use crate::robust::RobustInfo;
-use crate::rules::RuleTable;
 use crate::support::error::{Error, Result};
 
 /// The keypoints found in one map.
@@ -84,7 +84,7 @@ impl Detector {
     }
 
     /// Detects corners in a loaded map, with the map's own thresholds; the robust detector's grid is
-    /// anchored at the map's world origin where it has one ([`crate::robust::Anchor::World`]).
+    /// anchored at the map's world origin where it has one ([`crate::detect::robust::Anchor::World`]).
     pub fn detect(&mut self, map: &OccupancyMap) -> Result<Detection> {
         let classes = ClassTable::new(&map.thresholds);
         self.detect_as(&map.image, &classes, false, map.georef.as_ref())
@@ -120,7 +120,7 @@ impl Detector {
         let mut robust = None;
         let keypoints = match self.options.detector {
             DetectorKind::OgmRobust => {
-                let (k, info) = crate::robust::detect(
+                let (k, info) = crate::detect::robust::detect(
                     &mut *self.backend,
                     image,
                     classes,
@@ -176,12 +176,12 @@ impl Detector {
     /// draw a downsampled picture).
     ///
     /// The robust detector turns the whole map to its walls, so it reads the rows once into a temporary
-    /// file and works in tiles of its turned grid ([`crate::robust::tiles`]): memory bounded by one tile's
+    /// file and works in tiles of its turned grid ([`crate::detect::robust::tiles`]): memory bounded by one tile's
     /// window (and the corners no window could rule out); its keypoints come at the end. `on_rows` sees
     /// the rows as they are read.
     ///
     /// `frame` is where the map lies in the world, if known: the robust detector's grid is anchored at its
-    /// origin ([`crate::robust::Anchor::World`]), as [`Detector::detect`] anchors it.
+    /// origin ([`crate::detect::robust::Anchor::World`]), as [`Detector::detect`] anchors it.
     pub fn detect_streamed(
         &mut self,
         source: &mut dyn RowSource,
@@ -192,7 +192,7 @@ impl Detector {
     ) -> Result<Streamed> {
         let (w, h) = (source.width(), source.height());
         if self.options.detector == DetectorKind::OgmRobust {
-            use crate::robust::tiles::{detect_tiled, Spill};
+            use crate::detect::robust::tiles::{detect_tiled, Spill};
             let params = self.options.robust.in_frame(frame, h);
             let plan = self.tile_plan()?;
             // A map the turned grid cannot hold is refused before its rows are copied.
@@ -244,8 +244,11 @@ impl Detector {
 
     /// The tiles the robust detector works in when streamed: windows of about
     /// [`Detector::window_bytes`] each.
-    pub fn tile_plan(&self) -> Result<crate::robust::tiles::TilePlan> {
-        crate::robust::tiles::TilePlan::with_bytes(&self.options.robust, self.window_bytes())
+    pub fn tile_plan(&self) -> Result<crate::detect::robust::tiles::TilePlan> {
+        crate::detect::robust::tiles::TilePlan::with_bytes(
+            &self.options.robust,
+            self.window_bytes(),
+        )
     }
 
     /// How [`Detector::detect_streamed`] cuts a map `width` wide into windows: about
@@ -282,12 +285,13 @@ impl Detector {
             // One tile's window at a time, and a chunk of the temporary file's rows; a plan the options
             // refuse needs nothing (the detection reports them).
             // A window never exceeds the whole grid (and its crop the map).
-            let whole = crate::robust::robust_working_bytes(width, height, &self.options.robust)
-                .saturating_add(u64::from(width) * u64::from(height));
+            let whole =
+                crate::detect::robust::robust_working_bytes(width, height, &self.options.robust)
+                    .saturating_add(u64::from(width) * u64::from(height));
             return self.tile_plan().map_or(0, |p| {
                 p.bytes()
                     .min(whole)
-                    .saturating_add(crate::robust::tiles::Spill::bytes(width))
+                    .saturating_add(crate::detect::robust::tiles::Spill::bytes(width))
             });
         }
         let plan = self.window_plan(width);
@@ -450,11 +454,11 @@ impl BackendChoice {
     /// Opens the backend. With `Auto` the second value says which it picked and why, for the caller to
     /// tell its user (the command line prints it on standard error).
     pub fn open(self) -> Result<(Box<dyn Backend>, Option<String>)> {
-        use crate::cpu::CpuBackend;
-        use crate::gpu::{GpuBackend, GpuOptions};
+        use crate::backend::gpu::{GpuBackend, GpuOptions};
+        use crate::backend::reference::ReferenceBackend;
         Ok(match self {
             BackendChoice::Cpu => (Box::new(FastCpuBackend), None),
-            BackendChoice::Reference => (Box::new(CpuBackend), None),
+            BackendChoice::Reference => (Box::new(ReferenceBackend), None),
             BackendChoice::Gpu => (Box::new(GpuBackend::new(GpuOptions::default())?), None),
             BackendChoice::Auto => match GpuBackend::open(true, GpuOptions::default()) {
                 Ok(Some(g)) => {

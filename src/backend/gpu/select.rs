@@ -1,7 +1,7 @@
 //! The baselines' selection on the device (`shaders/select_maxima.wgsl`): the scores stay on the GPU, the
 //! local maxima are found and compacted there and the map's maximum reduced there; only the candidates and
 //! one maximum per tile come back, and the host applies the thresholds
-//! ([`crate::baselines::select_candidates`]).
+//! ([`crate::backend::baselines::select_candidates`]).
 
 use super::scan::{scan_binds, ScanPlan, MAX_LEVELS, PARAM_ALIGN};
 use super::*;
@@ -52,7 +52,7 @@ impl Select {
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("select_maxima.wgsl"),
             source: wgpu::ShaderSource::Wgsl(
-                include_str!("../../shaders/select_maxima.wgsl").into(),
+                include_str!("../../../shaders/select_maxima.wgsl").into(),
             ),
         });
         let pipeline = |entry: &str| {
@@ -96,7 +96,7 @@ impl Select {
 
 impl GpuBackend {
     /// Every positive 3x3 local maximum of `kind`'s score map in (y, x) order, and the map's largest score:
-    /// exactly [`crate::cpu::select_maxima::select_maxima`] of [`crate::baselines::cpu_scores`].
+    /// exactly [`crate::backend::reference::select_maxima::select_maxima`] of [`crate::backend::baselines::cpu_scores`].
     pub fn baseline_candidates(
         &mut self,
         kind: Baseline,

@@ -1,8 +1,8 @@
 //! CPU twin of the corner kernel: the 8-neighbour code of every free pixel, looked up in the rule table.
 
+use crate::backend::rules::{RuleTable, NEIGHBOUR_OFFSETS};
 use crate::backend::Keypoint;
 use crate::map::states::CellState;
-use crate::rules::{RuleTable, NEIGHBOUR_OFFSETS};
 
 /// Whether a neighbour in state `s` sets its bit in the code.
 #[inline]

@@ -14,18 +14,18 @@ pub mod shi_tomasi;
 pub mod structure_tensor;
 pub mod trajkovic;
 
+use crate::backend::baselines::{self, Baseline, ExactParams};
+use crate::backend::rules::RuleTable;
 use crate::backend::{Backend, Keypoint};
-use crate::baselines::{self, Baseline, ExactParams};
 use crate::map::states::ClassTable;
 use crate::map::MapImage;
-use crate::rules::RuleTable;
 use crate::support::error::Result;
 
 /// The CPU backend: classification then the rule table, pixel by pixel.
 #[derive(Clone, Copy, Debug, Default)]
-pub struct CpuBackend;
+pub struct ReferenceBackend;
 
-impl Backend for CpuBackend {
+impl Backend for ReferenceBackend {
     fn name(&self) -> String {
         "cpu-reference".to_string()
     }

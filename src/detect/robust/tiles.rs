@@ -25,13 +25,13 @@ use std::os::unix::fs::FileExt;
 use super::corners::MAX_ARM_CELLS;
 use super::orientation::{self, RowReader};
 use super::{detect_window, finish, RobustInfo, RobustParams, Span, Window};
+use crate::backend::reference::coarsen::MAX_SCALE;
+use crate::backend::rules::RuleTable;
 use crate::backend::{Backend, Keypoint};
-use crate::cpu::coarsen::MAX_SCALE;
 use crate::map::grid::RotatedGrid;
 use crate::map::states::ClassTable;
 use crate::map::stream::{RowSource, Rows};
 use crate::map::MapImage;
-use crate::rules::RuleTable;
 use crate::support::error::{Error, Result};
 
 /// Smallest tile side, samples: below it the halo is nearly all the work.

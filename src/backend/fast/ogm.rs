@@ -1,4 +1,4 @@
-//! The fast twin of [`crate::cpu::ogm_corners`]: the same keypoints, 64 pixels at a time.
+//! The fast twin of [`crate::backend::reference::ogm_corners`]: the same keypoints, 64 pixels at a time.
 //!
 //! Each row becomes two bit-planes (free, and "sets its bit in the code": occupied, or not free with
 //! `unknown_as_occupied`). The eight neighbour planes of a word are shifts of the blocking planes of the
@@ -12,11 +12,11 @@ use rayon::prelude::*;
 
 use super::bitplanes::{ogm_sets, plane_rows2_on, words, ValueSet};
 use super::simd::{set_bits, Isa, Lanes};
+use crate::backend::rules::RuleTable;
 use crate::backend::Keypoint;
 use crate::map::states::ClassTable;
 use crate::map::stream::Rows;
 use crate::map::MapImage;
-use crate::rules::RuleTable;
 
 /// Rows per band at least: the rows above and below a band are classified twice, so bands are long.
 const MIN_BAND_ROWS: usize = 64;
@@ -52,7 +52,7 @@ fn blocking_pairs(rules: &RuleTable) -> Vec<(usize, usize)> {
 }
 
 /// Every free pixel whose neighbour code `rules` accepts, sorted by (y, x); identical to the reference
-/// (classification with `classes`, then [`crate::cpu::ogm_corners::ogm_corners`]).
+/// (classification with `classes`, then [`crate::backend::reference::ogm_corners::ogm_corners`]).
 pub fn ogm_corners(
     image: &MapImage,
     classes: &ClassTable,
@@ -309,7 +309,7 @@ unsafe fn row_corners<V: Candidates, const M: u32>(
         }
         let at = |p: *const u64, d: isize| unsafe { V::load(p.offset(k as isize + d)) };
         let (u, m, d) = (at(up, 0), at(mid, 0), at(down, 0));
-        // Bit order of the code (see crate::rules): Q, B, P, A, Q', B', P', A' clockwise from top-left.
+        // Bit order of the code (see crate::backend::rules): Q, B, P, A, Q', B', P', A' clockwise from top-left.
         let nb = [
             u.left_neighbour(at(up, -1)),
             u,
@@ -517,7 +517,7 @@ fn at_least<V: Lanes, const M: u32>(n: &[V; 8]) -> V {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::rules::RuleSet;
+    use crate::backend::rules::RuleSet;
 
     /// The pairs are clauses of the table: every accepted code sets a bit of each; and for the paper's
     /// reading they are the four pairs of diagonal neighbours that share a side.

@@ -4,11 +4,11 @@
 
 use std::io::Write;
 
-use crate::detector::{Detector, DetectorKind, Streamed};
+use crate::detect::detector::{Detector, DetectorKind, Streamed};
+use crate::detect::output::{About, Format, KeypointWriter};
+use crate::detect::overlay::{overlay_bytes, OverlayCanvas};
 use crate::map::states::ClassTable;
 use crate::map::MapRows;
-use crate::output::{About, Format, KeypointWriter};
-use crate::overlay::{overlay_bytes, OverlayCanvas};
 use crate::support::error::{Error, Result};
 use crate::support::memory::Budget;
 

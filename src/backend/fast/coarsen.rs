@@ -1,4 +1,4 @@
-//! The fast twin of [`crate::cpu::coarsen`]: the same coarse maps, bit for bit. The rotated grid is
+//! The fast twin of [`crate::backend::reference::coarsen`]: the same coarse maps, bit for bit. The rotated grid is
 //! sampled once into two bit-planes (occupied, free), walking each grid row with integer increments (the
 //! same sums [`RotatedGrid::source`] computes); the planes become two summed-area tables of `u8` (they
 //! wrap, but a box of at most 15 x 15 samples counts below 256, so its difference of four corners is
@@ -6,8 +6,8 @@
 
 use rayon::prelude::*;
 
-use crate::cpu::coarsen::{CellRule, Mosaic, FREE, MAX_SCALE, OCCUPIED, UNKNOWN};
-use crate::fast::bitplanes::{self, plane_row, ValueSet};
+use crate::backend::fast::bitplanes::{self, plane_row, ValueSet};
+use crate::backend::reference::coarsen::{CellRule, Mosaic, FREE, MAX_SCALE, OCCUPIED, UNKNOWN};
 use crate::map::grid::{nearest, RotatedGrid};
 use crate::map::states::{CellState, ClassTable};
 use crate::map::MapImage;

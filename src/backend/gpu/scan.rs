@@ -132,7 +132,7 @@ pub(super) fn scan_binds(
 
 impl GpuBackend {
     /// The device scan of `counts` (exclusive prefix sums, then the total), as the OGM pipeline runs it;
-    /// for the conformance tests against [`crate::cpu::scan::exclusive_scan`].
+    /// for the conformance tests against [`crate::backend::reference::scan::exclusive_scan`].
     pub fn scan(&mut self, counts: &[u32]) -> Result<(Vec<u32>, u32)> {
         self.check()?;
         let n = counts.len() as u64;

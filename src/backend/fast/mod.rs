@@ -1,4 +1,4 @@
-//! The fast CPU backend: the same results as the reference in [`crate::cpu`], bit for bit, computed with
+//! The fast CPU backend: the same results as the reference in [`crate::backend::reference`], bit for bit, computed with
 //! bit-planes, SIMD compares and every core (rayon), streaming the map in bands of rows so that memory
 //! beyond the map stays small.
 //!
@@ -14,17 +14,17 @@ pub mod ogm;
 pub mod read;
 pub mod simd;
 
+use crate::backend::baselines::{Baseline, BaselineParams, Candidate, ExactParams};
+use crate::backend::reference::coarsen::CellRule;
+use crate::backend::rules::RuleTable;
 use crate::backend::{
     maxima_of_window_scores, reference_working_bytes, Backend, DetectOptions, DetectorKind,
     Keypoint,
 };
-use crate::baselines::{Baseline, BaselineParams, Candidate, ExactParams};
-use crate::cpu::coarsen::CellRule;
 use crate::map::grid::RotatedGrid;
 use crate::map::states::ClassTable;
 use crate::map::stream::Rows;
 use crate::map::MapImage;
-use crate::rules::RuleTable;
 use crate::support::error::Result;
 
 /// The fast CPU backend (the default). Threads come from rayon's global pool (`RAYON_NUM_THREADS`).

@@ -37,7 +37,7 @@ impl Tile {
     }
 }
 
-/// Pixels the OGM kernel's rows are padded to: one invocation's run (`RUN` in src/gpu/ogm.rs).
+/// Pixels the OGM kernel's rows are padded to: one invocation's run (`RUN` in src/backend/gpu/ogm.rs).
 pub const ROW_ALIGN: u32 = 32;
 
 /// Bytes one OGM tile's padded upload needs for a core of `w` x `h` (halo included, worst case).

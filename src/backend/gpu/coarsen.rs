@@ -2,7 +2,7 @@
 //! with the rectangle of map pixels its samples reach uploaded beside it.
 
 use super::*;
-use crate::cpu::coarsen::{CellRule, Mosaic, UNKNOWN};
+use crate::backend::reference::coarsen::{CellRule, Mosaic, UNKNOWN};
 use crate::map::grid::{RotatedGrid, FRAC_BITS};
 
 /// Invocations per workgroup of the coarsening kernel.

@@ -4,7 +4,7 @@ use std::io::Write;
 
 use serde::Serialize;
 
-use crate::detector::{DetectOptions, Detection, DetectorKind, Keypoint};
+use crate::detect::detector::{DetectOptions, Detection, DetectorKind, Keypoint};
 use crate::map::{GeoRef, OccupancyMap};
 
 /// Formats of the tables `eval` and `compare` print.

@@ -3,7 +3,9 @@
 //! workgroup row each; every band's and chunk's dispatch adds into the batch's counters.
 
 use super::*;
-use crate::cpu::merge_score::{check_score_input, FixedRigid, ScoreTarget, SCORE_FRAC_BITS};
+use crate::backend::reference::merge_score::{
+    check_score_input, FixedRigid, ScoreTarget, SCORE_FRAC_BITS,
+};
 
 /// Invocations per workgroup of the scoring kernel.
 const SCORE_GROUP: u32 = 256;
@@ -36,7 +38,7 @@ const _: () = assert!(
 
 impl GpuBackend {
     /// Per transform, the counts of `points` landing on each flag of `target`, exactly as the CPU twin
-    /// ([`crate::cpu::merge_score::score_transforms`]) computes them.
+    /// ([`crate::backend::reference::merge_score::score_transforms`]) computes them.
     pub(super) fn score_transforms_gpu(
         &mut self,
         target: &ScoreTarget,

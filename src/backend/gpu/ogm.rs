@@ -5,7 +5,7 @@
 
 use super::scan::{scan_binds, ScanPlan, MAX_LEVELS, PARAM_ALIGN};
 use super::*;
-use crate::fast::bitplanes::{ogm_sets, ValueSet};
+use crate::backend::fast::bitplanes::{ogm_sets, ValueSet};
 
 /// Invocations of a `detect` workgroup side by side, each owning 32 pixels of a row.
 const LANES: u32 = 64;
@@ -71,9 +71,9 @@ impl OgmPipelines {
         };
         let corners = module(
             "ogm_corners.wgsl",
-            include_str!("../../shaders/ogm_corners.wgsl"),
+            include_str!("../../../shaders/ogm_corners.wgsl"),
         );
-        let scan = module("scan.wgsl", include_str!("../../shaders/scan.wgsl"));
+        let scan = module("scan.wgsl", include_str!("../../../shaders/scan.wgsl"));
         let pipeline =
             |m: &wgpu::ShaderModule, entry: &str, layout: Option<&wgpu::PipelineLayout>| {
                 device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {

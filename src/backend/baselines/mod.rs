@@ -1,6 +1,6 @@
 //! The paper's three baseline detectors: Harris, Shi-Tomasi and Trajkovic-Hedley.
 //!
-//! Every backend computes a per-pixel integer score map (exact, see the CPU twins in `src/cpu/`); the
+//! Every backend computes a per-pixel integer score map (exact, see the CPU twins in `src/backend/reference/`); the
 //! selection of keypoints from a score map is host code shared by all backends, so the backends agree
 //! bit for bit by construction once their score maps do.
 
@@ -109,7 +109,7 @@ impl BaselineParams {
         let kn = k1000.round() as u32;
         let g = gcd(kn, 1000).max(1);
         Ok(ExactParams {
-            blur: crate::cpu::gaussian_blur::gaussian_kernel(self.sigma),
+            blur: crate::backend::reference::gaussian_blur::gaussian_kernel(self.sigma),
             kn: kn / g,
             kd: 1000 / g,
             t1: self.t1,
@@ -125,7 +125,9 @@ impl BaselineParams {
 
 /// The CPU reference score map of `kind` (row-major, one i64 per pixel).
 pub fn cpu_scores(kind: Baseline, image: &crate::MapImage, p: &ExactParams) -> Vec<i64> {
-    use crate::cpu::{gaussian_blur, harris, shi_tomasi, structure_tensor, trajkovic};
+    use crate::backend::reference::{
+        gaussian_blur, harris, shi_tomasi, structure_tensor, trajkovic,
+    };
     let (w, h) = (image.width(), image.height());
     match kind {
         Baseline::Harris | Baseline::ShiTomasi => {
@@ -141,12 +143,12 @@ pub fn cpu_scores(kind: Baseline, image: &crate::MapImage, p: &ExactParams) -> V
     }
 }
 
-use crate::cpu::select_maxima::local_max;
+use crate::backend::reference::select_maxima::local_max;
 
 /// A keypoint candidate (x, y, score).
 pub type Candidate = (u32, u32, i64);
 
-/// The selection of [`select`] from the candidates of [`crate::cpu::select_maxima::select_maxima`] (every
+/// The selection of [`select`] from the candidates of [`crate::backend::reference::select_maxima::select_maxima`] (every
 /// positive 3x3 local maximum, in (y, x) order) and the map's largest score, which is all a backend has to
 /// hand over. Identical to [`select`]: Harris keeps the candidates above quality x max, Trajkovic all of
 /// them; for Shi-Tomasi a pixel above the threshold t >= 0 is a local maximum of the thresholded map
@@ -193,7 +195,8 @@ pub fn select(
         // Harris keeps the positive local maxima with R > quality * max(R); Trajkovic every positive local
         // maximum.
         Baseline::Harris | Baseline::Trajkovic => {
-            let (candidates, max) = crate::cpu::select_maxima::select_maxima(scores, w, h);
+            let (candidates, max) =
+                crate::backend::reference::select_maxima::select_maxima(scores, w, h);
             select_candidates(kind, candidates, max, width, height, params)
         }
         // Shi-Tomasi the way goodFeaturesToTrack states it, on the thresholded map: the reference for the

@@ -1,8 +1,8 @@
 //! Harris and Shi-Tomasi scores row by row: blur -> Sobel -> products -> 3x3 window sums -> score, each
 //! stage keeping only the three rows the next one reads, so a band of rows needs a few rows of memory.
 //!
-//! The arithmetic is the reference's ([`crate::cpu::gaussian_blur`], [`crate::cpu::structure_tensor`],
-//! [`crate::cpu::harris`], [`crate::cpu::shi_tomasi`]) reordered, never approximated:
+//! The arithmetic is the reference's ([`crate::backend::reference::gaussian_blur`], [`crate::backend::reference::structure_tensor`],
+//! [`crate::backend::reference::harris`], [`crate::backend::reference::shi_tomasi`]) reordered, never approximated:
 //! - the 3x3 blur is separable in exact integers (vertical then horizontal, the same sum), with one rounding;
 //! - the window sums are horizontal then vertical 3-sums of the same products;
 //! - BORDER_REFLECT_101 is applied once per row: rows are picked by reflected index, and each row buffer
@@ -12,7 +12,7 @@
 //! reflected neighbours of row r are always among the map's rows r - 1..=r + 1, so three rows of each stage
 //! are all the next one needs.
 
-use crate::cpu::gaussian_blur::reflect101;
+use crate::backend::reference::gaussian_blur::reflect101;
 use crate::map::stream::Rows;
 
 /// The reflected index of `i` in `0..n` (BORDER_REFLECT_101, as the reference).
@@ -293,7 +293,7 @@ const TWO_52: f64 = 4_503_599_627_370_496.0;
 #[cfg(test)]
 mod tests {
     use super::{harris_score, shi_tomasi_score};
-    use crate::cpu::{harris::harris, shi_tomasi::shi_tomasi};
+    use crate::backend::reference::{harris::harris, shi_tomasi::shi_tomasi};
     use crate::map::synthetic::Rng;
 
     /// Window sums reach 9 * 1020^2.

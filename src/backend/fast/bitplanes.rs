@@ -1,5 +1,5 @@
 //! Classification into bit-planes: one bit per pixel, 64 pixels a word, bit `i` of word `k` is pixel
-//! `64 k + i`. The fast twin of [`crate::cpu::classify`]: a plane holds the pixels whose state is in a set.
+//! `64 k + i`. The fast twin of [`crate::backend::reference::classify`]: a plane holds the pixels whose state is in a set.
 //!
 //! The ROS thresholds make each state's set of pixel values an interval (the occupancy probability is
 //! monotonic in the value), so a plane is two SIMD compares per 16 pixels; any other set falls back to the

@@ -8,7 +8,7 @@
 
 use rayon::prelude::*;
 
-use crate::fast::bitplanes::{plane_row, words, ValueSet};
+use crate::backend::fast::bitplanes::{plane_row, words, ValueSet};
 use crate::map::states::{CellState, ClassTable};
 use crate::map::MapImage;
 use crate::support::error::Result;

@@ -15,7 +15,7 @@ pub fn local_max(scores: &[i64], w: usize, h: usize, x: usize, y: usize) -> bool
 
 /// Every pixel whose score is positive and a 3x3 local maximum, in (y, x) order, and the largest score
 /// (`i64::MIN` for an empty map): everything the baselines' selections need from a score map
-/// ([`crate::baselines::select_candidates`]).
+/// ([`crate::backend::baselines::select_candidates`]).
 pub fn select_maxima(scores: &[i64], w: usize, h: usize) -> (Vec<(u32, u32, i64)>, i64) {
     let max = scores.iter().copied().max().unwrap_or(i64::MIN);
     let mut out = Vec::new();
