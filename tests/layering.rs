@@ -359,3 +359,68 @@ fn the_layer_checker_sees_an_upward_import() {
         assert!(bad[k].starts_with(from), "{bad:#?}");
     }
 }
+
+/// The backends' implementations (the reference, the fast path, the GPU), behind the interface that
+/// `backend/mod.rs` is.
+fn is_backend_implementation(file: &str) -> bool {
+    ["backend/reference/", "backend/fast/", "backend/gpu/"]
+        .iter()
+        .any(|d| file.starts_with(d))
+}
+
+/// Reaches past the backend interface: a file of the detectors or the merger importing an
+/// implementation's file, other than the detector's choice of backend (`detect/detector.rs`, which
+/// constructs them) and the reaches `allowed` lists.
+fn past_the_interface(
+    g: &BTreeMap<String, BTreeSet<String>>,
+    allowed: &[(&str, &str)],
+) -> Vec<String> {
+    let mut bad = Vec::new();
+    for (f, to) in g {
+        let algorithm = f.starts_with("detect/") || f.starts_with("merge/");
+        if !algorithm || f == "detect/detector.rs" {
+            continue;
+        }
+        for t in to.iter().filter(|t| is_backend_implementation(t)) {
+            if !allowed.contains(&(f.as_str(), t.as_str())) {
+                bad.push(format!(
+                    "{f} imports {t}, past the backend interface (backend/mod.rs)"
+                ));
+            }
+        }
+    }
+    bad
+}
+
+/// The one reach left: the robust detector's wall-direction histogram packs rows into bit-planes with
+/// the fast path's SIMD classification, which no backend computes for it.
+const ALLOWED_REACHES: &[(&str, &str)] =
+    &[("detect/robust/orientation.rs", "backend/fast/bitplanes.rs")];
+
+#[test]
+fn the_detectors_and_the_merger_use_backends_through_the_interface() {
+    let g = graph();
+    let bad = past_the_interface(&g, ALLOWED_REACHES);
+    assert!(bad.is_empty(), "{bad:#?}");
+    // Each allowed reach is still made (a mended one leaves the list).
+    for (f, t) in ALLOWED_REACHES {
+        assert!(
+            g[*f].contains(*t),
+            "{f} no longer imports {t}: drop it from ALLOWED_REACHES"
+        );
+    }
+}
+
+#[test]
+fn the_interface_checker_sees_a_reach_past_it() {
+    let edge = |f: &str, t: &str| (f.to_string(), BTreeSet::from([t.to_string()]));
+    let g = BTreeMap::from([
+        edge("merge/score.rs", "backend/reference/merge_score.rs"),
+        edge("merge/align.rs", "backend/mod.rs"),
+        edge("detect/detector.rs", "backend/gpu/mod.rs"),
+        edge("bench.rs", "backend/fast/read.rs"),
+    ]);
+    let bad = past_the_interface(&g, &[]);
+    assert_eq!(bad.len(), 1, "{bad:#?}");
+    assert!(bad[0].starts_with("merge/score.rs"));
+}

@@ -1,7 +1,13 @@
-//! What every backend implements and shares: keypoints, detection options and the [`Backend`] trait.
+//! The backends: what every backend implements and shares (keypoints, detection options, the [`Backend`]
+//! trait, the rule table, the baselines' parameters and selection), and the three that implement it: the
+//! CPU reference ([`reference`]), the fast CPU path ([`fast`]) and the GPU ([`gpu`]).
+//! [`crate::detect::detector`] picks among them.
 //!
-//! This is the lower layer: the CPU reference ([`crate::backend::reference`]), the fast CPU path ([`crate::backend::fast`]) and
-//! the GPU ([`crate::backend::gpu`]) implement it, and [`crate::detect::detector`] drives them.
+//! The interface is this module: what the detectors and the merger use of a backend is named here (the
+//! trait, the reference's [`ReferenceBackend`] that the merger scores with by default, and the data the
+//! kernels take and give: the coarse [`Mosaic`] and its [`CellRule`], the scoring kernel's
+//! [`ScoreTarget`] and [`FixedRigid`]). Only the detector's choice of backend names an implementation
+//! directly (`tests/layering.rs` checks it).
 
 pub mod baselines;
 pub mod fast;
@@ -14,7 +20,6 @@ use serde::Serialize;
 
 use crate::backend::baselines::streamed::CandidateList;
 use crate::backend::baselines::{Baseline, BaselineParams, Candidate, ExactParams};
-use crate::backend::reference::merge_score::{FixedRigid, ScoreTarget};
 use crate::backend::rules::{RuleSet, RuleTable};
 use crate::map::grid::RotatedGrid;
 use crate::map::states::ClassTable;
@@ -22,6 +27,10 @@ use crate::map::stream::Rows;
 use crate::map::MapImage;
 use crate::support::error::Result;
 use robust_params::RobustParams;
+
+pub use reference::coarsen::{CellRule, Mosaic, MAX_SCALE};
+pub use reference::merge_score::{FixedRigid, ScoreTarget, FLAG_DEEP, FLAG_INSIDE, FLAG_NEAR};
+pub use reference::ReferenceBackend;
 
 /// A corner: pixel coordinates (origin top-left, x right, y down), the rule that fired and the code.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize)]

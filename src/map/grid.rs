@@ -16,6 +16,8 @@
 //! is a tie. Anchored at a point fixed in the world (the map frame's origin), the samples of a crop of the
 //! map, or of the map grown by more rows and columns, are those of the map where both see it.
 
+use crate::map::states::{CellState, ClassTable};
+use crate::map::MapImage;
 use crate::support::error::{Error, Result};
 
 /// Fraction bits of the fixed-point cosine and sine: angles are resolved to about 0.06 degrees, and the
@@ -356,6 +358,21 @@ impl RotatedGrid {
         let lo = lo.max(0);
         let hi = hi.min(limit as i32 - 1);
         (lo <= hi).then(|| (lo as u32, hi as u32 + 1))
+    }
+}
+
+/// The state of sample (p, q) of `grid` over `image`: the nearest map pixel's, unknown outside the map.
+#[inline]
+pub fn sample(
+    image: &MapImage,
+    classes: &ClassTable,
+    grid: &RotatedGrid,
+    p: i32,
+    q: i32,
+) -> CellState {
+    match grid.source_index(p, q) {
+        Some(i) => classes.state(image.pixels()[i]),
+        None => CellState::Unknown,
     }
 }
 

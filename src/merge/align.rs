@@ -34,8 +34,8 @@ pub use super::prepare::{kept_bytes, prepared_bytes, Prepared, Symmetry, CELLS};
 use super::refine::{crop_to_map, icp, map_to_crop, polish, verify};
 use super::symmetry::NEAR_IDENTITY_DEG;
 use super::transform::{signed_deg, transform_distance, Rigid, DISTINCT_PX};
-use crate::backend::reference::ReferenceBackend;
 use crate::backend::Backend;
+use crate::backend::ReferenceBackend;
 use crate::map::OccupancyMap;
 use crate::support::error::{Error, Result};
 

@@ -14,7 +14,7 @@
 
 use super::prepare::{Coarse, Prepared, CELLS};
 use super::prescreen::Signature;
-use crate::backend::reference::merge_score::ScoreTarget;
+use crate::backend::ScoreTarget;
 use crate::support::error::{Error, Result};
 
 const PREPARED_MAGIC: &[u8; 8] = b"OGMPREP\0";

@@ -4,7 +4,7 @@
 
 use super::prepare::{Prepared, FLAG_TOUCH};
 use super::transform::Rigid;
-use crate::backend::reference::merge_score::FLAG_DEEP;
+use crate::backend::FLAG_DEEP;
 
 /// What [`local_fit`] measures.
 #[derive(Clone, Copy, Debug)]

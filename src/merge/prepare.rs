@@ -3,7 +3,7 @@
 //! the coarse masks of the correlation.
 
 use super::distance::{edt, edt_distance};
-use crate::backend::reference::merge_score::{ScoreTarget, FLAG_DEEP, FLAG_INSIDE, FLAG_NEAR};
+use crate::backend::{ScoreTarget, FLAG_DEEP, FLAG_INSIDE, FLAG_NEAR};
 use crate::map::states::{CellState, ClassTable};
 use crate::map::OccupancyMap;
 

@@ -21,7 +21,7 @@ use rayon::prelude::*;
 
 use super::prepare::Prepared;
 use super::transform::Rigid;
-use crate::backend::reference::merge_score::FLAG_INSIDE;
+use crate::backend::FLAG_INSIDE;
 use crate::backend::{DetectOptions, DetectorKind};
 use crate::detect::detector::Detector;
 use crate::map::{MapImage, OccupancyMap};

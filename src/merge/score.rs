@@ -3,8 +3,8 @@
 
 use super::prepare::Prepared;
 use super::transform::Rigid;
-use crate::backend::reference::merge_score::{FixedRigid, ScoreTarget};
 use crate::backend::Backend;
+use crate::backend::{FixedRigid, ScoreTarget};
 use crate::support::error::Result;
 
 /// The scoring kernel's counts for one transform: inside, near, deep.

@@ -14,7 +14,7 @@
 //! Samples outside the map are unknown. The coarse map is written with the values of [`OCCUPIED`],
 //! [`FREE`] and [`UNKNOWN`], so the paper's detector runs on it unchanged.
 
-use crate::map::grid::RotatedGrid;
+use crate::map::grid::{sample, RotatedGrid};
 use crate::map::states::{CellState, ClassTable};
 use crate::map::MapImage;
 
@@ -152,21 +152,6 @@ pub fn cell_value(occupied: u32, free: u32, scale: u32, rule: CellRule) -> u8 {
         FREE
     } else {
         UNKNOWN
-    }
-}
-
-/// The state of sample (p, q) of `grid` over `image`: the nearest map pixel's, unknown outside the map.
-#[inline]
-pub fn sample(
-    image: &MapImage,
-    classes: &ClassTable,
-    grid: &RotatedGrid,
-    p: i32,
-    q: i32,
-) -> CellState {
-    match grid.source_index(p, q) {
-        Some(i) => classes.state(image.pixels()[i]),
-        None => CellState::Unknown,
     }
 }
 

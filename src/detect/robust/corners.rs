@@ -3,9 +3,10 @@
 //!
 //! Host code over the few cells where a rule fired, shared by every backend.
 
-use crate::backend::reference::coarsen::{sample, FREE, OCCUPIED};
+use crate::map::grid::sample;
 use crate::map::grid::RotatedGrid;
 use crate::map::states::{CellState, ClassTable};
+use crate::map::states::{FREE, OCCUPIED};
 use crate::map::MapImage;
 
 /// Longest wall arm measured, in coarse cells.
@@ -35,7 +36,7 @@ impl<'a> Cells<'a> {
     fn at(&self, u: i32, v: i32) -> u8 {
         let (w, h) = (self.map.width(), self.map.height());
         if u < 0 || v < 0 || u as u32 >= w || v as u32 >= h {
-            crate::backend::reference::coarsen::UNKNOWN
+            crate::map::states::UNKNOWN
         } else {
             self.map.pixels()[v as usize * w as usize + u as usize]
         }

@@ -29,11 +29,12 @@ pub mod tiles;
 pub use crate::backend::robust_params as params;
 pub use crate::backend::robust_params::{grid_samples, robust_working_bytes, Anchor, RobustParams};
 
-use crate::backend::reference::coarsen::{Mosaic, FREE, OCCUPIED};
 use crate::backend::rules::RuleTable;
+use crate::backend::Mosaic;
 use crate::backend::{Backend, Keypoint};
 use crate::map::grid::RotatedGrid;
 use crate::map::states::{CellState, ClassTable};
+use crate::map::states::{FREE, OCCUPIED};
 use crate::map::MapImage;
 use crate::support::error::Result;
 use corners::{concave_arms, convex_arms, Arms, Cells, Sampler};
@@ -500,7 +501,7 @@ impl Lattice {
     /// the free cell (concave corners) or the occupied one (convex, the roles swapped) it replaces, so the
     /// rules fire on the lattice's cells exactly as on the unmasked map, and nowhere else.
     fn mask(&self, map: &MapImage, out: &mut MapImage, centre: u8) {
-        use crate::backend::reference::coarsen::UNKNOWN;
+        use crate::map::states::UNKNOWN;
         let w = map.width() as usize;
         // Per column, what a cell of value `centre` becomes in a row on the lattice (off it, every one
         // becomes unknown): branch-free byte selects the compiler vectorises.

@@ -7,7 +7,7 @@ use serde::Serialize;
 
 use super::graph::Placement;
 use super::{GlobalOptions, Pairwise, Timing};
-use crate::backend::reference::ReferenceBackend;
+use crate::backend::ReferenceBackend;
 use crate::map::OccupancyMap;
 use crate::merge::pairs::TruePair;
 use crate::merge::transform::Rigid;

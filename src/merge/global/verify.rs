@@ -17,7 +17,7 @@
 //! among all the others: a record that passes keeps it as it says.
 
 use super::{GlobalOptions, PairRecord};
-use crate::backend::reference::ReferenceBackend;
+use crate::backend::ReferenceBackend;
 use crate::merge::align::{
     accepts, alias, check, not_contradicted, overlap_centre, reference_rms, self_symmetry_with,
     Features, Prepared, Repeats, MAX_CANDIDATES, MAX_RATIO,
