@@ -12,6 +12,7 @@ use ogm_corners::map::decode::{Decoder, ImageKind};
 use ogm_corners::map::{
     decode_image, grid_image, GridThresholds, MapYaml, GRID_FREE, GRID_OCCUPIED, GRID_UNKNOWN,
 };
+use ogm_corners::measure::pairs::PairSet;
 use ogm_corners::merge::align::{
     align_prepared_with, Acceptance, Alignment, MergeOptions, Prepared,
 };
@@ -21,7 +22,6 @@ use ogm_corners::merge::hypotheses::Hypotheses;
 use ogm_corners::merge::pair::{
     at_resolution_of, compose_pair, merge_pair, overlay_pair, PairMerge,
 };
-use ogm_corners::merge::pairs::PairSet;
 use ogm_corners::merge::Rigid;
 use ogm_corners::support::memory::Budget;
 use ogm_corners::{
@@ -678,8 +678,10 @@ pub fn pairs(data: &[u8]) {
         );
         // Where merge-eval looks for the maps, whatever the names.
         for name in [&p.src, &p.dst] {
-            let _ =
-                ogm_corners::merge::eval::map_path(std::path::Path::new("fuzz-no-such-dir"), name);
+            let _ = ogm_corners::measure::merging::map_path(
+                std::path::Path::new("fuzz-no-such-dir"),
+                name,
+            );
         }
     }
 }

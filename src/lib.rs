@@ -39,7 +39,9 @@
 //!    or streamed), the robust form for real maps, a map file to keypoint files, keypoint files, keypoints
 //!    drawn on a map.
 //! 6. **Merging**: [`merge`] (two maps and many, with no initial poses).
-//! 7. **Measuring**: [`compare`], [`eval`], [`bench`](mod@bench).
+//! 7. **Measuring** ([`measure`]): the harness apart from the algorithm: the detectors' repeatability
+//!    and recall, Table I, benchmarks, pair sets with ground truth, synthetic pairs and families,
+//!    `merge-eval`.
 //!
 //! The command line (`src/cli/`, one file per subcommand) sits on top, in the binary.
 
@@ -64,9 +66,7 @@ pub mod detect;
 // 6. Merging.
 pub mod merge;
 // 7. Measuring.
-pub mod bench;
-pub mod compare;
-pub mod eval;
+pub mod measure;
 
 pub use backend::baselines::{Baseline, BaselineParams};
 pub use backend::rules::{RuleSet, RuleTable};

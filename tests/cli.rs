@@ -881,7 +881,10 @@ fn eval_reports_every_detector_and_condition() {
         Some("map,detector,condition,level,repeatability,trials")
     );
     let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
-    assert_eq!(rows.len(), 5 * ogm_corners::eval::conditions().len());
+    assert_eq!(
+        rows.len(),
+        5 * ogm_corners::measure::detection::conditions().len()
+    );
     for r in rows
         .iter()
         .filter(|r| r[1] == "ogm" && ["rot90", "rot180", "rot270", "mirror"].contains(&r[2]))
@@ -1112,7 +1115,7 @@ fn eval_annotations_plot_draws_each_annotated_map() {
     assert!(
         sheet
             .pixels()
-            .any(|p| p.0 == ogm_corners::compare::MARK_COLOUR.0),
+            .any(|p| p.0 == ogm_corners::measure::compare::MARK_COLOUR.0),
         "marked points ringed"
     );
 }

@@ -1,7 +1,7 @@
 //! The repeatability metric: known transforms give the expected scores on synthetic maps.
 
-use ogm_corners::eval::{conditions, repeatability, score, Pair, Transform};
 use ogm_corners::map::synthetic::office_map;
+use ogm_corners::measure::detection::{conditions, repeatability, score, Pair, Transform};
 use ogm_corners::{Baseline, DetectOptions, Detector, DetectorKind, Keypoint};
 
 fn ogm() -> Detector {

@@ -300,7 +300,7 @@ fn layer_of(file: &str) -> Option<u32> {
         "backend" => 3,
         "detect" => 5,
         "merge" => 6,
-        "compare" | "eval" | "bench" => 7,
+        "measure" => 7,
         "lib" | "main" | "batch" | "cli" => 8,
         _ => return None,
     })

@@ -4,7 +4,7 @@
 
 mod common;
 
-use ogm_corners::merge::pairs::PairSet;
+use ogm_corners::measure::pairs::PairSet;
 use ogm_corners::merge::{align, compose, MergeOptions, Rigid};
 use ogm_corners::{GeoRef, MapImage, OccupancyMap};
 
@@ -78,7 +78,7 @@ fn synthetic_pairs_are_never_merged_wrongly() {
 
 #[test]
 fn synthetic_pairs_cut_from_a_map_have_exact_truth() {
-    use ogm_corners::merge::synthetic::{synthetic_pair, SyntheticSpec};
+    use ogm_corners::measure::synthetic::{synthetic_pair, SyntheticSpec};
     let source = OccupancyMap::from_image(common::cluttered_office(400, 300, 7));
     for (seed, overlap) in [(1, 0.5), (2, 0.3), (3, 0.8)] {
         let spec = SyntheticSpec {
@@ -450,7 +450,7 @@ fn merge_eval_runs_the_synthetic_suite_on_given_maps() {
 fn half_overlapping_synthetic_offices_are_merged_and_never_wrongly() {
     // The first designs accepted these half-turned, then declined them (docs/merging.md, "Synthetic pairs"); the
     // strict screening and the free-space features merge them: whatever is accepted is right, and most are.
-    use ogm_corners::merge::synthetic::{synthetic_pair, SyntheticSpec};
+    use ogm_corners::measure::synthetic::{synthetic_pair, SyntheticSpec};
     let mut merged = 0;
     for seed in 1..5 {
         let office = OccupancyMap::from_image(
@@ -547,7 +547,7 @@ fn accepted_synthetic_pairs_are_recovered_within_a_pixel_and_half_a_degree() {
     // The property the merger promises on pairs with exact truth: random cuts, turns and shifts of the
     // project's own maps, at 50% and 30% overlap; whatever it accepts is within 1 px RMS (over B's
     // known-area corners and centre) and 0.5 degrees.
-    use ogm_corners::merge::synthetic::{synthetic_pair, SyntheticSpec};
+    use ogm_corners::measure::synthetic::{synthetic_pair, SyntheticSpec};
     let mut accepted = 0;
     for seed in 1..9 {
         let office = OccupancyMap::from_image(

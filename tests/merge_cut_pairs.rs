@@ -8,7 +8,7 @@ mod common;
 use common::run::*;
 
 use ogm_corners::map::synthetic::{office_map, FREE, OCCUPIED, UNKNOWN};
-use ogm_corners::merge::synthetic::{
+use ogm_corners::measure::synthetic::{
     furnished_pair, synthetic_pair, SyntheticPair, SyntheticSpec, FURNISHED_MIN_SHARED,
     FURNISHED_PART,
 };
@@ -414,7 +414,7 @@ fn measured_pairs_are_kept_and_found_again_until_a_map_or_the_code_changes() {
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(!stderr(&o).contains("cache"), "{}", stderr(&o));
     // Another build of the measuring code finds nothing of this one's.
-    use ogm_corners::merge::eval::cache::RecordCache;
+    use ogm_corners::measure::merging::cache::RecordCache;
     use ogm_corners::merge::MergeOptions;
     let options = MergeOptions::default();
     let al = ogm_corners::merge::align(&plan, &copy, &options).unwrap();
@@ -434,7 +434,7 @@ fn measured_pairs_are_kept_and_found_again_until_a_map_or_the_code_changes() {
 /// (both windows hold the hall), and a pose a few pixels off does not.
 #[test]
 fn a_symmetric_halls_pairs_have_exact_truths() {
-    use ogm_corners::merge::synthetic::{hall_pair, SymmetricKind};
+    use ogm_corners::measure::synthetic::{hall_pair, SymmetricKind};
     for kind in SymmetricKind::suite() {
         let pair = hall_pair(kind, 5).unwrap();
         let (share, landed) = walls_on_walls(&pair.b.image, &pair.a.image, &pair.truth);
@@ -454,7 +454,7 @@ fn a_symmetric_halls_pairs_have_exact_truths() {
 /// family's plain draws do not always (so the test that tells them apart is not always true).
 #[test]
 fn a_hall_pair_holding_its_room_holds_it_in_both_windows() {
-    use ogm_corners::merge::synthetic::{
+    use ogm_corners::measure::synthetic::{
         extra_room_in_both, extra_room_points, hall_pair, hall_pair_holding_room, hall_pixel,
         symmetric_plan, SymmetricKind,
     };

@@ -4,11 +4,11 @@
 
 mod common;
 
-use ogm_corners::merge::align::{align, MergeOptions};
-use ogm_corners::merge::synthetic::{
+use ogm_corners::measure::synthetic::{
     synthetic_crops, synthetic_pair_with, CropSpec, LayoutKind, PairShape, SyntheticSpec,
     MIN_ALIAS_CONTRADICTION,
 };
+use ogm_corners::merge::align::{align, MergeOptions};
 use ogm_corners::OccupancyMap;
 
 /// A pair cut from `kind`'s layout for `seed` at `overlap`, with its lattice known, as `merge-eval
@@ -18,7 +18,7 @@ fn layout_pair(
     seed: u64,
     overlap: f64,
     pair_seed: u64,
-) -> Option<ogm_corners::merge::synthetic::SyntheticPair> {
+) -> Option<ogm_corners::measure::synthetic::SyntheticPair> {
     let layout = kind.make(seed).unwrap();
     let map = OccupancyMap::from_image(layout.image);
     let shape = PairShape {

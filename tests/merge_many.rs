@@ -5,11 +5,11 @@
 mod common;
 
 use ogm_corners::backend::reference::ReferenceBackend;
+use ogm_corners::measure::merging::many::{run_maps, score, synthetic_maps, synthetic_maps_of};
+use ogm_corners::measure::pairs::TruePair;
 use ogm_corners::merge::align::Prepared;
-use ogm_corners::merge::global::eval::{run_maps, score, synthetic_maps, synthetic_maps_of};
 use ogm_corners::merge::global::graph::Placement;
 use ogm_corners::merge::global::{align_all, place, GlobalOptions, Pairwise};
-use ogm_corners::merge::pairs::TruePair;
 use ogm_corners::merge::Rigid;
 use ogm_corners::{MapImage, OccupancyMap};
 
@@ -420,7 +420,7 @@ fn the_real_buildings_are_placed_whole_and_never_into_each_other() {
     let Some(dir) = common::merge_pairs() else {
         return;
     };
-    let set = ogm_corners::merge::pairs::PairSet::load(&dir.join("pairs.json")).unwrap();
+    let set = ogm_corners::measure::pairs::PairSet::load(&dir.join("pairs.json")).unwrap();
     // Two maps of each apartment: maps of one place give alike wrong answers for a map of another, and
     // their agreeing votes must not join the two.
     let four: Vec<String> = ["HIH_01", "HIH_02", "KPT4A_01", "KPT4A_02"]
@@ -570,7 +570,7 @@ fn a_cached_run_redoes_only_the_changed_maps_and_pairs_and_equals_a_fresh_run() 
 /// the synthetic limits, the offices apart, and far fewer pairs aligned than all 120.
 #[test]
 fn a_screened_set_places_every_map_with_a_fraction_of_the_pairs() {
-    use ogm_corners::merge::global::eval::synthetic_mixed;
+    use ogm_corners::measure::merging::many::synthetic_mixed;
     let (names, maps, truths) = synthetic_mixed(16, 2, 3).unwrap();
     let r = run_maps(names.clone(), &maps, &GlobalOptions::default(), &|_, _| {}).unwrap();
     let poses = placed_poses(&r.placement);
@@ -605,11 +605,11 @@ fn real_set(
     dir: &std::path::Path,
     order: impl FnOnce(&mut Vec<String>),
 ) -> (
-    ogm_corners::merge::pairs::PairSet,
+    ogm_corners::measure::pairs::PairSet,
     Vec<String>,
     Vec<OccupancyMap>,
 ) {
-    let set = ogm_corners::merge::pairs::PairSet::load(&dir.join("pairs.json")).unwrap();
+    let set = ogm_corners::measure::pairs::PairSet::load(&dir.join("pairs.json")).unwrap();
     let mut names: Vec<String> = set
         .pairs
         .iter()
@@ -629,9 +629,9 @@ fn real_set(
 /// The real buildings' placement scored against every annotated pair: all 22 maps placed, none wrongly,
 /// the three buildings as three groups, and every annotated pair accurate. Returns the row.
 fn assert_real_placed_right(
-    r: &ogm_corners::merge::global::eval::SetResult,
-    set: &ogm_corners::merge::pairs::PairSet,
-) -> ogm_corners::merge::global::eval::SetRow {
+    r: &ogm_corners::measure::merging::many::SetResult,
+    set: &ogm_corners::measure::pairs::PairSet,
+) -> ogm_corners::measure::merging::many::SetRow {
     let building = |n: &str| n.split('_').next().unwrap().to_string();
     let row = score("real", r, &set.pairs, &building);
     assert_eq!(
@@ -663,7 +663,7 @@ fn the_real_buildings_screened_are_placed_as_with_every_pair() {
 /// as good as a full run: every map placed within the synthetic limits, the same groups.
 #[test]
 fn a_map_added_to_an_earlier_merge_aligns_only_its_pairs_and_places_as_a_full_run() {
-    use ogm_corners::merge::global::eval::synthetic_mixed;
+    use ogm_corners::measure::merging::many::synthetic_mixed;
     use ogm_corners::merge::global::previous::Previous;
     use ogm_corners::merge::global::{content_id, merge_maps_cached, run, run_cached, Cache};
     let (names, maps, truths) = synthetic_mixed(16, 2, 5).unwrap();
@@ -787,7 +787,7 @@ fn a_real_map_added_to_an_earlier_merge_is_placed_as_in_a_full_run() {
         "{:?}",
         cache.last_use()
     );
-    let r = ogm_corners::merge::global::eval::SetResult {
+    let r = ogm_corners::measure::merging::many::SetResult {
         names: names.clone(),
         pairwise: added.pairwise,
         placement: added.placement,
@@ -881,8 +881,8 @@ fn merge_from_an_earlier_poses_file_adds_maps_and_says_what_it_took_up() {
 /// each pair's record sent as JSON. The run is the local one's, to the bit (screened: signatures too).
 #[test]
 fn an_engine_moving_bytes_places_as_the_local_threads_to_the_bit() {
+    use ogm_corners::measure::merging::many::synthetic_mixed;
     use ogm_corners::merge::codec::{self, Form};
-    use ogm_corners::merge::global::eval::synthetic_mixed;
     use ogm_corners::merge::global::{run, run_with, Cache, Engine, PairRecord};
     use ogm_corners::merge::prescreen::Signature;
 

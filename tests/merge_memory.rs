@@ -6,7 +6,7 @@
 
 use std::path::Path;
 
-use ogm_corners::merge::global::eval::{synthetic_maps, synthetic_mixed};
+use ogm_corners::measure::merging::many::{synthetic_maps, synthetic_mixed};
 use ogm_corners::{MapImage, OccupancyMap};
 
 /// `merge` run in `dir` with `args`: its exit code, what it said (standard error, then output) and its

@@ -296,7 +296,7 @@ fn robust_keypoints(img: &MapImage) -> Vec<Keypoint> {
 }
 
 /// `kps` of a `w` x `h` map as positions in the map turned 90 degrees clockwise `k` times (then mirrored
-/// left to right when `flip`), as `ogm_corners::eval::{rotate90, mirror}` turn the map.
+/// left to right when `flip`), as `ogm_corners::measure::detection::{rotate90, mirror}` turn the map.
 fn moved(kps: &[Keypoint], w: u32, h: u32, k: u32, flip: bool) -> Vec<(u32, u32)> {
     let mut out: Vec<(u32, u32)> = kps
         .iter()
@@ -328,7 +328,7 @@ fn positions(kps: &[Keypoint]) -> Vec<(u32, u32)> {
 /// rounding, the phase-free cells and the tie-breaks are all symmetric about the map's centre).
 #[test]
 fn quarter_turns_and_mirrors_give_exactly_the_turned_keypoints() {
-    use ogm_corners::eval::{mirror, rotate90};
+    use ogm_corners::measure::detection::{mirror, rotate90};
     // (name, map, whether it must have corners: some real maps have none at the default)
     let mut maps: Vec<(String, MapImage, bool)> = (0..4u64)
         .map(|s| {
@@ -522,7 +522,7 @@ fn detect_in_frame(
 /// walls. Anchored at each map's centre, they are not.
 #[test]
 fn a_grown_or_cropped_map_in_its_world_frame_keeps_its_keypoints() {
-    use ogm_corners::eval::{Pair, Transform};
+    use ogm_corners::measure::detection::{Pair, Transform};
     let plan = common::floor_plan(1200, 800, 7);
     let turned = Pair::new(
         &plan,

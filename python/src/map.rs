@@ -14,7 +14,7 @@ use pyo3::types::PyDict;
 
 use ogm_corners::map::states::ClassTable;
 use ogm_corners::map::{GeoRef, GridThresholds, MapImage, PixelSource, Thresholds};
-use ogm_corners::merge::synthetic::synthetic_set;
+use ogm_corners::measure::synthetic::synthetic_set;
 use ogm_corners::{map::synthetic, Error, OccupancyMap};
 
 use crate::errors::{to_py, unlocked, within_budget};
@@ -426,7 +426,7 @@ pub fn synthetic_fleet(
         )));
     }
     let (names, maps, _) = unlocked(py, || {
-        ogm_corners::merge::global::eval::synthetic_mixed(n, buildings, seed)
+        ogm_corners::measure::merging::many::synthetic_mixed(n, buildings, seed)
     })?;
     Ok(names
         .into_iter()

@@ -1,6 +1,6 @@
 //! The backends: what every backend implements and shares (keypoints, detection options, the [`Backend`]
 //! trait, the rule table, the baselines' parameters and selection), and the three that implement it: the
-//! CPU reference ([`reference`]), the fast CPU path ([`fast`]) and the GPU ([`gpu`]).
+//! CPU reference ([`reference`](mod@reference)), the fast CPU path ([`fast`]) and the GPU ([`gpu`]).
 //! [`crate::detect::detector`] picks among them.
 //!
 //! The interface is this module: what the detectors and the merger use of a backend is named here (the

@@ -1,6 +1,6 @@
 //! `ogm-corners bench`: median times of every detector on every backend, on synthetic maps of several sizes
 //! and on real maps, with the peak memory of the CPU backends. `compare` shares the measurement
-//! ([`ogm_corners::bench::Runner::measure_map`]).
+//! ([`ogm_corners::measure::bench::Runner::measure_map`]).
 
 use std::path::{Path, PathBuf};
 
@@ -16,7 +16,7 @@ use crate::batch::map_name;
 
 use super::{parse_size, write_stdout, BaselineArgs, RulesArg, TextOrJson, ALL_DETECTORS};
 
-use ogm_corners::bench::{
+use ogm_corners::measure::bench::{
     cpu_model, threads, BenchBackend, BenchMap, BenchRecord, Runner, GIT_COMMIT,
 };
 

@@ -1,5 +1,5 @@
 //! `ogm-corners compare`: the paper's Table I with timings, and a contact sheet per map
-//! (see [`ogm_corners::compare`]).
+//! (see [`ogm_corners::measure::compare`]).
 
 use std::path::PathBuf;
 
@@ -8,8 +8,8 @@ use clap::Args;
 use crate::batch::output_names;
 
 use ogm_corners::backend::reference_working_bytes;
-use ogm_corners::compare::ComparePage;
-use ogm_corners::compare::{self, CompareRecord};
+use ogm_corners::measure::compare::ComparePage;
+use ogm_corners::measure::compare::{self, CompareRecord};
 use ogm_corners::support::files;
 use ogm_corners::support::memory::Budget;
 use ogm_corners::{
@@ -17,7 +17,7 @@ use ogm_corners::{
 };
 
 use super::{write_stdout, TableFormat, ALL_DETECTORS};
-use ogm_corners::bench::{BenchBackend, BenchMap, Runner};
+use ogm_corners::measure::bench::{BenchBackend, BenchMap, Runner};
 
 #[derive(Args, Debug)]
 pub(super) struct CompareArgs {

@@ -8,9 +8,9 @@ use std::time::Instant;
 use serde_json::json;
 
 use ogm_corners::map::{merged_yaml_text, write_merged_pgm_to, yaml_text, GeoRef};
+use ogm_corners::measure::synthetic::{explore, Exploration};
 use ogm_corners::merge::footprint;
 use ogm_corners::merge::global::{merge_maps, GlobalOptions};
-use ogm_corners::merge::synthetic::{explore, Exploration};
 use ogm_corners::merge::Rigid;
 use ogm_corners::support::files;
 use ogm_corners::support::memory::Budget;

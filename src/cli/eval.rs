@@ -1,13 +1,13 @@
-//! `ogm-corners eval`: repeatability of every detector under known transforms (see [`ogm_corners::eval`]).
+//! `ogm-corners eval`: repeatability of every detector under known transforms (see [`ogm_corners::measure::detection`]).
 
 use std::path::PathBuf;
 
 use clap::Args;
 
 use ogm_corners::backend::reference_working_bytes;
-use ogm_corners::eval::report::{self, EvalPage};
-use ogm_corners::eval::{self, MAX_TRIALS};
 use ogm_corners::map::output_names;
+use ogm_corners::measure::detection::report::{self, EvalPage};
+use ogm_corners::measure::detection::{self, MAX_TRIALS};
 use ogm_corners::support::files;
 use ogm_corners::support::memory::Budget;
 use ogm_corners::{DetectOptions, Error, OccupancyMap, Result};
@@ -81,11 +81,11 @@ pub(super) fn run(a: EvalArgs, budget: &Budget) -> Result<()> {
             .max()
             .unwrap_or(0);
         let sheet = if a.html.is_some() {
-            ogm_corners::compare::SHEET_BYTES
+            ogm_corners::measure::compare::SHEET_BYTES
         } else {
             0
         };
-        eval::evaluate_bytes(w, h)
+        detection::evaluate_bytes(w, h)
             .saturating_add(worst)
             .saturating_add(sheet)
     };
@@ -105,11 +105,11 @@ pub(super) fn run(a: EvalArgs, budget: &Budget) -> Result<()> {
     if let Some(dir) = &a.plot {
         if a.annotations.is_some() {
             for name in &stems {
-                let file = eval::annotations::marked_sheet_file(name);
+                let file = detection::annotations::marked_sheet_file(name);
                 inputs.claim_output(&dir.join(file), "--plot")?;
             }
         } else {
-            for file in eval::PLOT_FILES {
+            for file in detection::PLOT_FILES {
                 inputs.claim_output(&dir.join(file), "--plot")?;
             }
         }
@@ -128,7 +128,7 @@ pub(super) fn run(a: EvalArgs, budget: &Budget) -> Result<()> {
     // One map in memory at a time.
     for (i, (p, name)) in maps.iter().zip(&names).enumerate() {
         let map = OccupancyMap::load_within(p, budget, &extra)?;
-        rows.extend(eval::evaluate(
+        rows.extend(detection::evaluate(
             &mut detector,
             name,
             &map.image,
@@ -148,7 +148,7 @@ pub(super) fn run(a: EvalArgs, budget: &Budget) -> Result<()> {
                 });
                 found.push((kind, detector.detect(&map)?.keypoints));
             }
-            let sheet = ogm_corners::compare::contact_sheet(name, &map, &found);
+            let sheet = ogm_corners::measure::compare::contact_sheet(name, &map, &found);
             page.add_map(i, name, p, &sheet, false)?;
         }
     }
@@ -168,7 +168,7 @@ pub(super) fn run(a: EvalArgs, budget: &Budget) -> Result<()> {
     }
     if let Some(dir) = &a.plot {
         files::create_dir(dir)?;
-        for (file, picture) in eval::repeatability_plots(&rows) {
+        for (file, picture) in detection::repeatability_plots(&rows) {
             let path = dir.join(file);
             files::write_png(&path, &picture)?;
             ogm_corners::say!(
@@ -177,7 +177,7 @@ pub(super) fn run(a: EvalArgs, budget: &Budget) -> Result<()> {
             );
         }
     }
-    write_stdout(|out| eval::write_table(out, a.format.into(), &rows))
+    write_stdout(|out| detection::write_table(out, a.format.into(), &rows))
 }
 
 /// `eval --annotations`: recall of the marked points on every annotated map, per detector.
@@ -190,7 +190,7 @@ fn annotated(
     budget: &Budget,
     mut page: Option<EvalPage>,
 ) -> Result<()> {
-    use ogm_corners::eval::annotations::{pooled, recall, write_table, Annotations};
+    use ogm_corners::measure::detection::annotations::{pooled, recall, write_table, Annotations};
     let marks = Annotations::load(file)?;
     let mut rows = Vec::new();
     for (i, p) in maps.iter().enumerate() {
@@ -216,7 +216,7 @@ fn annotated(
                 .max()
                 .unwrap_or(0)
                 .saturating_add(if a.plot.is_some() || page.is_some() {
-                    ogm_corners::eval::annotations::MARKED_SHEET_BYTES
+                    ogm_corners::measure::detection::annotations::MARKED_SHEET_BYTES
                 } else {
                     0
                 })
@@ -253,11 +253,13 @@ fn annotated(
         if a.plot.is_none() && page.is_none() {
             continue;
         }
-        let sheet =
-            ogm_corners::eval::annotations::marked_sheet(name, &map, points, &paper, &robust);
+        let sheet = ogm_corners::measure::detection::annotations::marked_sheet(
+            name, &map, points, &paper, &robust,
+        );
         if let Some(dir) = &a.plot {
             files::create_dir(dir)?;
-            let path = dir.join(ogm_corners::eval::annotations::marked_sheet_file(name));
+            let path =
+                dir.join(ogm_corners::measure::detection::annotations::marked_sheet_file(name));
             files::write_png(&path, &sheet)?;
             ogm_corners::say!(
                 "ogm-corners: wrote {}",

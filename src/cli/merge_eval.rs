@@ -1,15 +1,15 @@
 //! `ogm-corners merge-eval`: the merger over a pair set with ground truth, or over synthetic pairs cut from
-//! any maps (see [`ogm_corners::merge::eval`]).
+//! any maps (see [`ogm_corners::measure::merging`]).
 
 use std::path::PathBuf;
 
 use clap::Args;
 
-use ogm_corners::merge::eval;
-use ogm_corners::merge::global::eval as global_eval;
+use ogm_corners::measure::merging;
+use ogm_corners::measure::merging::many as global_eval;
+use ogm_corners::measure::merging::page::PairsPage;
+use ogm_corners::measure::pairs::PairSet;
 use ogm_corners::merge::global::GlobalOptions;
-use ogm_corners::merge::pairs::PairSet;
-use ogm_corners::merge::report::PairsPage;
 use ogm_corners::merge::{MergeOptions, Rigid};
 use ogm_corners::support::memory::Budget;
 use ogm_corners::{Error, OccupancyMap, Result};
@@ -153,7 +153,7 @@ pub(super) fn run(a: MergeEvalArgs, budget: &Budget) -> Result<()> {
     };
     // Each pair drawn as it is run, when there is a page.
     let mut on_pair = |i: usize,
-                       r: &eval::PairRecord,
+                       r: &merging::PairRecord,
                        ma: &OccupancyMap,
                        mb: &OccupancyMap,
                        truth: Option<Rigid>| match &mut page {
@@ -169,14 +169,14 @@ pub(super) fn run(a: MergeEvalArgs, budget: &Budget) -> Result<()> {
             let maps = maps_folder(&a, &set, pairs);
             if a.ablation {
                 check_set_memory(&set, &maps, budget)?;
-                let rows = eval::ablation(&set, &maps, &mut |h| {
+                let rows = merging::ablation(&set, &maps, &mut |h| {
                     ogm_corners::say!("ogm-corners: merge-eval: hypotheses {h}")
                 })?;
-                return write_table(a.format, &rows, |out| eval::write_ablation(out, &rows));
+                return write_table(a.format, &rows, |out| merging::write_ablation(out, &rows));
             }
             check_set_memory(&set, &maps, budget)?;
             let mut cache = a.record_cache();
-            let done = eval::run_cached(
+            let done = merging::run_cached(
                 &set,
                 &maps,
                 &MergeOptions::default(),
@@ -198,14 +198,14 @@ pub(super) fn run(a: MergeEvalArgs, budget: &Budget) -> Result<()> {
                 inputs.claim_output(&dir.join("pairs.json"), "--save-pairs")?;
                 let labels = sources.iter().flat_map(|(name, _)| {
                     overlaps.iter().flat_map(move |&o| {
-                        (0..a.per_map as usize).map(move |k| eval::synthetic_label(name, o, k))
+                        (0..a.per_map as usize).map(move |k| merging::synthetic_label(name, o, k))
                     })
                 });
                 let furnished_labels = furnished.iter().flat_map(|(name, _)| {
-                    (0..a.per_map as usize).map(move |k| eval::furnished_label(name, k))
+                    (0..a.per_map as usize).map(move |k| merging::furnished_label(name, k))
                 });
                 for label in labels.chain(furnished_labels) {
-                    let stem = eval::saved_stem(&label);
+                    let stem = merging::saved_stem(&label);
                     for side in ["a", "b"] {
                         inputs.claim_output(
                             &dir.join(format!("{side}_{stem}.pgm")),
@@ -216,7 +216,7 @@ pub(super) fn run(a: MergeEvalArgs, budget: &Budget) -> Result<()> {
             }
             let (office, families) = chosen.unwrap_or_default();
             // Negatives only between the generator's offices: given maps may show one place twice.
-            let run = eval::SyntheticRun {
+            let run = merging::SyntheticRun {
                 overlaps,
                 per_map: a.per_map as usize,
                 noise: a.noise,
@@ -227,9 +227,9 @@ pub(super) fn run(a: MergeEvalArgs, budget: &Budget) -> Result<()> {
             };
             let options = MergeOptions::default();
             let (mut rows, mut costs) = if office {
-                eval::run_synthetic_with(&sources, &run, &options, &mut on_pair)?
+                merging::run_synthetic_with(&sources, &run, &options, &mut on_pair)?
             } else {
-                (Vec::new(), eval::MapCosts::default())
+                (Vec::new(), merging::MapCosts::default())
             };
             // A given map too small to cut at these overlaps gives no pair: said, and an error when none
             // of them gave one (a table of zeros would read as a result).
@@ -256,13 +256,13 @@ pub(super) fn run(a: MergeEvalArgs, budget: &Budget) -> Result<()> {
             if !families.is_empty() {
                 let first = rows.len();
                 let mut shifted = |i: usize,
-                                   r: &eval::PairRecord,
+                                   r: &merging::PairRecord,
                                    ma: &OccupancyMap,
                                    mb: &OccupancyMap,
                                    truth: Option<Rigid>| {
                     on_pair(first + i, r, ma, mb, truth)
                 };
-                let (more, more_costs) = eval::families::run_families(
+                let (more, more_costs) = merging::families::run_families(
                     &families,
                     a.per_map as usize,
                     a.seed,
@@ -283,12 +283,12 @@ pub(super) fn run(a: MergeEvalArgs, budget: &Budget) -> Result<()> {
         );
     }
     write_table(a.format, &rows, |out| {
-        eval::write_summary(out, &rows, &costs)
+        merging::write_summary(out, &rows, &costs)
     })
 }
 
 /// How a run used the cache, on standard error.
-fn say_cache_use(cache: Option<&eval::cache::RecordCache>) {
+fn say_cache_use(cache: Option<&merging::cache::RecordCache>) {
     if let Some(c) = cache {
         ogm_corners::say!(
             "ogm-corners: merge-eval: {} pairs read from the cache ({}), {} aligned",
@@ -309,12 +309,12 @@ fn say_cache_use(cache: Option<&eval::cache::RecordCache>) {
 impl MergeEvalArgs {
     /// The cache of measured alignments the options ask for (none with --no-cache, or when no folder
     /// can be told).
-    fn record_cache(&self) -> Option<eval::cache::RecordCache> {
+    fn record_cache(&self) -> Option<merging::cache::RecordCache> {
         if self.no_cache {
             return None;
         }
-        let dir = self.cache.clone().or_else(eval::cache::default_dir)?;
-        Some(eval::cache::RecordCache::new(&dir))
+        let dir = self.cache.clone().or_else(merging::cache::default_dir)?;
+        Some(merging::cache::RecordCache::new(&dir))
     }
 
     /// The one pair file of a run that takes one (all but --cross-validate).
@@ -364,16 +364,16 @@ fn cross_validate(a: &MergeEvalArgs, budget: &Budget) -> Result<()> {
     let mut cache = a.record_cache();
     for (set, maps) in sets.iter().filter(|(set, _)| !set.pairs.is_empty()) {
         let none = &mut |_: usize,
-                         _: &eval::PairRecord,
+                         _: &merging::PairRecord,
                          _: &OccupancyMap,
                          _: &OccupancyMap,
                          _: Option<Rigid>| Ok(());
-        rows.extend(eval::run_cached(set, maps, &options, none, cache.as_mut())?.0);
+        rows.extend(merging::run_cached(set, maps, &options, none, cache.as_mut())?.0);
     }
     say_cache_use(cache.as_ref());
-    let folds = eval::crossval::cross_validate(&rows);
+    let folds = merging::crossval::cross_validate(&rows);
     write_table(a.format, &folds, |out| {
-        eval::crossval::write_folds(out, &folds)
+        merging::crossval::write_folds(out, &folds)
     })
 }
 
@@ -381,16 +381,16 @@ fn cross_validate(a: &MergeEvalArgs, budget: &Budget) -> Result<()> {
 /// (`NAME_furnished` beside `NAME`); an error when there is none. Without it, every map on its own.
 fn furnished_of(
     a: &MergeEvalArgs,
-    sources: Vec<eval::NamedMap>,
-) -> Result<(Vec<eval::NamedMap>, Vec<eval::NamedMap>)> {
+    sources: Vec<merging::NamedMap>,
+) -> Result<(Vec<merging::NamedMap>, Vec<merging::NamedMap>)> {
     if !a.furnished {
         return Ok((sources, Vec::new()));
     }
-    let (own, copies) = eval::furnished_copies(sources);
+    let (own, copies) = merging::furnished_copies(sources);
     if copies.is_empty() {
         return Err(Error::invalid(format!(
             "--furnished: no map NAME{} beside a map NAME among the maps given",
-            eval::FURNISHED_SUFFIX
+            merging::FURNISHED_SUFFIX
         )));
     }
     Ok((own, copies))
@@ -398,8 +398,8 @@ fn furnished_of(
 
 /// Whether to run the office family, and which generated families: all of them by default; given maps
 /// are cut as the office family is, and take no generated family.
-fn families(names: &[String], generated: bool) -> Result<(bool, Vec<eval::families::Family>)> {
-    use eval::families::Family;
+fn families(names: &[String], generated: bool) -> Result<(bool, Vec<merging::families::Family>)> {
+    use merging::families::Family;
     let all = names.is_empty() || names.iter().any(|n| n == "all");
     if !generated {
         if names.iter().any(|n| n != "all") {
@@ -471,7 +471,7 @@ fn library(set: &PairSet, maps: &std::path::Path) -> Result<global_eval::Library
     let maps = named
         .into_iter()
         .map(|(name, building)| {
-            let map = OccupancyMap::load(eval::map_path(maps, &name)?)?;
+            let map = OccupancyMap::load(merging::map_path(maps, &name)?)?;
             Ok((name, building, map))
         })
         .collect::<Result<_>>()?;
@@ -482,10 +482,10 @@ fn library(set: &PairSet, maps: &std::path::Path) -> Result<global_eval::Library
 /// while its pairs run), would exceed the budget; read up to their image headers only.
 fn check_set_memory(set: &PairSet, maps: &std::path::Path, budget: &Budget) -> Result<()> {
     let bytes = |name: &str| {
-        let (w, h, _) = OccupancyMap::probe(&eval::map_path(maps, name)?)?;
+        let (w, h, _) = OccupancyMap::probe(&merging::map_path(maps, name)?)?;
         Ok(set_bytes(w, h))
     };
-    let (peak, held) = eval::peak_held(set, &bytes)?;
+    let (peak, held) = merging::peak_held(set, &bytes)?;
     budget.check(
         format_args!("the pair file's maps held at once ({held}) and their preparation"),
         peak,
@@ -589,7 +589,7 @@ fn save_set(
     dir: &std::path::Path,
     names: &[String],
     maps: &[OccupancyMap],
-    truths: &[ogm_corners::merge::pairs::TruePair],
+    truths: &[ogm_corners::measure::pairs::TruePair],
 ) -> Result<()> {
     std::fs::create_dir_all(dir)
         .map_err(|e| Error::input(dir, format!("cannot create the folder: {e}")))?;

@@ -427,7 +427,7 @@ mod tests {
     use crate::merge::align::{align_prepared, MergeOptions};
 
     fn two() -> (Prepared, Prepared, Vec<crate::map::OccupancyMap>) {
-        let (_, maps, _) = crate::merge::global::eval::synthetic_maps(2, 7).unwrap();
+        let (_, maps, _) = crate::measure::merging::many::synthetic_maps(2, 7).unwrap();
         (Prepared::new(&maps[0]), Prepared::new(&maps[1]), maps)
     }
 

@@ -5,8 +5,6 @@
 //! - [`transform`]: pixel and world transforms between two maps' frames.
 //! - [`compose`](mod@compose): the merged map in A's frame.
 //! - [`pair`]: two maps merged end to end (resolutions, alignment, world transform, merged map).
-//! - [`pairs`]: pair sets with ground truth and their success test (`merge-eval`).
-//! - [`synthetic`]: pairs with exact truth cut from any map.
 //! - [`global`]: many maps at once: every pair aligned, one consistent placement of all.
 //! - [`mosaic`]: the merged map of many placed maps, and its picture.
 //! - [`footprint`]: what a merge will hold in memory, known before it allocates.
@@ -19,7 +17,6 @@ mod coarse;
 pub mod codec;
 pub mod compose;
 mod distance;
-pub mod eval;
 mod fft;
 pub mod footprint;
 pub mod global;
@@ -27,15 +24,12 @@ pub mod hypotheses;
 mod local;
 pub mod mosaic;
 pub mod pair;
-pub mod pairs;
 mod prepare;
 pub mod prescreen;
 mod refine;
-pub mod report;
 pub mod resample;
 mod score;
 pub mod symmetry;
-pub mod synthetic;
 pub mod transform;
 
 pub use align::{align, Alignment, MergeOptions};

@@ -125,7 +125,7 @@ pub struct Prepared {
     /// Corners for corner hypotheses (crop coordinates), when prepared with them.
     pub(super) corners: Option<Vec<(f64, f64)>>,
     /// Its self-symmetry, once measured (the aligner's `self_symmetry`).
-    pub(super) symmetry: std::sync::OnceLock<Symmetry>,
+    pub(crate) symmetry: std::sync::OnceLock<Symmetry>,
     /// The coarse masks, one level per cell side of [`CELLS`]: the coarsest always, a finer one when
     /// this map is small enough for it to be chosen.
     pub(super) levels: Vec<Option<Coarse>>,

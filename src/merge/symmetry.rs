@@ -240,7 +240,7 @@ impl<'a> Sweep<'a> {
 mod tests {
     use super::*;
     use crate::map::OccupancyMap;
-    use crate::merge::synthetic::{symmetric_plan, SymmetricKind};
+    use crate::measure::synthetic::{symmetric_plan, SymmetricKind};
 
     fn turns_of(img: crate::map::MapImage) -> Vec<SelfTurn> {
         self_turns(&Prepared::new(&OccupancyMap::from_image(img)))

@@ -24,7 +24,6 @@
 mod cache;
 pub mod calibrate;
 mod engine;
-pub mod eval;
 pub mod graph;
 mod merged;
 pub mod page;

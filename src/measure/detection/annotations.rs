@@ -171,7 +171,7 @@ pub fn hits(points: &[(f64, f64)], keypoints: &[Keypoint], radius: f64) -> usize
         .iter()
         .map(|k| (f64::from(k.x), f64::from(k.y)))
         .collect();
-    let grid = super::PointGrid::new(&kps, radius);
+    let grid = crate::measure::detection::PointGrid::new(&kps, radius);
     points
         .iter()
         .filter(|&&(x, y)| grid.has_within(x, y))
@@ -256,7 +256,7 @@ pub fn marked_sheet(
             &strongest[..],
         ),
     ];
-    crate::compare::labelled_sheet(
+    crate::measure::compare::labelled_sheet(
         &format!("{name}: {} MARKED POINTS (GREEN RINGS)", points.len()),
         map,
         &panels,
@@ -265,7 +265,7 @@ pub fn marked_sheet(
 }
 
 /// Bytes of [`marked_sheet`]'s picture, for memory budgets.
-pub const MARKED_SHEET_BYTES: u64 = crate::compare::sheet_bytes(2);
+pub const MARKED_SHEET_BYTES: u64 = crate::measure::compare::sheet_bytes(2);
 
 /// The file [`marked_sheet`] is written to in a `--plot` folder, for map `name`.
 pub fn marked_sheet_file(name: &str) -> String {

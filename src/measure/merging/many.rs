@@ -5,11 +5,11 @@ use std::io::{self, Write};
 
 use serde::Serialize;
 
-use super::graph::Placement;
-use super::{GlobalOptions, Pairwise, Timing};
 use crate::backend::ReferenceBackend;
 use crate::map::OccupancyMap;
-use crate::merge::pairs::TruePair;
+use crate::measure::pairs::TruePair;
+use crate::merge::global::graph::Placement;
+use crate::merge::global::{GlobalOptions, Pairwise, Timing};
 use crate::merge::transform::Rigid;
 use crate::support::error::Result;
 
@@ -26,14 +26,14 @@ pub struct SetResult {
     pub timing: Timing,
 }
 
-/// Places `maps` on the CPU path ([`super::run`]); `progress` hears (pairs done, pairs in all).
+/// Places `maps` on the CPU path ([`crate::merge::global::run`]); `progress` hears (pairs done, pairs in all).
 pub fn run_maps(
     names: Vec<String>,
     maps: &[OccupancyMap],
     options: &GlobalOptions,
     progress: &(dyn Fn(usize, usize) + Sync),
 ) -> Result<SetResult> {
-    let r = super::run(maps, options, &mut ReferenceBackend, progress)?;
+    let r = crate::merge::global::run(maps, options, &mut ReferenceBackend, progress)?;
     Ok(SetResult {
         names,
         pairwise: r.pairwise,
@@ -478,14 +478,14 @@ pub fn synthetic_maps(
     synthetic_maps_of(&source, n, seed)
 }
 
-/// `n` maps cut from `source` ([`synthetic_set`](crate::merge::synthetic::synthetic_set), no speckle)
+/// `n` maps cut from `source` ([`synthetic_set`](crate::measure::synthetic::synthetic_set), no speckle)
 /// with every ordered pair's exact truth (the synthetic limits), named `part-NN`.
 pub fn synthetic_maps_of(
     source: &OccupancyMap,
     n: usize,
     seed: u64,
 ) -> Result<(Vec<String>, Vec<OccupancyMap>, Vec<TruePair>)> {
-    use crate::merge::synthetic::synthetic_set;
+    use crate::measure::synthetic::synthetic_set;
     let crops = synthetic_set(source, n, 0.0, seed).ok_or_else(|| {
         crate::support::error::Error::invalid("the synthetic map is too small to cut a set from")
     })?;

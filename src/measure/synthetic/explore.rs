@@ -5,10 +5,10 @@
 
 use std::collections::VecDeque;
 
-use super::{box_points, turned, SyntheticCrop};
 use crate::map::states::{CellState, ClassTable};
 use crate::map::synthetic::Rng;
 use crate::map::{MapImage, OccupancyMap};
+use crate::measure::synthetic::{box_points, turned, SyntheticCrop};
 
 /// How the robots explore.
 #[derive(Clone, Copy, Debug, PartialEq)]

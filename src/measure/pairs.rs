@@ -9,7 +9,7 @@ use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
-use super::transform::Rigid;
+use crate::merge::transform::Rigid;
 use crate::support::error::{Error, Result};
 
 /// Largest pair file read.

@@ -3,10 +3,10 @@
 
 use image::RgbImage;
 
-use super::compose::{overlay, OVERLAY_COLOURS};
-use super::eval::PairRecord;
-use super::transform::Rigid;
 use crate::map::OccupancyMap;
+use crate::measure::merging::PairRecord;
+use crate::merge::compose::{overlay, OVERLAY_COLOURS};
+use crate::merge::transform::Rigid;
 use crate::support::error::Result;
 use crate::support::report::{Cell, Figure, Report, Table};
 
@@ -155,7 +155,7 @@ pub fn pair_picture(a: &OccupancyMap, b: &OccupancyMap, t: &Rigid) -> Result<Rgb
     // The full-size overlay dropped as soon as it is cut.
     let full = crate::support::plot::crop_to_content(
         &overlay(a, b, t)?,
-        super::compose::OVERLAY_UNKNOWN,
+        crate::merge::compose::OVERLAY_UNKNOWN,
         4,
     );
     Ok(crate::support::plot::fit_image(
@@ -376,7 +376,7 @@ mod tests {
         // Conflict > walls of both > A only > B only > free in both > free in one > unknown.
         let order = [5, 2, 0, 1, 3, 4];
         assert!(order.windows(2).all(|w| rank(w[0]) > rank(w[1])));
-        assert!(rank(4) > overlay_rank(super::super::compose::OVERLAY_UNKNOWN));
+        assert!(rank(4) > overlay_rank(crate::merge::compose::OVERLAY_UNKNOWN));
     }
 
     #[test]

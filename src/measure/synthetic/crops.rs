@@ -1,10 +1,12 @@
 //! Small partial maps: two square windows of one map, as two robots' maps are early in an exploration,
 //! overlapping by a share of their side or apart (then any merge of them is wrong).
 
-use super::{box_points, turned, written, SyntheticPair, SYNTHETIC_RMS_LIMIT_PX};
 use crate::map::states::{CellState, ClassTable, UNKNOWN};
 use crate::map::synthetic::Rng;
 use crate::map::{MapImage, OccupancyMap};
+use crate::measure::synthetic::{
+    box_points, turned, written, SyntheticPair, SYNTHETIC_RMS_LIMIT_PX,
+};
 use crate::merge::transform::Rigid;
 
 /// How to cut two small windows.

@@ -20,11 +20,11 @@ pub use symmetric::{
     extra_room_door, extra_room_points, hall_pixel, symmetric_plan, SymmetricKind,
 };
 
-use super::pairs::TruePair;
-use super::transform::Rigid;
 use crate::map::states::{CellState, ClassTable, FREE, OCCUPIED, UNKNOWN};
 use crate::map::synthetic::Rng;
 use crate::map::{MapImage, OccupancyMap};
+use crate::measure::pairs::TruePair;
+use crate::merge::transform::Rigid;
 
 /// How to cut a pair.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -11,14 +11,16 @@
 //! true pose from a wrong one, so declining it is right and only a wrong accept counts against the
 //! merger. Windows apart are negatives: any accept is wrong.
 
-use super::{synthetic_label, synthetic_record, MapCosts, OnPair, PairRecord, PrepTimer};
 use crate::map::OccupancyMap;
-use crate::merge::align::MergeOptions;
-use crate::merge::synthetic::{
+use crate::measure::merging::{
+    synthetic_label, synthetic_record, MapCosts, OnPair, PairRecord, PrepTimer,
+};
+use crate::measure::synthetic::{
     extra_room_in_both, extra_room_turns_seen, hall_pair, hall_pair_holding_room, synthetic_crops,
     synthetic_pair_with, CropSpec, LayoutKind, PairShape, SymmetricKind, SyntheticPair,
     SyntheticSpec, MIN_ALIAS_CONTRADICTION,
 };
+use crate::merge::align::MergeOptions;
 use crate::support::error::{Error, Result};
 
 /// A family of synthetic pairs.

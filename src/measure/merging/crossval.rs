@@ -15,7 +15,7 @@ use std::io::{self, Write};
 
 use serde::Serialize;
 
-use super::PairRecord;
+use crate::measure::merging::PairRecord;
 use crate::merge::align::{decline, Acceptance, Decline, Features};
 
 /// Inputs of the rule.

@@ -5,6 +5,8 @@
 pub mod cache;
 pub mod crossval;
 pub mod families;
+pub mod many;
+pub mod page;
 
 use std::collections::HashMap;
 use std::io::{self, Write};
@@ -13,14 +15,14 @@ use std::time::Instant;
 
 use serde::Serialize;
 
-use super::align::{align_prepared, Alignment, MergeOptions, Prepared};
-use super::hypotheses::Hypotheses;
-use super::pairs::{PairSet, TruePair};
-use super::synthetic::{furnished_pair, synthetic_pair, SyntheticPair, SyntheticSpec};
-use super::transform::Rigid;
 use crate::backend::baselines::Baseline;
 use crate::backend::DetectorKind;
 use crate::map::OccupancyMap;
+use crate::measure::pairs::{PairSet, TruePair};
+use crate::measure::synthetic::{furnished_pair, synthetic_pair, SyntheticPair, SyntheticSpec};
+use crate::merge::align::{align_prepared, Alignment, MergeOptions, Prepared};
+use crate::merge::hypotheses::Hypotheses;
+use crate::merge::transform::Rigid;
 use crate::support::error::Result;
 
 /// One pair's outcome.
@@ -102,7 +104,7 @@ pub fn run_with(
 /// pair), and prepared only when some pair of it is not in the cache.
 struct Held {
     map: OccupancyMap,
-    id: Option<super::global::ContentId>,
+    id: Option<crate::merge::global::ContentId>,
     prepared: Option<Prepared>,
 }
 
@@ -124,7 +126,9 @@ pub fn run_cached(
         for name in [src, dst] {
             if !held.contains_key(name) {
                 let map = OccupancyMap::load(map_path(maps, name)?)?;
-                let id = cache.is_some().then(|| super::global::content_id(&map));
+                let id = cache
+                    .is_some()
+                    .then(|| crate::merge::global::content_id(&map));
                 held.insert(
                     name.to_string(),
                     Held {
@@ -399,7 +403,7 @@ fn run_negatives(
         let (pa, pb) = (prep.prepare(a), prep.prepare(b));
         let (alignment, ms) = prep.align(&pa, &pb, options);
         let alignment =
-            alignment.unwrap_or_else(|e| super::align::declined(&format!("refused: {e}")));
+            alignment.unwrap_or_else(|e| crate::merge::align::declined(&format!("refused: {e}")));
         let record = PairRecord {
             src: format!("{nb}/{:.0}/b", 100.0 * overlap),
             dst: format!("{na}/{:.0}/a", 100.0 * overlap),
@@ -553,7 +557,8 @@ pub(crate) fn synthetic_record(
 ) -> PairRecord {
     let (pa, pb) = (prep.prepare(&pair.a), prep.prepare(&pair.b));
     let (alignment, ms) = prep.align(&pa, &pb, options);
-    let alignment = alignment.unwrap_or_else(|e| super::align::declined(&format!("refused: {e}")));
+    let alignment =
+        alignment.unwrap_or_else(|e| crate::merge::align::declined(&format!("refused: {e}")));
     let (rot, rms) = truth.errors(&alignment.transform);
     let accurate_candidates = alignment
         .candidates
@@ -836,9 +841,9 @@ pub fn write_summary(out: &mut dyn Write, rows: &[PairRecord], costs: &MapCosts)
         "\nOperating curve: the acceptance rule's threshold moved by an offset (0 is the default; the \
          vetoes hold throughout: fine conflict at most {}, contradiction at most {}, self-match at most \
          {}):\n",
-        super::align::MAX_FINE_CONFLICT,
-        super::align::MAX_CONTRADICTION,
-        super::align::MAX_SELF_SYMMETRY
+        crate::merge::align::MAX_FINE_CONFLICT,
+        crate::merge::align::MAX_CONTRADICTION,
+        crate::merge::align::MAX_SELF_SYMMETRY
     )?;
     writeln!(
         out,
@@ -864,7 +869,7 @@ pub fn operating_curve(rows: &[PairRecord]) -> Vec<(f64, usize, usize, usize, us
         .iter()
         .map(|&o| {
             let acc = |r: &&PairRecord| {
-                super::align::accepts(&r.alignment.features, r.alignment.score - o)
+                crate::merge::align::accepts(&r.alignment.features, r.alignment.score - o)
             };
             let pos: Vec<&PairRecord> = rows.iter().filter(|r| !r.negative).filter(acc).collect();
             let negatives = rows.iter().filter(|r| r.negative).filter(acc).count();

@@ -5,19 +5,21 @@ use std::path::{Path, PathBuf};
 
 use image::RgbImage;
 
-use super::EvalRecord;
+use crate::measure::detection::EvalRecord;
 use crate::support::error::Result;
 use crate::support::report::{file_name, Figure, Report};
 
 /// The picture of map `i` named `name` on the page: its keypoints per detector (`marked`: false) or its
-/// marked points ([`super::annotations::marked_sheet`]).
+/// marked points ([`crate::measure::detection::annotations::marked_sheet`]).
 pub fn picture_file(i: usize, name: &str, marked: bool) -> String {
     file_name(i, name, if marked { "-marked" } else { "-keypoints" })
 }
 
 /// Every picture file a page for maps `names` may write: one per map, and the plots (repeatability only).
 pub fn picture_files(names: &[String], marked: bool) -> Vec<String> {
-    let plots = super::PLOT_FILES.iter().filter(|_| !marked);
+    let plots = crate::measure::detection::PLOT_FILES
+        .iter()
+        .filter(|_| !marked);
     names
         .iter()
         .enumerate()
@@ -92,13 +94,13 @@ impl EvalPage {
         r.text(format!("{about} Click a column to sort."));
         r.table(repeatability_table(rows));
         r.heading("Repeatability against noise and rotation, averaged over the maps");
-        let plots = super::repeatability_plots(rows)
+        let plots = crate::measure::detection::repeatability_plots(rows)
             .into_iter()
             .map(|(file, picture)| r.picture(file, &picture, vec![file.to_string()]))
             .collect::<Result<Vec<_>>>()?;
         r.figures_at(plots, 600);
         r.heading("Each detector's keypoints on each map");
-        r.legend(&crate::compare::rule_legend());
+        r.legend(&crate::measure::compare::rule_legend());
         r.figures_at(self.figures, 900);
         self.report.finish()
     }
@@ -106,7 +108,7 @@ impl EvalPage {
     /// Writes the recall page for the marked points of `source` and returns its path.
     pub fn finish_recall(
         mut self,
-        rows: &[super::annotations::RecallRecord],
+        rows: &[crate::measure::detection::annotations::RecallRecord],
         source: &Path,
     ) -> Result<PathBuf> {
         let r = &mut self.report;
@@ -114,11 +116,11 @@ impl EvalPage {
             "Marked points from {}; rows per map, then pooled over the maps (green). Click a column to sort.",
             source.display()
         ));
-        r.table(super::annotations::html_table(rows));
+        r.table(crate::measure::detection::annotations::html_table(rows));
         r.heading(
             "The marked points (green rings) against the paper's and the robust detector's keypoints",
         );
-        r.legend(&crate::compare::rule_legend());
+        r.legend(&crate::measure::compare::rule_legend());
         r.figures_at(self.figures, 900);
         self.report.finish()
     }
