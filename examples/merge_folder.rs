@@ -8,7 +8,7 @@
 use std::path::{Path, PathBuf};
 
 use ogm_corners::backend::reference::ReferenceBackend;
-use ogm_corners::merge::global::{merge_maps, GlobalOptions};
+use ogm_corners::merge::many::{merge_maps, GlobalOptions};
 use ogm_corners::OccupancyMap;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {

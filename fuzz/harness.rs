@@ -13,12 +13,12 @@ use ogm_corners::map::{
     decode_image, grid_image, GridThresholds, MapYaml, GRID_FREE, GRID_OCCUPIED, GRID_UNKNOWN,
 };
 use ogm_corners::measure::pairs::PairSet;
-use ogm_corners::merge::align::{
-    align_prepared_with, Acceptance, Alignment, MergeOptions, Prepared,
-};
 use ogm_corners::merge::compose::{Canvas, MAX_CANVAS_FACTOR};
 use ogm_corners::merge::footprint::{check_alignable, footprint};
-use ogm_corners::merge::hypotheses::Hypotheses;
+use ogm_corners::merge::pair::align::{
+    align_prepared_with, Acceptance, Alignment, MergeOptions, Prepared,
+};
+use ogm_corners::merge::pair::hypotheses::Hypotheses;
 use ogm_corners::merge::pair::{
     at_resolution_of, compose_pair, merge_pair, overlay_pair, PairMerge,
 };

@@ -1,7 +1,6 @@
 //! `ogm-corners`: the command-line tool. Exit status 0 on success, 2 on bad input or usage, 1 otherwise;
 //! 130 when interrupted (SIGINT, SIGTERM, SIGHUP), with no half-written output left behind.
 
-mod batch;
 mod cli;
 
 use std::alloc::{GlobalAlloc, Layout, System};

@@ -244,6 +244,7 @@ fn repo_paths(text: &str) -> Vec<String> {
         "scripts/",
         "benches/",
         "examples/",
+        "ros/",
     ] {
         let mut from = 0;
         while let Some(k) = text[from..].find(start) {

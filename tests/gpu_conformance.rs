@@ -825,7 +825,7 @@ fn transform_scores_are_batched_beyond_the_dispatch_limit() {
 #[test]
 fn merging_with_gpu_scoring_equals_the_cpu() {
     use ogm_corners::measure::synthetic::{synthetic_pair, SyntheticSpec};
-    use ogm_corners::merge::align::{align_prepared, align_prepared_with, Prepared};
+    use ogm_corners::merge::pair::align::{align_prepared, align_prepared_with, Prepared};
     use ogm_corners::merge::MergeOptions;
     let Some(mut gpu) = common::gpu_backend(GpuOptions::default()) else {
         return;

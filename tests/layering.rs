@@ -288,7 +288,7 @@ fn the_checker_sees_use_groups_and_paths() {
 }
 
 /// The layer of a top-level module, as `lib.rs` lists them bottom to top; the binary's files (`main.rs`,
-/// `batch.rs`, `cli/`) are the top. `None`: a module no layer names (a new one must be given a place).
+/// `cli/`) are the top. `None`: a module no layer names (a new one must be given a place).
 fn layer_of(file: &str) -> Option<u32> {
     let top = file.split('/').next()?.trim_end_matches(".rs");
     Some(match top {
@@ -301,7 +301,7 @@ fn layer_of(file: &str) -> Option<u32> {
         "detect" => 5,
         "merge" => 6,
         "measure" => 7,
-        "lib" | "main" | "batch" | "cli" => 8,
+        "lib" | "main" | "cli" => 8,
         _ => return None,
     })
 }
@@ -423,4 +423,32 @@ fn the_interface_checker_sees_a_reach_past_it() {
     let bad = past_the_interface(&g, &[]);
     assert_eq!(bad.len(), 1, "{bad:#?}");
     assert!(bad[0].starts_with("merge/score.rs"));
+}
+
+/// Within the merger: two maps (`merge/pair/`) and what both use (`merge/*.rs`) below many maps
+/// (`merge/many/`), which place the pairs the two-map aligner gives.
+fn many_reached_from_below(g: &BTreeMap<String, BTreeSet<String>>) -> Vec<String> {
+    let mut bad = Vec::new();
+    for (f, to) in g {
+        if !f.starts_with("merge/") || f.starts_with("merge/many/") || f == "merge/mod.rs" {
+            continue;
+        }
+        for t in to.iter().filter(|t| t.starts_with("merge/many/")) {
+            bad.push(format!("{f} imports {t}: many maps sit above the pair"));
+        }
+    }
+    bad
+}
+
+#[test]
+fn the_pair_never_imports_the_many_map_merger() {
+    let bad = many_reached_from_below(&graph());
+    assert!(bad.is_empty(), "{bad:#?}");
+    let edge = |f: &str, t: &str| (f.to_string(), BTreeSet::from([t.to_string()]));
+    let g = BTreeMap::from([
+        edge("merge/pair/align.rs", "merge/many/graph.rs"),
+        edge("merge/many/graph.rs", "merge/pair/align.rs"),
+        edge("merge/compose.rs", "merge/many/mosaic.rs"),
+    ]);
+    assert_eq!(many_reached_from_below(&g).len(), 2);
 }

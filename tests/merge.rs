@@ -189,7 +189,7 @@ fn unrelated_or_empty_maps_are_declined_and_identical_ones_merge_in_place() {
 #[test]
 fn corner_hypotheses_are_prepared_by_align_itself() {
     use ogm_corners::backend::DetectorKind;
-    use ogm_corners::merge::hypotheses::Hypotheses;
+    use ogm_corners::merge::pair::hypotheses::Hypotheses;
     let a = OccupancyMap::from_image(common::cluttered_office(400, 300, 3));
     for h in [
         Hypotheses::Corners(DetectorKind::OgmRobust),
@@ -476,8 +476,8 @@ fn half_overlapping_synthetic_offices_are_merged_and_never_wrongly() {
 
 #[test]
 fn corner_hypotheses_align_a_map_with_itself_and_need_prepared_corners() {
-    use ogm_corners::merge::align::{align_prepared, Prepared};
-    use ogm_corners::merge::hypotheses::Hypotheses;
+    use ogm_corners::merge::pair::align::{align_prepared, Prepared};
+    use ogm_corners::merge::pair::hypotheses::Hypotheses;
     use ogm_corners::{Baseline, DetectorKind};
     let map = OccupancyMap::from_image(common::cluttered_office(400, 300, 3));
     for d in [
@@ -598,7 +598,7 @@ fn a_map_that_looks_the_same_turned_is_declined_as_ambiguous() {
     let why = al.reason.unwrap();
     assert!(why.starts_with("ambiguous"), "{why}");
     // Its self-match is over the limit; a plan that is not symmetric stays well under it.
-    use ogm_corners::merge::align::{self_symmetry, Prepared, MAX_SELF_SYMMETRY};
+    use ogm_corners::merge::pair::align::{self_symmetry, Prepared, MAX_SELF_SYMMETRY};
     let s = self_symmetry(&Prepared::new(&map)).unwrap();
     assert!(s > MAX_SELF_SYMMETRY, "{s}");
     let plain = OccupancyMap::from_image(common::cluttered_office(400, 240, 6));

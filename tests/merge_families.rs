@@ -8,7 +8,7 @@ use ogm_corners::measure::synthetic::{
     synthetic_crops, synthetic_pair_with, CropSpec, LayoutKind, PairShape, SyntheticSpec,
     MIN_ALIAS_CONTRADICTION,
 };
-use ogm_corners::merge::align::{align, MergeOptions};
+use ogm_corners::merge::pair::align::{align, MergeOptions};
 use ogm_corners::OccupancyMap;
 
 /// A pair cut from `kind`'s layout for `seed` at `overlap`, with its lattice known, as `merge-eval

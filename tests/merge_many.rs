@@ -1,4 +1,4 @@
-//! Many maps placed at once (`merge A B C ...`, `ogm_corners::merge::global`): synthetic sets with exact
+//! Many maps placed at once (`merge A B C ...`, `ogm_corners::merge::many`): synthetic sets with exact
 //! truth, a wrong pairwise accept repaired by cycles, unrelated sets kept apart, determinism, the CLI and
 //! its outputs, and the real buildings when the shared data is there.
 
@@ -7,9 +7,9 @@ mod common;
 use ogm_corners::backend::reference::ReferenceBackend;
 use ogm_corners::measure::merging::many::{run_maps, score, synthetic_maps, synthetic_maps_of};
 use ogm_corners::measure::pairs::TruePair;
-use ogm_corners::merge::align::Prepared;
-use ogm_corners::merge::global::graph::Placement;
-use ogm_corners::merge::global::{align_all, place, GlobalOptions, Pairwise};
+use ogm_corners::merge::many::graph::Placement;
+use ogm_corners::merge::many::{align_all, place, GlobalOptions, Pairwise};
+use ogm_corners::merge::pair::align::Prepared;
 use ogm_corners::merge::Rigid;
 use ogm_corners::{MapImage, OccupancyMap};
 
@@ -469,10 +469,10 @@ fn the_real_buildings_are_placed_whole_and_never_into_each_other() {
 /// given twice is still aligned once.
 #[test]
 fn a_cached_run_redoes_only_the_changed_maps_and_pairs_and_equals_a_fresh_run() {
-    use ogm_corners::merge::global::{run, run_cached, Cache, CacheUse};
+    use ogm_corners::merge::many::{run, run_cached, Cache, CacheUse};
     let (_, mut maps, _) = synthetic_maps(5, 4).unwrap();
     let options = GlobalOptions::default();
-    let same = |a: &ogm_corners::merge::global::Run, b: &ogm_corners::merge::global::Run| {
+    let same = |a: &ogm_corners::merge::many::Run, b: &ogm_corners::merge::many::Run| {
         assert_eq!(
             serde_json::to_string(&a.pairwise).unwrap(),
             serde_json::to_string(&b.pairwise).unwrap()
@@ -664,8 +664,8 @@ fn the_real_buildings_screened_are_placed_as_with_every_pair() {
 #[test]
 fn a_map_added_to_an_earlier_merge_aligns_only_its_pairs_and_places_as_a_full_run() {
     use ogm_corners::measure::merging::many::synthetic_mixed;
-    use ogm_corners::merge::global::previous::Previous;
-    use ogm_corners::merge::global::{content_id, merge_maps_cached, run, run_cached, Cache};
+    use ogm_corners::merge::many::previous::Previous;
+    use ogm_corners::merge::many::{content_id, merge_maps_cached, run, run_cached, Cache};
     let (names, maps, truths) = synthetic_mixed(16, 2, 5).unwrap();
     let options = GlobalOptions::default();
     let old = merge_maps_cached(
@@ -748,7 +748,7 @@ fn a_map_added_to_an_earlier_merge_aligns_only_its_pairs_and_places_as_a_full_ru
 /// placement, the three buildings whole and apart, as in a full run.
 #[test]
 fn a_real_map_added_to_an_earlier_merge_is_placed_as_in_a_full_run() {
-    use ogm_corners::merge::global::{content_id, run_cached, Cache};
+    use ogm_corners::merge::many::{content_id, run_cached, Cache};
     let Some(dir) = common::merge_pairs() else {
         return;
     };
@@ -882,9 +882,9 @@ fn merge_from_an_earlier_poses_file_adds_maps_and_says_what_it_took_up() {
 #[test]
 fn an_engine_moving_bytes_places_as_the_local_threads_to_the_bit() {
     use ogm_corners::measure::merging::many::synthetic_mixed;
-    use ogm_corners::merge::codec::{self, Form};
-    use ogm_corners::merge::global::{run, run_with, Cache, Engine, PairRecord};
-    use ogm_corners::merge::prescreen::Signature;
+    use ogm_corners::merge::many::codec::{self, Form};
+    use ogm_corners::merge::many::prescreen::Signature;
+    use ogm_corners::merge::many::{run, run_with, Cache, Engine, PairRecord};
 
     #[derive(Default)]
     struct Bytes {
@@ -924,7 +924,8 @@ fn an_engine_moving_bytes_places_as_the_local_threads_to_the_bit() {
                 .map(|&(a, b)| {
                     let (pa, _) = codec::decode_prepared(&self.whole[&a])?;
                     let (pb, _) = codec::decode_prepared(&self.whole[&b])?;
-                    let al = ogm_corners::merge::align::align_prepared(&pa, &pb, &options.pair)?;
+                    let al =
+                        ogm_corners::merge::pair::align::align_prepared(&pa, &pb, &options.pair)?;
                     PairRecord::from_json(&PairRecord::of(&pa, &pb, &al, options).to_json())
                 })
                 .collect()

@@ -9,13 +9,13 @@ mod common;
 use ogm_corners::backend::reference::ReferenceBackend;
 use ogm_corners::measure::merging::many::synthetic_maps;
 use ogm_corners::measure::pairs::TruePair;
-use ogm_corners::merge::align::Prepared;
-use ogm_corners::merge::global::graph::Placement;
-use ogm_corners::merge::global::previous::Previous;
-use ogm_corners::merge::global::{
+use ogm_corners::merge::many::graph::Placement;
+use ogm_corners::merge::many::prescreen::Signature;
+use ogm_corners::merge::many::previous::Previous;
+use ogm_corners::merge::many::{
     merge_maps_cached, run_cached, run_with, Cache, Engine, GlobalOptions, Local, PairRecord,
 };
-use ogm_corners::merge::prescreen::Signature;
+use ogm_corners::merge::pair::align::Prepared;
 use ogm_corners::merge::Rigid;
 use ogm_corners::OccupancyMap;
 use serde_json::Value;

@@ -489,8 +489,8 @@ fn a_report_folder_holds_one_whole_report_and_a_stopped_run_leaves_the_previous_
 #[test]
 fn the_pre_screen_aligns_a_bounded_number_of_pairs_a_map_for_maps_that_share_nothing() {
     use ogm_corners::backend::reference::ReferenceBackend;
-    use ogm_corners::merge::global::{run, GlobalOptions};
-    use ogm_corners::merge::prescreen::Prescreen;
+    use ogm_corners::merge::many::prescreen::Prescreen;
+    use ogm_corners::merge::many::{run, GlobalOptions};
     use ogm_corners::{MapImage, OccupancyMap};
     let maps: Vec<OccupancyMap> = (0..40u64)
         .map(|seed| {

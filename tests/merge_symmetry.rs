@@ -12,7 +12,7 @@ use ogm_corners::measure::synthetic::{
     extra_room_in_both, extra_room_turns_seen, hall_pair, synthetic_pair, SymmetricKind,
     SyntheticPair, SyntheticSpec,
 };
-use ogm_corners::merge::align::{align, Alignment, MergeOptions};
+use ogm_corners::merge::pair::align::{align, Alignment, MergeOptions};
 use ogm_corners::merge::transform::signed_deg;
 use ogm_corners::OccupancyMap;
 use proptest::prelude::*;

@@ -7,8 +7,8 @@ use ogm_corners::backend::reference::ReferenceBackend;
 use ogm_corners::detect::detector::{DetectOptions, DetectorKind};
 use ogm_corners::map::synthetic::office_map;
 use ogm_corners::measure::merging::many::synthetic_maps;
-use ogm_corners::merge::global::{merge_maps, GlobalOptions};
-use ogm_corners::merge::mosaic;
+use ogm_corners::merge::many::mosaic;
+use ogm_corners::merge::many::{merge_maps, GlobalOptions};
 use ogm_corners::support::stop::Stop;
 use ogm_corners::{Detector, Error, OccupancyMap};
 

@@ -1,16 +1,16 @@
 //! Many maps placed with the work done elsewhere: `merge_many_on` runs the placement here and hands each
 //! map's preparation and each chosen pair's alignment to a Python executor (`ogm_corners.distributed`:
 //! Ray tasks, or the in-process reference executor), as bytes it can store and send by reference
-//! ([`ogm_corners::merge::codec`], [`global::PairRecord`]). `_prepare_encoded` and `_align_encoded` are
+//! ([`ogm_corners::merge::many::codec`], [`many::PairRecord`]). `_prepare_encoded` and `_align_encoded` are
 //! what the executor's workers run.
 
 use std::cell::RefCell;
 
 use numpy::PyReadonlyArray2;
-use ogm_corners::merge::align::Prepared;
-use ogm_corners::merge::codec::{self, Form};
-use ogm_corners::merge::global::{self, report, Engine, GlobalOptions, PairRecord};
-use ogm_corners::merge::prescreen::Signature;
+use ogm_corners::merge::many::codec::{self, Form};
+use ogm_corners::merge::many::prescreen::Signature;
+use ogm_corners::merge::many::{self, report, Engine, GlobalOptions, PairRecord};
+use ogm_corners::merge::pair::align::Prepared;
 use ogm_corners::{Error, MapImage, OccupancyMap};
 use pyo3::prelude::*;
 use pyo3::types::PyBytes;
@@ -142,13 +142,13 @@ pub fn merge_many_on(
         raised: RefCell::new(None),
     };
     let outcome = interruptible(py, || {
-        global::merge_maps_with(
+        many::merge_maps_with(
             owned,
             &names,
             &options,
             on.as_mut(),
             &|_, _| {},
-            &mut global::Cache::new(),
+            &mut many::Cache::new(),
             &mut engine,
         )
     });
@@ -226,7 +226,7 @@ pub fn _align_encoded(py: Python<'_>, a: &[u8], b: &[u8], options: &str) -> PyRe
                 "a pair is aligned from whole preparations, not their placement form",
             ));
         }
-        let al = ogm_corners::merge::align::align_prepared(&pa, &pb, &global_options.pair)?;
+        let al = ogm_corners::merge::pair::align::align_prepared(&pa, &pb, &global_options.pair)?;
         Ok(PairRecord::of(&pa, &pb, &al, &global_options).to_json())
     })
 }

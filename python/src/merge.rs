@@ -3,8 +3,8 @@
 
 use numpy::ndarray::Array3;
 use numpy::{IntoPyArray, PyArray3};
-use ogm_corners::merge::global::{self, GlobalOptions};
-use ogm_corners::merge::mosaic;
+use ogm_corners::merge::many::mosaic;
+use ogm_corners::merge::many::{self, GlobalOptions};
 use ogm_corners::merge::pair;
 use ogm_corners::merge::{MergeOptions, Rigid};
 use ogm_corners::{BackendChoice, Error, OccupancyMap};
@@ -110,7 +110,7 @@ pub struct ManyMerge {
 
 impl ManyMerge {
     /// What Python keeps of a many-map merge.
-    pub(crate) fn of(m: global::ManyMerge) -> PyResult<ManyMerge> {
+    pub(crate) fn of(m: many::ManyMerge) -> PyResult<ManyMerge> {
         let report =
             serde_json::to_string(&m.report).map_err(|e| to_py(Error::Internal(e.to_string())))?;
         let poses = m.run.placement.maps.iter().map(|p| p.pose).collect();
@@ -227,7 +227,7 @@ impl ManyMerge {
 #[pyclass(frozen, module = "ogm_corners._core", name = "MergeCache")]
 #[derive(Default)]
 pub struct MergeCache {
-    inner: std::sync::Mutex<global::Cache>,
+    inner: std::sync::Mutex<many::Cache>,
 }
 
 #[pymethods]
@@ -251,7 +251,7 @@ impl MergeCache {
 }
 
 impl MergeCache {
-    fn lock(&self) -> std::sync::MutexGuard<'_, global::Cache> {
+    fn lock(&self) -> std::sync::MutexGuard<'_, many::Cache> {
         // A run that panicked leaves a cache whose entries are each whole: still usable.
         self.inner.lock().unwrap_or_else(|e| e.into_inner())
     }
@@ -305,9 +305,9 @@ pub fn merge_many(
     let owned: Vec<ogm_corners::OccupancyMap> = maps.iter().map(|m| m.inner.clone()).collect();
     let cache = cache.as_deref();
     let inner = interruptible(py, || {
-        let mut fresh = global::Cache::new();
+        let mut fresh = many::Cache::new();
         let mut held = cache.map(MergeCache::lock);
-        global::merge_maps_cached(
+        many::merge_maps_cached(
             owned,
             &names,
             &GlobalOptions::with_partners(partners),

@@ -10,7 +10,7 @@ import xml.etree.ElementTree as ET
 import yaml
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-PKG = os.path.join(ROOT, "examples", "ros", "multirobot_map_merge")
+PKG = os.path.join(ROOT, "ros", "multirobot_map_merge")
 NODE = os.path.join(ROOT, "python", "ogm_corners", "ros", "node.py")
 
 
@@ -49,7 +49,7 @@ def test_the_package_is_an_ament_python_package_named_as_m_explores():
 
 def test_the_launch_files_compile_and_start_the_node():
     for path in (os.path.join(PKG, "launch", "map_merge.launch.py"),
-                 os.path.join(ROOT, "examples", "ros", "map_merge.launch.py")):
+                 os.path.join(ROOT, "ros", "map_merge.launch.py")):
         text = open(path).read()
         compile(text, path, "exec")
         assert "generate_launch_description" in text

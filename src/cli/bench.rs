@@ -12,7 +12,7 @@ use ogm_corners::support::files::{self, Inputs};
 use ogm_corners::support::memory::Budget;
 use ogm_corners::{Baseline, DetectOptions, DetectorKind, Error, OccupancyMap, Result};
 
-use crate::batch::map_name;
+use crate::cli::batch::map_name;
 
 use super::{parse_size, write_stdout, BaselineArgs, RulesArg, TextOrJson, ALL_DETECTORS};
 

@@ -5,7 +5,7 @@ use std::path::PathBuf;
 
 use clap::Args;
 
-use crate::batch::output_names;
+use crate::cli::batch::output_names;
 
 use ogm_corners::backend::reference_working_bytes;
 use ogm_corners::measure::compare::ComparePage;

@@ -10,7 +10,7 @@ use serde_json::json;
 use ogm_corners::map::{merged_yaml_text, write_merged_pgm_to, yaml_text, GeoRef};
 use ogm_corners::measure::synthetic::{explore, Exploration};
 use ogm_corners::merge::footprint;
-use ogm_corners::merge::global::{merge_maps, GlobalOptions};
+use ogm_corners::merge::many::{merge_maps, GlobalOptions};
 use ogm_corners::merge::Rigid;
 use ogm_corners::support::files;
 use ogm_corners::support::memory::Budget;
@@ -317,7 +317,7 @@ fn rigid_json(t: &Rigid) -> serde_json::Value {
 
 /// Robot `k`'s pixels to its group's merged map's pixels, when it is placed in the first group (the
 /// one written).
-fn placement_on_canvas(many: &ogm_corners::merge::global::ManyMerge, k: usize) -> Option<Rigid> {
+fn placement_on_canvas(many: &ogm_corners::merge::many::ManyMerge, k: usize) -> Option<Rigid> {
     let g = many.run.placement.groups.first()?;
     g.contains(&k)
         .then(|| many.frames[0].to_canvas(&many.run.placement.maps[k].pose))
@@ -325,7 +325,7 @@ fn placement_on_canvas(many: &ogm_corners::merge::global::ManyMerge, k: usize) -
 
 /// Group `g`'s picture: each robot's walls in its colour, its corners as black crosses, a legend.
 fn picture(
-    many: &ogm_corners::merge::global::ManyMerge,
+    many: &ogm_corners::merge::many::ManyMerge,
     g: usize,
     corners: &[Vec<ogm_corners::Keypoint>],
 ) -> Result<image::RgbImage> {

@@ -5,7 +5,7 @@ use std::path::PathBuf;
 
 use clap::Args;
 
-use crate::batch;
+use crate::cli::batch;
 
 use ogm_corners::detect::output::{self, Format};
 use ogm_corners::detect::overlay::OverlayCanvas;

@@ -9,7 +9,7 @@ use ogm_corners::measure::merging;
 use ogm_corners::measure::merging::many as global_eval;
 use ogm_corners::measure::merging::page::PairsPage;
 use ogm_corners::measure::pairs::PairSet;
-use ogm_corners::merge::global::GlobalOptions;
+use ogm_corners::merge::many::GlobalOptions;
 use ogm_corners::merge::{MergeOptions, Rigid};
 use ogm_corners::support::memory::Budget;
 use ogm_corners::{Error, OccupancyMap, Result};
@@ -448,7 +448,7 @@ fn synthetic_sources(
     // Each part's canvas holds at most the map's diagonal squared: twice the map, and the merger's
     // buffers for both.
     let extra = |w: u32, h: u32| {
-        ogm_corners::merge::align::prepared_bytes(w, h)
+        ogm_corners::merge::pair::align::prepared_bytes(w, h)
             .saturating_mul(4)
             .saturating_add(u64::from(w) * u64::from(h) * 4)
     };
@@ -562,19 +562,20 @@ fn run_global(a: &MergeEvalArgs, budget: &Budget) -> Result<()> {
 
 /// A map of `w` x `h` in a set placed at once: its pixels and its preparation.
 fn set_bytes(w: u32, h: u32) -> u64 {
-    (u64::from(w) * u64::from(h)).saturating_add(ogm_corners::merge::align::prepared_bytes(w, h))
+    (u64::from(w) * u64::from(h))
+        .saturating_add(ogm_corners::merge::pair::align::prepared_bytes(w, h))
 }
 
 /// A `w` x `h` map in a set placed at once: (what it keeps while the others are prepared and aligned,
 /// its working memory while it is), for [`footprint::set_bytes`](ogm_corners::merge::footprint::set_bytes).
 fn kept_working(w: u32, h: u32) -> (u64, u64) {
     let kept = (u64::from(w) * u64::from(h))
-        .saturating_add(ogm_corners::merge::align::kept_bytes(w, h).min(prepared(w, h)));
+        .saturating_add(ogm_corners::merge::pair::align::kept_bytes(w, h).min(prepared(w, h)));
     (kept, set_bytes(w, h) - kept)
 }
 
 fn prepared(w: u32, h: u32) -> u64 {
-    ogm_corners::merge::align::prepared_bytes(w, h)
+    ogm_corners::merge::pair::align::prepared_bytes(w, h)
 }
 
 /// A synthetic set of `n` maps: each a square canvas of about 1500 px a side (a 1044 px window turned),

@@ -1,4 +1,4 @@
-//! `ogm-corners merge A B C ... | DIR`: every map placed at once (see [`ogm_corners::merge::global`]): each
+//! `ogm-corners merge A B C ... | DIR`: every map placed at once (see [`ogm_corners::merge::many`]): each
 //! group's merged map and picture, each map's pose (`--poses`), the multirobot_map_merge parameters
 //! (`--init-poses`).
 
@@ -6,8 +6,8 @@ use std::path::{Path, PathBuf};
 
 use ogm_corners::map::{merged_yaml_text, save_names, write_merged_pgm_to};
 use ogm_corners::merge::footprint;
-use ogm_corners::merge::global::previous::Previous;
-use ogm_corners::merge::global::{merge_maps_cached, page, report, Cache, GlobalOptions};
+use ogm_corners::merge::many::previous::Previous;
+use ogm_corners::merge::many::{merge_maps_cached, page, report, Cache, GlobalOptions};
 use ogm_corners::support::files;
 use ogm_corners::support::memory::Budget;
 use ogm_corners::{Error, OccupancyMap, Result};

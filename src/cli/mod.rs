@@ -1,6 +1,7 @@
 //! The `ogm-corners` command line: argument parsing and the options shared by the subcommands, one file
 //! per subcommand beside this one. The work itself (detection, pictures, tables) is library code.
 
+mod batch;
 mod bench;
 mod compare;
 mod demo;

@@ -6,9 +6,9 @@
 //! ROS map_server's values (0 occupied, 254 free, 205 unknown), and, when A has a georeference, with the
 //! origin moved so that every cell of A keeps its world coordinates.
 
-use super::transform::{Applier, Rigid};
 use crate::map::states::{CellState, ClassTable};
 use crate::map::{GeoRef, MapImage, OccupancyMap, Thresholds};
+use crate::merge::transform::{Applier, Rigid};
 use crate::support::error::{Error, Result};
 
 /// Largest merged canvas, pixels, relative to the two maps together: a transform that would grow the

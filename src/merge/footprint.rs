@@ -3,13 +3,13 @@
 //! a run over its budget is refused with the estimate instead of aborting half way, and a huge canvas
 //! holding one small room is not refused for the canvas.
 
-use super::compose::Canvas;
-use super::prepare::{
+use crate::map::OccupancyMap;
+use crate::merge::compose::Canvas;
+use crate::merge::pair::prepare::{
     crop_box, kept_bytes, prepared_bytes, preparing_bytes, rotation_tasks, spectrum_bytes, CROP_PAD,
 };
-use super::resample::resampled_size;
-use super::transform::Rigid;
-use crate::map::OccupancyMap;
+use crate::merge::resample::resampled_size;
+use crate::merge::transform::Rigid;
 use crate::support::error::Result;
 
 /// A map as the merge holds it.
@@ -79,8 +79,8 @@ pub fn set_bytes(kept: impl IntoIterator<Item = (u64, u64)>) -> u64 {
 }
 
 /// `map`'s footprint once brought to `resolution` (metres a pixel; `None`: kept as it is), as
-/// [`at_resolution`](super::resample::at_resolution) would bring it. Refused, naming the map, both
-/// resolutions and the size, when the resampled map would be over [`MAX_RESAMPLED`](super::resample::MAX_RESAMPLED) pixels.
+/// [`at_resolution`](crate::merge::resample::at_resolution) would bring it. Refused, naming the map, both
+/// resolutions and the size, when the resampled map would be over [`MAX_RESAMPLED`](crate::merge::resample::MAX_RESAMPLED) pixels.
 pub fn footprint(map: &OccupancyMap, resolution: Option<f64>) -> Result<Footprint> {
     let (w, h) = (u64::from(map.image.width()), u64::from(map.image.height()));
     let (x0, y0, x1, y1) = crop_box(map);
@@ -121,7 +121,7 @@ pub fn pair(a: &OccupancyMap, b: &OccupancyMap) -> Result<(Footprint, Footprint)
 }
 
 /// Bytes a many-map merge holds at once: every map at the first georeferenced map's cells (the
-/// resolution [`merge_maps`](super::global::merge_maps) brings them to) with what its preparation keeps,
+/// resolution [`merge_maps`](crate::merge::many::merge_maps) brings them to) with what its preparation keeps,
 /// and the working memory of the maps prepared and aligned at once ([`set_bytes`]).
 pub fn many_bytes<'m>(maps: impl IntoIterator<Item = &'m OccupancyMap> + Clone) -> Result<u64> {
     let resolution = maps
@@ -159,7 +159,7 @@ pub fn canvas(a: &OccupancyMap, b: &Footprint, t: &Rigid) -> Result<Canvas> {
 /// other (the correlation's limit, as the alignment would find it after preparing both).
 pub fn check_alignable(a: &Footprint, b: &Footprint) -> Result<()> {
     let side = |v: u64| usize::try_from(v).unwrap_or(usize::MAX);
-    super::coarse::check_size(
+    crate::merge::pair::coarse::check_size(
         (side(b.crop.0), side(b.crop.1)),
         (side(a.crop.0), side(a.crop.1)),
     )

@@ -1,37 +1,23 @@
 //! Map merging: the rigid transform between two robots' maps of one place, found with no initial pose,
 //! checked before it is accepted, and the merged map.
 //!
-//! - [`align`](mod@align): the transform between two maps, verified.
+//! - [`pair`]: two maps: the aligner ([`pair::align`]: hypotheses, scoring, refinement, the acceptance
+//!   test and the poses a symmetric or repeating building also offers), and two maps merged end to end
+//!   (resolutions, alignment, world transform, merged map).
+//! - [`many`]: many maps at once: every pair aligned (or those a pre-screen chooses), one consistent
+//!   placement of all, the merged map of each group and its picture.
 //! - [`transform`]: pixel and world transforms between two maps' frames.
-//! - [`compose`](mod@compose): the merged map in A's frame.
-//! - [`pair`]: two maps merged end to end (resolutions, alignment, world transform, merged map).
-//! - [`global`]: many maps at once: every pair aligned, one consistent placement of all.
-//! - [`mosaic`]: the merged map of many placed maps, and its picture.
+//! - [`compose`](mod@compose): the merged map in A's frame; [`resample`]: a map brought to another's
+//!   resolution.
 //! - [`footprint`]: what a merge will hold in memory, known before it allocates.
-//! - [`hypotheses`]: where the aligner's hypotheses come from (dense correlation, corners, both).
 
-mod accept;
-mod alias;
-pub mod align;
-mod coarse;
-pub mod codec;
 pub mod compose;
-mod distance;
-mod fft;
 pub mod footprint;
-pub mod global;
-pub mod hypotheses;
-mod local;
-pub mod mosaic;
+pub mod many;
 pub mod pair;
-mod prepare;
-pub mod prescreen;
-mod refine;
 pub mod resample;
-mod score;
-pub mod symmetry;
 pub mod transform;
 
-pub use align::{align, Alignment, MergeOptions};
 pub use compose::compose;
+pub use pair::align::{align, Alignment, MergeOptions};
 pub use transform::Rigid;

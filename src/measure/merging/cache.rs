@@ -9,8 +9,8 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 
 use crate::map::OccupancyMap;
-use crate::merge::align::{Alignment, MergeOptions};
-use crate::merge::global::{content_id, ContentId};
+use crate::merge::many::{content_id, ContentId};
+use crate::merge::pair::align::{Alignment, MergeOptions};
 use crate::support::error::Result;
 
 /// The code that measures an alignment, as the build saw it: the crate's version and a hash of every

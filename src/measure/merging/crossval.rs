@@ -16,7 +16,7 @@ use std::io::{self, Write};
 use serde::Serialize;
 
 use crate::measure::merging::PairRecord;
-use crate::merge::align::{decline, Acceptance, Decline, Features};
+use crate::merge::pair::align::{decline, Acceptance, Decline, Features};
 
 /// Inputs of the rule.
 const K: usize = 3;
@@ -123,7 +123,7 @@ pub fn fit(train: &[(Features, bool)]) -> Acceptance {
         f64::INFINITY
     };
     // In units of a tenth of the training values' spread: the many-map placement weighs candidates by
-    // their rule values on that scale ([`crate::merge::global`]), whatever the fit's own scale.
+    // their rule values on that scale ([`crate::merge::many`]), whatever the fit's own scale.
     let unit = if spread > 1e-9 { 10.0 / spread } else { 1.0 };
     Acceptance {
         w_coarse: w[0] * unit,
@@ -205,7 +205,7 @@ fn buildings(rows: &[PairRecord]) -> HashMap<String, String> {
 }
 
 /// Leave-one-building-out over the merger's records of a pair set (run with
-/// [`crate::merge::align::MergeOptions::always_verify`], so every veto was measured): one row per
+/// [`crate::merge::pair::align::MergeOptions::always_verify`], so every veto was measured): one row per
 /// building, then the pooled held-out row and the in-sample row.
 pub fn cross_validate(rows: &[PairRecord]) -> Vec<FoldRow> {
     let of = buildings(rows);
@@ -403,7 +403,7 @@ mod tests {
             conflict_fine: 0.9,
             ..f
         };
-        assert!(!crate::merge::align::accepts(&vetoed, f64::INFINITY));
+        assert!(!crate::merge::pair::align::accepts(&vetoed, f64::INFINITY));
         train.push((vetoed, false));
         let strict = fit(&train);
         assert!(strict.margin(&vetoed) < 0.0, "{strict:?}");

@@ -20,7 +20,7 @@ use crate::measure::synthetic::{
     synthetic_pair_with, CropSpec, LayoutKind, PairShape, SymmetricKind, SyntheticPair,
     SyntheticSpec, MIN_ALIAS_CONTRADICTION,
 };
-use crate::merge::align::MergeOptions;
+use crate::merge::pair::align::MergeOptions;
 use crate::support::error::{Error, Result};
 
 /// A family of synthetic pairs.

@@ -8,8 +8,8 @@ use serde::Serialize;
 use crate::backend::ReferenceBackend;
 use crate::map::OccupancyMap;
 use crate::measure::pairs::TruePair;
-use crate::merge::global::graph::Placement;
-use crate::merge::global::{GlobalOptions, Pairwise, Timing};
+use crate::merge::many::graph::Placement;
+use crate::merge::many::{GlobalOptions, Pairwise, Timing};
 use crate::merge::transform::Rigid;
 use crate::support::error::Result;
 
@@ -26,14 +26,14 @@ pub struct SetResult {
     pub timing: Timing,
 }
 
-/// Places `maps` on the CPU path ([`crate::merge::global::run`]); `progress` hears (pairs done, pairs in all).
+/// Places `maps` on the CPU path ([`crate::merge::many::run`]); `progress` hears (pairs done, pairs in all).
 pub fn run_maps(
     names: Vec<String>,
     maps: &[OccupancyMap],
     options: &GlobalOptions,
     progress: &(dyn Fn(usize, usize) + Sync),
 ) -> Result<SetResult> {
-    let r = crate::merge::global::run(maps, options, &mut ReferenceBackend, progress)?;
+    let r = crate::merge::many::run(maps, options, &mut ReferenceBackend, progress)?;
     Ok(SetResult {
         names,
         pairwise: r.pairwise,
@@ -516,7 +516,7 @@ pub fn chain(pairwise: &Pairwise) -> Vec<Option<(usize, Rigid)>> {
     for &(a, b, _, _) in &accepted {
         (in_one[a], in_one[b]) = (true, true);
     }
-    crate::merge::prescreen::forest(pairwise.n, &accepted)
+    crate::merge::many::prescreen::forest(pairwise.n, &accepted)
         .into_iter()
         .zip(in_one)
         .map(|(tree, is)| is.then_some(tree))

@@ -20,8 +20,8 @@ use crate::backend::DetectorKind;
 use crate::map::OccupancyMap;
 use crate::measure::pairs::{PairSet, TruePair};
 use crate::measure::synthetic::{furnished_pair, synthetic_pair, SyntheticPair, SyntheticSpec};
-use crate::merge::align::{align_prepared, Alignment, MergeOptions, Prepared};
-use crate::merge::hypotheses::Hypotheses;
+use crate::merge::pair::align::{align_prepared, Alignment, MergeOptions, Prepared};
+use crate::merge::pair::hypotheses::Hypotheses;
 use crate::merge::transform::Rigid;
 use crate::support::error::Result;
 
@@ -104,7 +104,7 @@ pub fn run_with(
 /// pair), and prepared only when some pair of it is not in the cache.
 struct Held {
     map: OccupancyMap,
-    id: Option<crate::merge::global::ContentId>,
+    id: Option<crate::merge::many::ContentId>,
     prepared: Option<Prepared>,
 }
 
@@ -128,7 +128,7 @@ pub fn run_cached(
                 let map = OccupancyMap::load(map_path(maps, name)?)?;
                 let id = cache
                     .is_some()
-                    .then(|| crate::merge::global::content_id(&map));
+                    .then(|| crate::merge::many::content_id(&map));
                 held.insert(
                     name.to_string(),
                     Held {
@@ -402,8 +402,8 @@ fn run_negatives(
         );
         let (pa, pb) = (prep.prepare(a), prep.prepare(b));
         let (alignment, ms) = prep.align(&pa, &pb, options);
-        let alignment =
-            alignment.unwrap_or_else(|e| crate::merge::align::declined(&format!("refused: {e}")));
+        let alignment = alignment
+            .unwrap_or_else(|e| crate::merge::pair::align::declined(&format!("refused: {e}")));
         let record = PairRecord {
             src: format!("{nb}/{:.0}/b", 100.0 * overlap),
             dst: format!("{na}/{:.0}/a", 100.0 * overlap),
@@ -558,7 +558,7 @@ pub(crate) fn synthetic_record(
     let (pa, pb) = (prep.prepare(&pair.a), prep.prepare(&pair.b));
     let (alignment, ms) = prep.align(&pa, &pb, options);
     let alignment =
-        alignment.unwrap_or_else(|e| crate::merge::align::declined(&format!("refused: {e}")));
+        alignment.unwrap_or_else(|e| crate::merge::pair::align::declined(&format!("refused: {e}")));
     let (rot, rms) = truth.errors(&alignment.transform);
     let accurate_candidates = alignment
         .candidates
@@ -841,9 +841,9 @@ pub fn write_summary(out: &mut dyn Write, rows: &[PairRecord], costs: &MapCosts)
         "\nOperating curve: the acceptance rule's threshold moved by an offset (0 is the default; the \
          vetoes hold throughout: fine conflict at most {}, contradiction at most {}, self-match at most \
          {}):\n",
-        crate::merge::align::MAX_FINE_CONFLICT,
-        crate::merge::align::MAX_CONTRADICTION,
-        crate::merge::align::MAX_SELF_SYMMETRY
+        crate::merge::pair::align::MAX_FINE_CONFLICT,
+        crate::merge::pair::align::MAX_CONTRADICTION,
+        crate::merge::pair::align::MAX_SELF_SYMMETRY
     )?;
     writeln!(
         out,
@@ -869,7 +869,7 @@ pub fn operating_curve(rows: &[PairRecord]) -> Vec<(f64, usize, usize, usize, us
         .iter()
         .map(|&o| {
             let acc = |r: &&PairRecord| {
-                crate::merge::align::accepts(&r.alignment.features, r.alignment.score - o)
+                crate::merge::pair::align::accepts(&r.alignment.features, r.alignment.score - o)
             };
             let pos: Vec<&PairRecord> = rows.iter().filter(|r| !r.negative).filter(acc).collect();
             let negatives = rows.iter().filter(|r| r.negative).filter(acc).count();

@@ -325,7 +325,7 @@ impl PairsPage {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::merge::align::declined;
+    use crate::merge::pair::align::declined;
 
     fn record(negative: bool, accepted: bool, accurate: bool, found: &[bool]) -> PairRecord {
         PairRecord {

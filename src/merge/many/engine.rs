@@ -3,19 +3,19 @@
 //! process's threads, and another [`Engine`] may hand it to workers elsewhere (the Python
 //! `ogm_corners.distributed` sends it to a Ray cluster), with the same result to the bit: preparation
 //! and alignment are pure functions of the pixels, the thresholds and the options, and what comes back
-//! is exact ([`crate::merge::codec`], [`super::PairRecord`]).
+//! is exact ([`crate::merge::many::codec`], [`crate::merge::many::PairRecord`]).
 
-use super::{align_pairs, GlobalOptions, PairRecord};
 use crate::map::OccupancyMap;
-use crate::merge::align::Prepared;
-use crate::merge::prescreen::Signature;
+use crate::merge::many::prescreen::Signature;
+use crate::merge::many::{align_pairs, GlobalOptions, PairRecord};
+use crate::merge::pair::align::Prepared;
 use crate::support::error::Result;
 
 /// Computes a run's preparations and pair alignments.
 pub trait Engine {
     /// Prepares `maps` (each with its index among the run's distinct maps, which [`Engine::align`]
     /// names it by), each with its pre-screen signature when `signatures`; one per map, in order. What
-    /// it returns must be able to be placed ([`crate::merge::codec::Form::Placement`] at least); only
+    /// it returns must be able to be placed ([`crate::merge::many::codec::Form::Placement`] at least); only
     /// this engine aligns it.
     fn prepare(
         &mut self,

@@ -10,10 +10,10 @@
 
 use std::collections::HashMap;
 
-use super::transform::Rigid;
 use crate::backend::{DetectOptions, DetectorKind};
 use crate::detect::detector::Detector;
 use crate::map::OccupancyMap;
+use crate::merge::transform::Rigid;
 use crate::support::error::Result;
 
 /// Where hypotheses come from.
@@ -84,7 +84,7 @@ pub fn corners(map: &OccupancyMap, detector: DetectorKind) -> Result<Vec<(f64, f
 type Bin = ((i64, i64), (u32, f64, f64));
 
 /// Translation candidates (src crop to dst crop) at rotation `theta_deg` from corner votes.
-pub(super) fn vote(src: &[(f64, f64)], dst: &[(f64, f64)], theta_deg: f64) -> Vec<Rigid> {
+pub(in crate::merge) fn vote(src: &[(f64, f64)], dst: &[(f64, f64)], theta_deg: f64) -> Vec<Rigid> {
     let rot = Rigid {
         theta_deg,
         tx: 0.0,

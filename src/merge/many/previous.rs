@@ -1,6 +1,6 @@
 //! An earlier run's `--poses` file taken up again: the maps it placed and every pair it aligned, so that
 //! new maps are added to a merge without aligning the old pairs again (`merge --from FILE NEW...`).
-//! The old pairs count as aligned ([`super::Cache::carry`]); the new maps are screened against all
+//! The old pairs count as aligned ([`crate::merge::many::Cache::carry`]); the new maps are screened against all
 //! maps and the placement is made afresh over every pair, old and new: the same placement a full run
 //! would make from those pairs (a full run may align fewer: it never aligned the old set's closing
 //! pairs against a smaller set).
@@ -9,7 +9,7 @@ use std::collections::HashMap;
 
 use serde::Deserialize;
 
-use super::{report, Cache, ContentId, GlobalOptions, PairRecord};
+use crate::merge::many::{report, Cache, ContentId, GlobalOptions, PairRecord};
 use crate::support::error::{Error, Result};
 
 /// What a run reads of an earlier run's `--poses` file.

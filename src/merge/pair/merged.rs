@@ -5,11 +5,11 @@ use std::borrow::Cow;
 
 use serde::Serialize;
 
-use super::align::{align_with, Alignment, Features, MergeOptions};
-use super::transform::{to_world, Rigid, WorldRigid};
-use super::{compose, resample};
 use crate::backend::Backend;
 use crate::map::OccupancyMap;
+use crate::merge::pair::align::{align_with, Alignment, Features, MergeOptions};
+use crate::merge::transform::{to_world, Rigid, WorldRigid};
+use crate::merge::{compose, resample};
 use crate::support::error::Result;
 
 /// The verdict on a pair ([`merge_pair`]).

@@ -2,28 +2,28 @@
 //! by a few pixels, how many walls agree and how many still lie deep in the other map's free space.
 //! Bending (SLAM drift) is explained by a few px of local shift; a wrong placement is not.
 
-use super::prepare::{Prepared, FLAG_TOUCH};
-use super::transform::Rigid;
 use crate::backend::FLAG_DEEP;
+use crate::merge::pair::prepare::{Prepared, FLAG_TOUCH};
+use crate::merge::transform::Rigid;
 
 /// What [`local_fit`] measures.
 #[derive(Clone, Copy, Debug)]
-pub(super) struct LocalFit {
+pub(in crate::merge) struct LocalFit {
     /// Share of the measured wall pixels within 1.5 px of `to`'s walls after their tile's best shift
-    /// (the local agreement, [`super::accept::Features::local`]).
-    pub(super) share: f64,
+    /// (the local agreement, [`crate::merge::pair::accept::Features::local`]).
+    pub(in crate::merge) share: f64,
     /// Wall pixels measured (of those sampled).
-    pub(super) measured: f64,
+    pub(in crate::merge) measured: f64,
     /// Their share of all of `from`'s wall pixels (at most 1).
-    pub(super) coverage: f64,
+    pub(in crate::merge) coverage: f64,
     /// Share of the measured wall pixels over 3 px deep in `to`'s free space after their tile's best
     /// shift: the conflict that bending (a few px of local shift) does not explain.
-    pub(super) residual: f64,
+    pub(in crate::merge) residual: f64,
 }
 
 /// In 48 px tiles of the overlap, `from`'s walls mapped by `t` into `to`, each tile shifted by up to 6 px
 /// to where most of them lie within 1.5 px of `to`'s walls.
-pub(super) fn local_fit(from: &Prepared, to: &Prepared, t: &Rigid) -> LocalFit {
+pub(in crate::merge) fn local_fit(from: &Prepared, to: &Prepared, t: &Rigid) -> LocalFit {
     const TILE: f64 = 48.0;
     const MIN_POINTS: usize = 24;
     // At most about 8000 wall pixels a map: enough for every tile's share.
@@ -91,7 +91,7 @@ pub(super) fn local_fit(from: &Prepared, to: &Prepared, t: &Rigid) -> LocalFit {
 
 /// [`local_fit`] both ways (B's walls into A at `t`, A's into B at its inverse), pooled by the wall
 /// pixels measured: the agreement, the residual conflict and the pixels measured.
-pub(super) fn local_both(src: &Prepared, dst: &Prepared, t: &Rigid) -> (f64, f64, f64) {
+pub(in crate::merge) fn local_both(src: &Prepared, dst: &Prepared, t: &Rigid) -> (f64, f64, f64) {
     let (a, b) = (local_fit(src, dst, t), local_fit(dst, src, &t.inverse()));
     let n = (a.measured + b.measured).max(1.0);
     (

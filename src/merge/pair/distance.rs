@@ -3,12 +3,12 @@
 
 /// Exact Euclidean distance transform (Felzenszwalb and Huttenlocher) to the nearest `true` pixel, with
 /// the index of that pixel; `f32::MAX` and `u32::MAX` where there is none.
-pub(super) fn edt(mask: &[bool], w: usize, h: usize) -> (Vec<f32>, Vec<u32>) {
+pub(in crate::merge) fn edt(mask: &[bool], w: usize, h: usize) -> (Vec<f32>, Vec<u32>) {
     edt_with(mask, w, h, true)
 }
 
 /// [`edt`]'s distances alone (no nearest pixel tracked: less memory traffic).
-pub(super) fn edt_distance(mask: &[bool], w: usize, h: usize) -> Vec<f32> {
+pub(in crate::merge) fn edt_distance(mask: &[bool], w: usize, h: usize) -> Vec<f32> {
     edt_with(mask, w, h, false).0
 }
 

@@ -19,12 +19,12 @@ use std::collections::{BTreeSet, HashMap};
 
 use rayon::prelude::*;
 
-use super::prepare::Prepared;
-use super::transform::Rigid;
 use crate::backend::FLAG_INSIDE;
 use crate::backend::{DetectOptions, DetectorKind};
 use crate::detect::detector::Detector;
 use crate::map::{MapImage, OccupancyMap};
+use crate::merge::pair::prepare::Prepared;
+use crate::merge::transform::Rigid;
 use crate::support::error::Result;
 
 /// Corner pairs farther apart than this (pixels) make no term.
@@ -100,7 +100,7 @@ pub fn quadrant(code: u8) -> u8 {
 /// The corners of `map` for its signature: the robust detector's on the map's known area, strongest
 /// first, at most [`MAX_CORNERS`].
 pub fn corners(map: &OccupancyMap) -> Result<Vec<Corner>> {
-    let (x0, y0, x1, y1) = super::prepare::crop_box(map);
+    let (x0, y0, x1, y1) = crate::merge::pair::prepare::crop_box(map);
     let (fw, w) = (map.image.width() as usize, x1 - x0);
     let px: Vec<u8> = map
         .image

@@ -1,15 +1,15 @@
-//! Many maps merged end to end: every map brought to one resolution, placed ([`super::run`]), each
+//! Many maps merged end to end: every map brought to one resolution, placed ([`crate::merge::many::run`]), each
 //! group's canvas and the report of every map's pose; each group's merged map and picture on demand
 //! (what `merge A B C ...` and the Python `merge_many` do).
 
 use std::borrow::Cow;
 use std::time::Instant;
 
-use super::report::{self, Poses};
-use super::{Cache, GlobalOptions, Run};
 use crate::backend::Backend;
 use crate::map::OccupancyMap;
-use crate::merge::mosaic::{self, Frame};
+use crate::merge::many::mosaic::{self, Frame};
+use crate::merge::many::report::{self, Poses};
+use crate::merge::many::{Cache, GlobalOptions, Run};
 use crate::merge::{resample, Rigid};
 use crate::support::error::Result;
 
@@ -29,7 +29,7 @@ pub struct ManyMerge {
 }
 
 /// Places `maps` (named `names` in the report): each brought to the first georeferenced map's resolution,
-/// then [`super::run`] (`backend` scores the dense checks, `progress` hears pairs done and in all).
+/// then [`crate::merge::many::run`] (`backend` scores the dense checks, `progress` hears pairs done and in all).
 pub fn merge_maps(
     maps: Vec<OccupancyMap>,
     names: &[String],
@@ -41,7 +41,7 @@ pub fn merge_maps(
 }
 
 /// [`merge_maps`] keeping each map's preparation and each pair's alignment in `cache` for the next call
-/// ([`super::run_cached`]): a live merge where few maps change between calls redoes only their part.
+/// ([`crate::merge::many::run_cached`]): a live merge where few maps change between calls redoes only their part.
 pub fn merge_maps_cached(
     maps: Vec<OccupancyMap>,
     names: &[String],
@@ -57,12 +57,12 @@ pub fn merge_maps_cached(
         backend,
         progress,
         cache,
-        &mut super::Local,
+        &mut crate::merge::many::Local,
     )
 }
 
 /// [`merge_maps_cached`] with what the cache does not hold prepared and aligned by `engine`
-/// ([`super::run_with`]).
+/// ([`crate::merge::many::run_with`]).
 pub fn merge_maps_with(
     mut maps: Vec<OccupancyMap>,
     names: &[String],
@@ -70,7 +70,7 @@ pub fn merge_maps_with(
     backend: &mut dyn Backend,
     progress: &(dyn Fn(usize, usize) + Sync),
     cache: &mut Cache,
-    engine: &mut dyn super::Engine,
+    engine: &mut dyn crate::merge::many::Engine,
 ) -> Result<ManyMerge> {
     let start = Instant::now();
     let mut scales = vec![None; maps.len()];
@@ -83,7 +83,7 @@ pub fn merge_maps_with(
             }
         }
     }
-    let run = super::run_with(&maps, options, backend, progress, cache, engine)?;
+    let run = crate::merge::many::run_with(&maps, options, backend, progress, cache, engine)?;
     let frames = (0..run.placement.groups.len())
         .map(|g| {
             let (ms, ps) = group_of(&maps, &run, g);

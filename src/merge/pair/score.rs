@@ -1,18 +1,18 @@
 //! The scoring kernel's counts of one map's points landing on the other's flags, both ways, for many
 //! candidate transforms at once (on any backend: the same integers).
 
-use super::prepare::Prepared;
-use super::transform::Rigid;
 use crate::backend::Backend;
 use crate::backend::{FixedRigid, ScoreTarget};
+use crate::merge::pair::prepare::Prepared;
+use crate::merge::transform::Rigid;
 use crate::support::error::Result;
 
 /// The scoring kernel's counts for one transform: inside, near, deep.
-pub(super) type Counts = [u32; 3];
+pub(in crate::merge) type Counts = [u32; 3];
 
 /// What the scoring kernel counts: which points of one map land on which flags of the other.
 #[derive(Clone, Copy)]
-pub(super) enum Probe {
+pub(in crate::merge) enum Probe {
     /// Walls on the verification flags (inside, near within 5 px, over 20 px deep).
     Walls,
     /// Walls on the fine flags (inside, on an occupied pixel, over 3 px deep).
@@ -26,7 +26,7 @@ pub(super) enum Probe {
 }
 
 impl Probe {
-    pub(super) fn points(self, p: &Prepared) -> &[[u32; 2]] {
+    pub(in crate::merge) fn points(self, p: &Prepared) -> &[[u32; 2]] {
         match self {
             Probe::Walls | Probe::Fine => &p.wall_points,
             Probe::Screen | Probe::FineSample => &p.screen_points,
@@ -34,7 +34,7 @@ impl Probe {
         }
     }
 
-    pub(super) fn target(self, p: &Prepared) -> &ScoreTarget {
+    pub(in crate::merge) fn target(self, p: &Prepared) -> &ScoreTarget {
         match self {
             Probe::Walls => &p.flags,
             Probe::Fine | Probe::FineSample => &p.flags_fine,
@@ -46,7 +46,7 @@ impl Probe {
 
 /// Per transform (src crop to dst crop), the scoring kernel's counts of `probe`'s points of src mapped
 /// into dst and of dst's mapped back by the inverse.
-pub(super) fn score_both(
+pub(in crate::merge) fn score_both(
     src: &Prepared,
     dst: &Prepared,
     transforms: &[Rigid],

@@ -5,13 +5,13 @@ use std::collections::{BTreeMap, BTreeSet};
 
 use serde::Serialize;
 
-use super::calibrate::{Calibration, EdgeEvidence};
-use super::{Edge, GlobalOptions, Pairwise};
 use crate::backend::Backend;
 use crate::map::OccupancyMap;
-use crate::merge::accept::Features;
-use crate::merge::align::{align_prepared_with, check, Prepared};
-use crate::merge::mosaic::compose_many;
+use crate::merge::many::calibrate::{Calibration, EdgeEvidence};
+use crate::merge::many::mosaic::compose_many;
+use crate::merge::many::{Edge, GlobalOptions, Pairwise};
+use crate::merge::pair::accept::Features;
+use crate::merge::pair::align::{align_prepared_with, check, Prepared};
 use crate::merge::transform::Rigid;
 use crate::support::error::Result;
 
@@ -537,7 +537,7 @@ fn densely_consistent(
 }
 
 /// Whether the two groups joined by the cluster's placement fit one merged map
-/// ([`crate::merge::mosaic::fits`], on the maps' prepared boxes, which hold their known areas).
+/// ([`crate::merge::many::mosaic::fits`], on the maps' prepared boxes, which hold their known areas).
 fn fits_one_canvas(
     g: usize,
     h: usize,
@@ -560,7 +560,7 @@ fn fits_one_canvas(
             total = total.saturating_add(images[m].image.len() as u64);
         }
     }
-    crate::merge::mosaic::fits(&boxes, &poses, total)
+    crate::merge::many::mosaic::fits(&boxes, &poses, total)
 }
 
 /// Whether the pair test, run on the two groups' merged maps, accepts a placement of H into G that agrees
@@ -620,8 +620,8 @@ fn mosaics_agree(
 /// reason, rather than a want of confidence.
 fn unalignable(pairwise: &Pairwise, m: usize) -> Option<String> {
     const BEFORE_ANY_SEARCH: [&str; 2] = [
-        crate::merge::coarse::TOO_LARGE,
-        crate::merge::align::NO_WALLS,
+        crate::merge::pair::coarse::TOO_LARGE,
+        crate::merge::pair::align::NO_WALLS,
     ];
     let mine: Vec<&str> = pairwise
         .pairs

@@ -5,10 +5,10 @@ use std::io::{self, Write};
 
 use serde::Serialize;
 
-use super::graph::Placement;
-use super::Pairwise;
 use crate::map::OccupancyMap;
-use crate::merge::mosaic::Frame;
+use crate::merge::many::graph::Placement;
+use crate::merge::many::mosaic::Frame;
+use crate::merge::many::Pairwise;
 use crate::merge::transform::{to_world, Rigid, WorldRigid};
 
 /// One map's entry.
@@ -37,12 +37,12 @@ pub struct MapEntry {
     /// The map given earlier that it is a copy of (the same pixels): aligned once, placed with it.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub copy_of: Option<String>,
-    /// Its content id (32 hex digits, [`super::content_id`] of the map as aligned): what the
+    /// Its content id (32 hex digits, [`crate::merge::many::content_id`] of the map as aligned): what the
     /// alignments below name it by when a later run takes them up (`merge --from`).
     pub content: String,
 }
 
-/// One aligned pair's record, as a later run takes it up ([`super::Cache::carry`]).
+/// One aligned pair's record, as a later run takes it up ([`crate::merge::many::Cache::carry`]).
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct AlignmentEntry {
     /// The reference map.
@@ -50,7 +50,7 @@ pub struct AlignmentEntry {
     /// The moved map.
     pub b: String,
     /// Its alignment.
-    pub alignment: super::PairRecord,
+    pub alignment: crate::merge::many::PairRecord,
 }
 
 /// One group's entry.
@@ -112,8 +112,8 @@ pub struct Poses {
 
 /// What the pair alignments depend on besides the maps: this build's version and the alignment's
 /// options (which pairs a pre-screen chooses aside), as a short id.
-pub fn options_id(options: &super::GlobalOptions) -> String {
-    let options = super::GlobalOptions {
+pub fn options_id(options: &crate::merge::many::GlobalOptions) -> String {
+    let options = crate::merge::many::GlobalOptions {
         prescreen: None,
         ..*options
     };
@@ -131,10 +131,10 @@ pub fn poses(
     names: &[String],
     maps: &[OccupancyMap],
     scales: &[Option<f64>],
-    run: &super::Run,
+    run: &crate::merge::many::Run,
     frames: &[Frame],
     seconds: f64,
-    options: &super::GlobalOptions,
+    options: &crate::merge::many::GlobalOptions,
 ) -> Poses {
     let (pairwise, placement): (&Pairwise, &Placement) = (&run.pairwise, &run.placement);
     let copy_of = |m: usize| run.duplicate_of[m].map(|d| names[d].clone());
@@ -153,7 +153,7 @@ pub fn poses(
                     scale: scales[m],
                     reason: p.reason.clone(),
                     copy_of: copy_of(m),
-                    content: format!("{:032x}", super::content_id(&maps[m])),
+                    content: format!("{:032x}", crate::merge::many::content_id(&maps[m])),
                 };
             };
             let first = placement.groups[g][0];
@@ -176,7 +176,7 @@ pub fn poses(
                 scale: scales[m],
                 reason: None,
                 copy_of: copy_of(m),
-                content: format!("{:032x}", super::content_id(&maps[m])),
+                content: format!("{:032x}", crate::merge::many::content_id(&maps[m])),
             }
         })
         .collect();

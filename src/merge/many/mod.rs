@@ -1,14 +1,14 @@
 //! Merging many maps at once: every pair aligned, or in a large set the pairs a pre-screen chooses
-//! ([`super::prescreen`]; each map prepared once, the pairs in parallel), then
+//! ([`crate::merge::many::prescreen`]; each map prepared once, the pairs in parallel), then
 //! one consistent placement of every map chosen over the graph of all pairwise candidates, not only each
-//! pair's best one ([`place`]), and the merged map of each group ([`super::mosaic`]).
+//! pair's best one ([`place`]), and the merged map of each group ([`crate::merge::many::mosaic`]).
 //!
 //! Why a set of maps is easier than a pair: true pairwise transforms agree around cycles (A -> B -> C
 //! composes to A -> C) and wrong ones almost never do. So a candidate no single-pair test would accept
 //! is used when a cycle confirms it, and an accepted one that cycles contradict is dropped:
 //!
 //! 1. Every candidate of every pair is an edge weighted by its evidence (the pair rule's value,
-//!    [`Candidate::score`](super::align::Candidate), from [`GlobalOptions::weak_from`]); the ones the pair
+//!    [`Candidate::score`](crate::merge::pair::align::Candidate), from [`GlobalOptions::weak_from`]); the ones the pair
 //!    test did not accept weigh little, and join groups only through cycles and the mosaic test (3.).
 //! 2. Triangles ([`graph`]): an edge gains the weight of each third map through which two other edges
 //!    compose to it within [`GlobalOptions::loop_deg`] and [`GlobalOptions::loop_px`]; an accepted edge
@@ -23,11 +23,14 @@
 
 mod cache;
 pub mod calibrate;
+pub mod codec;
 mod engine;
 pub mod graph;
 mod merged;
+pub mod mosaic;
 pub mod page;
 pub mod posegraph;
+pub mod prescreen;
 pub mod previous;
 mod record;
 pub mod report;
@@ -36,9 +39,9 @@ mod verify;
 
 use serde::Serialize;
 
-use super::align::{align_prepared, MergeOptions, Prepared};
-use super::prescreen::{Prescreen, Signature};
-use super::transform::Rigid;
+use crate::merge::many::prescreen::{Prescreen, Signature};
+use crate::merge::pair::align::{align_prepared, MergeOptions, Prepared};
+use crate::merge::transform::Rigid;
 use crate::support::error::Result;
 pub use cache::{content_id, Cache, CacheUse, ContentId};
 pub use engine::{Engine, Local};
@@ -57,7 +60,7 @@ pub struct GlobalOptions {
     pub loop_deg: f64,
     /// ... and move its walls' centre by at most this, pixels.
     pub loop_px: f64,
-    /// Which pairs are aligned in a large set ([`super::prescreen`]); `None`: every pair.
+    /// Which pairs are aligned in a large set ([`crate::merge::many::prescreen`]); `None`: every pair.
     pub prescreen: Option<Prescreen>,
 }
 
@@ -106,7 +109,7 @@ pub struct Edge {
     /// compared with other estimates of B's placement.
     pub at: (f64, f64),
     /// Its walls in the other map's free space once each tile of the overlap has had a few px of shift
-    /// ([`Features::residual`](super::accept::Features)): what [`calibrate`] weighs against the set's
+    /// ([`Features::residual`](crate::merge::pair::accept::Features)): what [`calibrate`] weighs against the set's
     /// own level.
     pub residual: f64,
 }
@@ -217,12 +220,13 @@ pub(crate) fn align_pairs(
             crate::support::stop::with(stop.clone(), || {
                 crate::support::stop::check()?;
                 // A pair too large to correlate is declined, not the whole set refused.
-                let al =
-                    match super::coarse::check_size((maps[b].w, maps[b].h), (maps[a].w, maps[a].h))
-                    {
-                        Err(e) => super::align::declined(&e.to_string()),
-                        Ok(()) => align_prepared(&maps[a], &maps[b], &options.pair)?,
-                    };
+                let al = match crate::merge::pair::coarse::check_size(
+                    (maps[b].w, maps[b].h),
+                    (maps[a].w, maps[a].h),
+                ) {
+                    Err(e) => crate::merge::pair::align::declined(&e.to_string()),
+                    Ok(()) => align_prepared(&maps[a], &maps[b], &options.pair)?,
+                };
                 let k = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
                 progress(k, total);
                 Ok(PairRecord::of(&maps[a], &maps[b], &al, options))

@@ -2,10 +2,10 @@
 //! box (plus 8 px), wall pixels, dominant wall direction, distance maps, the scoring kernel's flags, and
 //! the coarse masks of the correlation.
 
-use super::distance::{edt, edt_distance};
 use crate::backend::{ScoreTarget, FLAG_DEEP, FLAG_INSIDE, FLAG_NEAR};
 use crate::map::states::{CellState, ClassTable};
 use crate::map::OccupancyMap;
+use crate::merge::pair::distance::{edt, edt_distance};
 
 /// Coarse cell sides the correlation may use, pixels: per pair, the finest whose FFT stays small (so a
 /// small map is correlated at 4 px, the 1585 px maps of the real pairs at 16).
@@ -44,7 +44,7 @@ pub fn spectrum_bytes(width: u32, height: u32) -> u64 {
     let side = u64::from(width.max(height)).div_ceil(CELLS[CELLS.len() - 1] as u64);
     let n = (side * 5 / 2 + 2)
         .next_power_of_two()
-        .min(super::fft::MAX_FFT as u64);
+        .min(crate::merge::pair::fft::MAX_FFT as u64);
     n * n * 8
 }
 
@@ -59,7 +59,7 @@ pub fn kept_bytes(width: u32, height: u32) -> u64 {
 /// Flag bit of [`Prepared::flags_fine`]: within 1.5 px of an occupied pixel (the local fit's test of a wall
 /// landing on a wall). The scoring kernel reads only the three lower bits, so it rides along in a byte
 /// the preparation keeps anyway, instead of a distance map of 4 bytes a pixel.
-pub(super) const FLAG_TOUCH: u8 = 8;
+pub(in crate::merge) const FLAG_TOUCH: u8 = 8;
 
 /// The part of `map` a preparation holds: its known area's bounding box plus [`PAD`] px, within the map
 /// (the whole map when nothing is known), as (x0, y0, x1, y1), ends exclusive.
@@ -93,42 +93,42 @@ pub const CROP_PAD: usize = PAD;
 /// A map prepared for alignment.
 pub struct Prepared {
     /// Crop origin in the map, pixels.
-    pub(super) off: (f64, f64),
-    pub(super) w: usize,
-    pub(super) h: usize,
+    pub(in crate::merge) off: (f64, f64),
+    pub(in crate::merge) w: usize,
+    pub(in crate::merge) h: usize,
     /// Wall pixels, crop coordinates.
-    pub(super) walls: Vec<(f64, f64)>,
+    pub(in crate::merge) walls: Vec<(f64, f64)>,
     /// The same, as the scoring kernel takes them.
-    pub(super) wall_points: Vec<[u32; 2]>,
+    pub(in crate::merge) wall_points: Vec<[u32; 2]>,
     /// An even sample of them (at most [`SCREEN_POINTS`]), for screening many coarse hypotheses.
-    pub(super) screen_points: Vec<[u32; 2]>,
+    pub(in crate::merge) screen_points: Vec<[u32; 2]>,
     /// What another map's walls landing on each pixel count as (the scoring kernel's target): inside
     /// (known, or within 5 px of a wall), near a wall (within 5 px), deep in free space (over 20 px).
-    pub(super) flags: ScoreTarget,
+    pub(in crate::merge) flags: ScoreTarget,
     /// The same at a finer tolerance: near = on an occupied pixel (the sub-pixel polish), deep over 3 px
     /// (the contradiction veto); and [`FLAG_TOUCH`], which the scoring kernel does not read.
-    pub(super) flags_fine: ScoreTarget,
+    pub(in crate::merge) flags_fine: ScoreTarget,
     /// The screening's target: near within 5 px, deep over 20 px, and (the inside bit) over 8 px deep (a
     /// wall landing in a room's free space away from its walls: what tells a wrong placement in a building
     /// of many like rooms).
-    pub(super) flags_screen: ScoreTarget,
+    pub(in crate::merge) flags_screen: ScoreTarget,
     /// An even sample of the free pixels (at most [`FREE_POINTS`]).
-    pub(super) free_points: Vec<[u32; 2]>,
+    pub(in crate::merge) free_points: Vec<[u32; 2]>,
     /// What another map's free pixels landing on each pixel count as: known, free, occupied.
-    pub(super) flags_free: ScoreTarget,
+    pub(in crate::merge) flags_free: ScoreTarget,
     /// The nearest wall pixel (crop index; `u32::MAX` without walls), ICP's target.
-    pub(super) nearest: Vec<u32>,
+    pub(in crate::merge) nearest: Vec<u32>,
     /// Wall bounding box corners and centroid.
-    pub(super) reference: [(f64, f64); 5],
+    pub(in crate::merge) reference: [(f64, f64); 5],
     /// Dominant wall direction, degrees in [0, 90).
-    pub(super) angle: f64,
+    pub(in crate::merge) angle: f64,
     /// Corners for corner hypotheses (crop coordinates), when prepared with them.
-    pub(super) corners: Option<Vec<(f64, f64)>>,
+    pub(in crate::merge) corners: Option<Vec<(f64, f64)>>,
     /// Its self-symmetry, once measured (the aligner's `self_symmetry`).
     pub(crate) symmetry: std::sync::OnceLock<Symmetry>,
     /// The coarse masks, one level per cell side of [`CELLS`]: the coarsest always, a finer one when
     /// this map is small enough for it to be chosen.
-    pub(super) levels: Vec<Option<Coarse>>,
+    pub(in crate::merge) levels: Vec<Option<Coarse>>,
 }
 
 /// How a map matches itself: its best self-match other than the identity, and the transforms (its pixels
@@ -140,25 +140,25 @@ pub struct Symmetry {
     /// Its best self-match under a shift (turned by under 10 degrees): how well the map repeats itself.
     pub repeat: f64,
     /// Self-transforms with a self-match of at least the aligner's `ALIAS_SELF_MATCH`.
-    pub transforms: Vec<super::transform::Rigid>,
+    pub transforms: Vec<crate::merge::transform::Rigid>,
     /// Time its measurement took, milliseconds: `merge-eval` reports it per map, apart from the time
     /// of the pair whose alignment first needed it.
     pub ms: f64,
 }
 
 /// A map's coarse masks at one cell side.
-pub(super) struct Coarse {
+pub(in crate::merge) struct Coarse {
     /// Cell side, pixels.
-    pub(super) cell: usize,
+    pub(in crate::merge) cell: usize,
     /// Cells across and down.
-    pub(super) cw: usize,
-    pub(super) ch: usize,
+    pub(in crate::merge) cw: usize,
+    pub(in crate::merge) ch: usize,
     /// Cells with a wall pixel that is not speckle.
-    pub(super) cwall: Vec<f32>,
+    pub(in crate::merge) cwall: Vec<f32>,
     /// The same dilated by a cell.
-    pub(super) cwall_dil: Vec<f32>,
+    pub(in crate::merge) cwall_dil: Vec<f32>,
     /// Cells mostly free and at least a cell from any wall cell.
-    pub(super) cfree: Vec<f32>,
+    pub(in crate::merge) cfree: Vec<f32>,
 }
 
 impl Coarse {
@@ -336,7 +336,7 @@ impl Prepared {
         let mut p = Prepared::new(map);
         let (ox, oy) = p.off;
         p.corners = Some(
-            super::hypotheses::corners(map, detector)?
+            crate::merge::pair::hypotheses::corners(map, detector)?
                 .into_iter()
                 .map(|(x, y)| (x - ox, y - oy))
                 .filter(|&(x, y)| x >= 0.0 && y >= 0.0 && x < p.w as f64 && y < p.h as f64)
@@ -346,32 +346,32 @@ impl Prepared {
     }
 
     /// Its wall bounding box corners and centroid (the centroid last), in the map's own pixels.
-    pub(super) fn reference_in_map(&self) -> [(f64, f64); 5] {
+    pub(in crate::merge) fn reference_in_map(&self) -> [(f64, f64); 5] {
         self.reference
             .map(|(x, y)| (x + self.off.0, y + self.off.1))
     }
 
     /// The corners of its known area's bounding box (plus the margin), in the map's own pixels.
-    pub(super) fn bounds_in_map(&self) -> [(f64, f64); 4] {
+    pub(in crate::merge) fn bounds_in_map(&self) -> [(f64, f64); 4] {
         let (x0, y0) = self.off;
         let (x1, y1) = (x0 + self.w as f64 - 1.0, y0 + self.h as f64 - 1.0);
         [(x0, y0), (x1, y0), (x0, y1), (x1, y1)]
     }
 
     /// Whether it holds what aligning reads (a preparation read in its placement form does not:
-    /// [`super::codec::Form::Placement`]).
-    pub(super) fn can_align(&self) -> bool {
+    /// [`crate::merge::many::codec::Form::Placement`]).
+    pub(in crate::merge) fn can_align(&self) -> bool {
         self.nearest.len() == self.w * self.h && !self.levels.is_empty()
     }
 
     /// Whether it has enough walls next to free space to be aligned at all.
-    pub(super) fn alignable(&self) -> bool {
+    pub(in crate::merge) fn alignable(&self) -> bool {
         self.walls.len() >= 20
     }
 
     /// Crop index of the pixel nearest to (x, y), if inside the crop.
     #[inline]
-    pub(super) fn index(&self, x: f64, y: f64) -> Option<usize> {
+    pub(in crate::merge) fn index(&self, x: f64, y: f64) -> Option<usize> {
         // Rounding half up by truncation, which is floor for the non-negative values kept (`f64::round`
         // is a libm call, and this runs millions of times a pair).
         let (x, y) = (x + 0.5, y + 0.5);
@@ -381,7 +381,7 @@ impl Prepared {
 }
 
 /// The coarse levels of [`CELLS`] a `w` x `h` map may use: the coarsest always, a finer one when the map
-/// spans at most [`super::fft::FINE_FFT`] of its cells. Their walls leave out speckle (an occupied pixel
+/// spans at most [`crate::merge::pair::fft::FINE_FFT`] of its cells. Their walls leave out speckle (an occupied pixel
 /// with no occupied 8-neighbour).
 fn coarse_levels(occ: &[bool], free: &[bool], w: usize, h: usize) -> Vec<Option<Coarse>> {
     let mut solid = vec![false; w * h];
@@ -399,7 +399,7 @@ fn coarse_levels(occ: &[bool], free: &[bool], w: usize, h: usize) -> Vec<Option<
         .iter()
         .enumerate()
         .map(|(i, &c)| {
-            let usable = w.max(h).div_ceil(c) <= super::fft::FINE_FFT;
+            let usable = w.max(h).div_ceil(c) <= crate::merge::pair::fft::FINE_FFT;
             (usable || i == CELLS.len() - 1).then(|| Coarse::new(&solid, free, w, h, c))
         })
         .collect()

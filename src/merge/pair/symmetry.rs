@@ -4,7 +4,7 @@
 //! dominant wall direction, so this sweep looks at every angle.
 //!
 //! How: at the coarse level the aligner correlates at (cells of 4, 8 or 16 px, at most
-//! [`super::fft::FINE_FFT`] cells a side), the wall cells turned by each angle of a 2 degree sweep about
+//! [`crate::merge::pair::fft::FINE_FFT`] cells a side), the wall cells turned by each angle of a 2 degree sweep about
 //! the map's centre are correlated over every shift with the map's own walls dilated by a cell, less its
 //! free cells. A turn's score is, at the best shift, the share of the wall cells that land on those walls
 //! less the share that land on free space: 1 for the identity, near 1 for a symmetry of the whole map,
@@ -16,10 +16,10 @@
 use rustfft::num_complex::Complex32;
 use rustfft::FftPlanner;
 
-use super::coarse::cells_to_crop;
-use super::fft::{padded, Fft2, FINE_FFT};
-use super::prepare::{Coarse, Prepared};
-use super::transform::{signed_deg as signed, Rigid};
+use crate::merge::pair::coarse::cells_to_crop;
+use crate::merge::pair::fft::{padded, Fft2, FINE_FFT};
+use crate::merge::pair::prepare::{Coarse, Prepared};
+use crate::merge::transform::{signed_deg as signed, Rigid};
 
 /// The sweep's step, degrees.
 pub const SWEEP_DEG: f64 = 2.0;

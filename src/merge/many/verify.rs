@@ -16,14 +16,14 @@
 //! What it cannot measure again without the search itself is the coarse ratio, the standing of the pose
 //! among all the others: a record that passes keeps it as it says.
 
-use super::{GlobalOptions, PairRecord};
 use crate::backend::ReferenceBackend;
-use crate::merge::align::{
+use crate::merge::many::{GlobalOptions, PairRecord};
+use crate::merge::pair::align::{
     accepts, alias, check, not_contradicted, overlap_centre, reference_rms, self_symmetry_with,
     Features, Prepared, Repeats, MAX_CANDIDATES, MAX_RATIO,
 };
-use crate::merge::local::local_both;
-use crate::merge::refine::{map_to_crop, polish};
+use crate::merge::pair::local::local_both;
+use crate::merge::pair::refine::{map_to_crop, polish};
 use crate::merge::transform::Rigid;
 use crate::support::error::Result;
 

@@ -14,11 +14,11 @@
 
 use std::collections::HashMap;
 
-use super::rounds::Aligned;
-use super::{GlobalOptions, PairRecord};
 use crate::map::{MapImage, OccupancyMap, Thresholds};
-use crate::merge::align::Prepared;
-use crate::merge::prescreen::Signature;
+use crate::merge::many::prescreen::Signature;
+use crate::merge::many::rounds::Aligned;
+use crate::merge::many::{GlobalOptions, PairRecord};
+use crate::merge::pair::align::Prepared;
 
 /// A map's content id: XXH3-128 of its size, pixels and thresholds (a stable format, so ids written
 /// to a file by one run are recognised by another).
@@ -82,7 +82,7 @@ pub struct CacheUse {
     pub pairs_refused: usize,
 }
 
-/// Preparations and alignments kept between runs of [`super::run_cached`].
+/// Preparations and alignments kept between runs of [`crate::merge::many::run_cached`].
 #[derive(Default)]
 pub struct Cache {
     options: Option<GlobalOptions>,

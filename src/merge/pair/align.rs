@@ -8,7 +8,7 @@
 //! space; the scoring kernel's flag bytes and point samples; coarse masks at cell sides of [`CELLS`].
 //!
 //! Per pair: the coarse hypotheses (`coarse.rs`: 20 rotations, FFT correlation over every shift, 32 peaks
-//! each, and corner votes when asked: [`super::hypotheses`]); every hypothesis screened on the full maps
+//! each, and corner votes when asked: [`crate::merge::pair::hypotheses`]); every hypothesis screened on the full maps
 //! by the scoring kernel, tolerantly and strictly; the 8 best distinct ones of the tolerant screening
 //! and 4 more of the strict one refined by trimmed ICP of B's wall pixels onto A's nearest wall pixels
 //! and verified by the kernel (walls, fine walls, free space); the estimate is the candidate with the
@@ -19,24 +19,24 @@
 
 use serde::Serialize;
 
-pub use super::accept::{
-    accepts, contradiction, decline, not_contradicted, Acceptance, Decline, Features, MAX_ALIAS,
-    MAX_CONTRADICTION, MAX_FINE_CONFLICT, MAX_SELF_SYMMETRY, MAX_UNCONTRADICTED_ALIAS, MIN_SUPPORT,
-};
-use super::alias::{add_turns, ambiguous_why, self_match_why, uncontradicted_why};
-pub(super) use super::alias::{alias, Repeats};
-pub use super::alias::{ALIAS_EXTRA_CONFLICT, ALIAS_SELF_MATCH};
-use super::coarse::{coarse_hypotheses, screen, CoarseSet, Crop};
-pub use super::fft::FINE_FFT;
-use super::hypotheses::Hypotheses;
-use super::local::{local_both, local_fit};
-pub use super::prepare::{kept_bytes, prepared_bytes, Prepared, Symmetry, CELLS};
-use super::refine::{crop_to_map, icp, map_to_crop, polish, verify};
-use super::symmetry::NEAR_IDENTITY_DEG;
-use super::transform::{signed_deg, transform_distance, Rigid, DISTINCT_PX};
 use crate::backend::Backend;
 use crate::backend::ReferenceBackend;
 use crate::map::OccupancyMap;
+pub use crate::merge::pair::accept::{
+    accepts, contradiction, decline, not_contradicted, Acceptance, Decline, Features, MAX_ALIAS,
+    MAX_CONTRADICTION, MAX_FINE_CONFLICT, MAX_SELF_SYMMETRY, MAX_UNCONTRADICTED_ALIAS, MIN_SUPPORT,
+};
+use crate::merge::pair::alias::{add_turns, ambiguous_why, self_match_why, uncontradicted_why};
+pub(in crate::merge) use crate::merge::pair::alias::{alias, Repeats};
+pub use crate::merge::pair::alias::{ALIAS_EXTRA_CONFLICT, ALIAS_SELF_MATCH};
+use crate::merge::pair::coarse::{coarse_hypotheses, screen, CoarseSet, Crop};
+pub use crate::merge::pair::fft::FINE_FFT;
+use crate::merge::pair::hypotheses::Hypotheses;
+use crate::merge::pair::local::{local_both, local_fit};
+pub use crate::merge::pair::prepare::{kept_bytes, prepared_bytes, Prepared, Symmetry, CELLS};
+use crate::merge::pair::refine::{crop_to_map, icp, map_to_crop, polish, verify};
+use crate::merge::pair::symmetry::NEAR_IDENTITY_DEG;
+use crate::merge::transform::{signed_deg, transform_distance, Rigid, DISTINCT_PX};
 use crate::support::error::{Error, Result};
 
 /// The rule value from which the self-symmetry is measured: the operating curve's lowest offset.
@@ -467,7 +467,7 @@ pub(crate) fn declined(why: &str) -> Alignment {
 /// `t` (src crop to dst crop) polished to a fraction of a pixel: hill-climbing from 2 px and 0.4 degree
 /// steps down to the finest. ICP stops short of the best fit of a small overlap's few walls, by up to a
 /// degree.
-pub(super) fn polish_fully(
+pub(in crate::merge) fn polish_fully(
     src: &Prepared,
     dst: &Prepared,
     t: &Rigid,
@@ -488,7 +488,7 @@ pub(super) fn polish_fully(
 }
 
 /// RMS distance between where two transforms put src's reference points.
-pub(super) fn reference_rms(src: &Prepared, x: &Rigid, y: &Rigid) -> f64 {
+pub(in crate::merge) fn reference_rms(src: &Prepared, x: &Rigid, y: &Rigid) -> f64 {
     let sum: f64 = src
         .reference
         .iter()
@@ -503,7 +503,7 @@ pub(super) fn reference_rms(src: &Prepared, x: &Rigid, y: &Rigid) -> f64 {
 /// The verification features of `t` (B's pixels to A's) on the full maps, as [`align`] measures its
 /// candidates' (the coarse score and local agreement aside): what checks a placement that no pair
 /// chose.
-pub(super) fn check(
+pub(in crate::merge) fn check(
     a: &Prepared,
     b: &Prepared,
     t: &Rigid,
@@ -515,7 +515,7 @@ pub(super) fn check(
 /// Where `t` (B's pixels to A's) makes the maps overlap, in B's pixels: the mean of B's sampled wall
 /// pixels that land in A's crop (its known area's box and margin) (B's walls' centre when none do). Two estimates of a pair are
 /// compared there: maps bend, so estimates that agree where the maps overlap can differ far from it.
-pub(super) fn overlap_centre(a: &Prepared, b: &Prepared, t: &Rigid) -> (f64, f64) {
+pub(in crate::merge) fn overlap_centre(a: &Prepared, b: &Prepared, t: &Rigid) -> (f64, f64) {
     let apply = map_to_crop(b, a, t).applier();
     let (mut sx, mut sy, mut n) = (0.0, 0.0, 0usize);
     for p in &b.screen_points {
@@ -540,7 +540,7 @@ pub fn self_symmetry(p: &Prepared) -> Result<f64> {
 
 /// [`self_symmetry`] with the self-alignment's scoring on `backend` (the same counts on every backend),
 /// with the self-transforms that offer alternative poses ([`ALIAS_SELF_MATCH`]); cached in the map.
-pub(super) fn self_symmetry_with<'p>(
+pub(in crate::merge) fn self_symmetry_with<'p>(
     p: &'p Prepared,
     backend: &mut dyn Backend,
 ) -> Result<&'p Symmetry> {

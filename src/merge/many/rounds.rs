@@ -1,5 +1,5 @@
 //! Which pairs of a set are aligned: every pair, or, in a large set, the pairs the pre-screen
-//! ([`crate::merge::prescreen`]) chooses in rounds: each map with its most similar maps first, then the
+//! ([`crate::merge::many::prescreen`]) chooses in rounds: each map with its most similar maps first, then the
 //! pairs that close the cycles of the accepted ones (their poses so far make them overlap) and that may
 //! join their components, until one of those rounds accepts nothing.
 
@@ -7,9 +7,9 @@ use std::collections::{BTreeMap, BTreeSet};
 
 use serde::Serialize;
 
-use super::{pair_order, CacheUse, PairRecord};
-use crate::merge::align::Prepared;
-use crate::merge::prescreen::{self, Prescreen, Signature};
+use crate::merge::many::prescreen::{self, Prescreen, Signature};
+use crate::merge::many::{pair_order, CacheUse, PairRecord};
+use crate::merge::pair::align::Prepared;
 use crate::merge::transform::Rigid;
 use crate::support::error::Result;
 

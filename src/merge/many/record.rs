@@ -6,8 +6,8 @@
 
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
-use super::{Edge, GlobalOptions, PairVerdict};
-use crate::merge::align::{not_contradicted, overlap_centre, Alignment, Prepared};
+use crate::merge::many::{Edge, GlobalOptions, PairVerdict};
+use crate::merge::pair::align::{not_contradicted, overlap_centre, Alignment, Prepared};
 use crate::merge::transform::Rigid;
 
 /// One usable candidate of a pair ([`Edge`] without the maps' indices).

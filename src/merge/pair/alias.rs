@@ -2,20 +2,20 @@
 //! self-alignment's transforms (the aligner's `self_symmetry`, cached in the map), and the alternatives
 //! they and the search's turned candidates offer the chosen pose, measured as the chosen pose is
 //! ([`alias`]): a merge is ambiguous when one of them fits nearly as well
-//! ([`super::accept::MAX_ALIAS`]).
+//! ([`crate::merge::pair::accept::MAX_ALIAS`]).
 
-use super::accept::{Features, MAX_SELF_SYMMETRY};
-use super::local::{local_both, local_fit};
-use super::prepare::{Prepared, Symmetry};
-use super::refine::{crop_to_map, icp, map_to_crop, verify};
-use super::score::{score_both, Probe};
-use super::symmetry::{self_turns, NEAR_IDENTITY_DEG};
-use super::transform::{signed_deg, transform_distance, Rigid, DISTINCT_PX};
 use crate::backend::Backend;
+use crate::merge::pair::accept::{Features, MAX_SELF_SYMMETRY};
+use crate::merge::pair::local::{local_both, local_fit};
+use crate::merge::pair::prepare::{Prepared, Symmetry};
+use crate::merge::pair::refine::{crop_to_map, icp, map_to_crop, verify};
+use crate::merge::pair::score::{score_both, Probe};
+use crate::merge::pair::symmetry::{self_turns, NEAR_IDENTITY_DEG};
+use crate::merge::transform::{signed_deg, transform_distance, Rigid, DISTINCT_PX};
 use crate::support::error::Result;
 
 /// A self-transform of a map offers an alternative pose
-/// ([`Features::alias`](super::accept::Features::alias)) when the map matches itself under it at least
+/// ([`Features::alias`](crate::merge::pair::accept::Features::alias)) when the map matches itself under it at least
 /// this well (the aligner's `self_symmetry` measure): a repeat over a good part of the map.
 pub const ALIAS_SELF_MATCH: f64 = 0.2;
 /// An alternative pose is as consistent as the chosen one when its residual conflict (the share of wall
@@ -50,7 +50,7 @@ const RIVAL_WALLS: f64 = 0.25;
 /// Whether an alternative pose with `alt` contradicting wall pixels is told apart from a chosen pose with
 /// `chosen` ([`ALIAS_TOLD_RATIO`], [`ALIAS_TOLD_SIGMAS`]): the overlap holds a detail that only the
 /// chosen pose fits.
-pub(super) fn told_apart(chosen: usize, alt: usize) -> bool {
+pub(in crate::merge) fn told_apart(chosen: usize, alt: usize) -> bool {
     let (c0, c1) = (chosen as f64, alt as f64);
     c1 > c0 && c1 >= ALIAS_TOLD_RATIO * c0 && c1 - c0 >= ALIAS_TOLD_SIGMAS * (c0 + c1).sqrt()
 }
@@ -61,7 +61,7 @@ pub(super) fn told_apart(chosen: usize, alt: usize) -> bool {
 /// when it matches the map as well as a self-alignment's candidate must ([`ALIAS_SELF_MATCH`], the same
 /// measure). A turn's sweep score is a share of the map's walls as the self-match is, so a turn under
 /// that share is not fitted at all.
-pub(super) fn add_turns(p: &Prepared, out: &mut Symmetry) {
+pub(in crate::merge) fn add_turns(p: &Prepared, out: &mut Symmetry) {
     use rayon::prelude::*;
     let fitted: Vec<(Rigid, f64)> = self_turns(p)
         .par_iter()
@@ -91,7 +91,7 @@ pub(super) fn add_turns(p: &Prepared, out: &mut Symmetry) {
 /// locally, both ways): its evidence over `best`'s ([`Features::alias`], 0 without one) and the pose;
 /// and the same among those nothing contradicts ([`walls_uncontradicted`], [`shares_free_space`]:
 /// [`Features::alias_uncontradicted`]).
-pub(super) fn alias(
+pub(in crate::merge) fn alias(
     src: &Prepared,
     dst: &Prepared,
     best: &Rigid,
@@ -306,7 +306,7 @@ fn one_of_each(poses: impl IntoIterator<Item = Rigid>) -> Vec<Rigid> {
 /// How [`alias`] treats the maps' shifts onto themselves (a repeat, held when its self-match is over
 /// [`MAX_SELF_SYMMETRY`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(super) enum Repeats {
+pub(in crate::merge) enum Repeats {
     /// The self-transforms' shifts are alternatives, never told apart (one step of a lattice says
     /// nothing of the next): for maps with no held repeat, or a lattice too large to list.
     Held,
@@ -321,19 +321,19 @@ pub(super) enum Repeats {
 
 /// The best alternative pose [`alias`] found, and how the maps' repeats were judged.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub(super) struct Alias {
+pub(in crate::merge) struct Alias {
     /// Its evidence over the chosen pose's ([`Features::alias`]), 0 without one.
-    pub(super) ratio: f64,
+    pub(in crate::merge) ratio: f64,
     /// The pose, B's pixels to A's.
-    pub(super) pose: Option<Rigid>,
+    pub(in crate::merge) pose: Option<Rigid>,
     /// The same among the alternatives nothing contradicts ([`Features::alias_uncontradicted`]).
-    pub(super) uncontradicted: f64,
+    pub(in crate::merge) uncontradicted: f64,
     /// That pose.
-    pub(super) uncontradicted_pose: Option<Rigid>,
+    pub(in crate::merge) uncontradicted_pose: Option<Rigid>,
     /// Whether a repeat over [`MAX_SELF_SYMMETRY`] had every step of its lattice listed and judged
     /// pose by pose ([`lattice_poses`]): then nothing of the self-match needs holding whatever the
     /// alternatives show.
-    pub(super) repeats_listed: bool,
+    pub(in crate::merge) repeats_listed: bool,
 }
 
 /// Every step of the maps' repeats that could misplace the pair: the shifts among each map's
@@ -471,7 +471,7 @@ fn deep_conflicts(
 /// The `why:` line of a pair declined for an alternative pose `alt` with `ratio` of the chosen pose
 /// `best`'s evidence: how the alternative differs from it (a turn, or a shift when it turns less than a
 /// degree), in the units the test compares.
-pub(super) fn ambiguous_why(best: &Rigid, alt: &Rigid, ratio: f64) -> String {
+pub(in crate::merge) fn ambiguous_why(best: &Rigid, alt: &Rigid, ratio: f64) -> String {
     let how = how_it_differs(best, alt);
     if ratio >= 1.0 {
         format!(
@@ -488,8 +488,8 @@ pub(super) fn ambiguous_why(best: &Rigid, alt: &Rigid, ratio: f64) -> String {
 
 /// The `why:` line of a pair declined for an alternative pose `alt` that nothing in the maps
 /// contradicts, with `ratio` of the chosen pose `best`'s evidence
-/// ([`super::accept::MAX_UNCONTRADICTED_ALIAS`]).
-pub(super) fn uncontradicted_why(best: &Rigid, alt: &Rigid, ratio: f64) -> String {
+/// ([`crate::merge::pair::accept::MAX_UNCONTRADICTED_ALIAS`]).
+pub(in crate::merge) fn uncontradicted_why(best: &Rigid, alt: &Rigid, ratio: f64) -> String {
     format!(
         "ambiguous: B also fits A {} with {ratio:.2} of the evidence and nothing against it (no wall \
          on the other map's free space, a share of free space in common), so it could be merged \
@@ -499,15 +499,15 @@ pub(super) fn uncontradicted_why(best: &Rigid, alt: &Rigid, ratio: f64) -> Strin
 }
 
 /// The `why:` line of a pair declined because a map matches itself (`self_match`, over
-/// [`super::accept::MAX_SELF_SYMMETRY`]) and the alternative pose `alt` it offers keeps `ratio` of the
+/// [`crate::merge::pair::accept::MAX_SELF_SYMMETRY`]) and the alternative pose `alt` it offers keeps `ratio` of the
 /// chosen pose `best`'s evidence, hardly more contradicted.
-pub(super) fn self_match_why(
+pub(in crate::merge) fn self_match_why(
     best: &Rigid,
     alt: Option<&Rigid>,
     self_match: f64,
     ratio: f64,
 ) -> String {
-    let limit = super::accept::MAX_SELF_SYMMETRY;
+    let limit = crate::merge::pair::accept::MAX_SELF_SYMMETRY;
     let alt = alt.map_or_else(
         || "at another pose".to_string(),
         |alt| how_it_differs(best, alt),
@@ -542,7 +542,7 @@ fn how_it_differs(best: &Rigid, alt: &Rigid) -> String {
 #[cfg(test)]
 mod tests {
     use super::{shares_free_space, told_apart, walls_uncontradicted};
-    use crate::merge::accept::Features;
+    use crate::merge::pair::accept::Features;
 
     #[test]
     fn a_pose_is_uncontradicted_with_fewer_walls_on_free_space_than_a_detail_needs() {

@@ -12,9 +12,9 @@
 //! nearest-wall indices, the screening flags and the coarse masks, about 3 bytes a pixel instead
 //! of 12), for the process that places the maps while workers align them.
 
-use super::prepare::{Coarse, Prepared, CELLS};
-use super::prescreen::Signature;
 use crate::backend::ScoreTarget;
+use crate::merge::many::prescreen::Signature;
+use crate::merge::pair::prepare::{Coarse, Prepared, CELLS};
 use crate::support::error::{Error, Result};
 
 const PREPARED_MAGIC: &[u8; 8] = b"OGMPREP\0";
@@ -424,7 +424,7 @@ impl<'a> Reader<'a> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::merge::align::{align_prepared, MergeOptions};
+    use crate::merge::pair::align::{align_prepared, MergeOptions};
 
     fn two() -> (Prepared, Prepared, Vec<crate::map::OccupancyMap>) {
         let (_, maps, _) = crate::measure::merging::many::synthetic_maps(2, 7).unwrap();
@@ -465,8 +465,8 @@ mod tests {
         // What a placement reads is there: the predicted overlap is the same.
         let t = crate::merge::Rigid::IDENTITY;
         assert_eq!(
-            crate::merge::prescreen::predicted_overlap(&back, &b, &t),
-            crate::merge::prescreen::predicted_overlap(&a, &b, &t)
+            crate::merge::many::prescreen::predicted_overlap(&back, &b, &t),
+            crate::merge::many::prescreen::predicted_overlap(&a, &b, &t)
         );
     }
 
@@ -483,7 +483,7 @@ mod tests {
             b[at] ^= 0x40;
             assert!(decode_prepared(&b).is_err(), "byte {at}");
         }
-        let s = crate::merge::prescreen::Signature::of(&maps[0]).unwrap();
+        let s = crate::merge::many::prescreen::Signature::of(&maps[0]).unwrap();
         let sb = encode_signature(&s);
         assert_eq!(decode_signature(&sb).unwrap(), s);
         let e = decode_prepared(&sb).err().unwrap().to_string();

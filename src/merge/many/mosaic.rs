@@ -1,11 +1,11 @@
-//! The merged map of many maps placed in one frame (a group of [`super::global`]), and its picture with
-//! every map in its own colour. The cell rule is the two-map one ([`super::compose::merge_cell`]):
+//! The merged map of many maps placed in one frame (a group of [`crate::merge::many`]), and its picture with
+//! every map in its own colour. The cell rule is the two-map one ([`crate::merge::compose::merge_cell`]):
 //! occupied where any map says occupied, else free where any says free.
 
-use super::compose::{grown_georef, merge_cell};
-use super::transform::Rigid;
 use crate::map::states::{CellState, ClassTable};
 use crate::map::{MapImage, OccupancyMap, Thresholds};
+use crate::merge::compose::{grown_georef, merge_cell};
+use crate::merge::transform::Rigid;
 use crate::support::error::{Error, Result};
 
 /// The canvas holding every map's known area placed by its pose, in the frame's pixels: `[x0, x1) x [y0, y1)`.
@@ -35,7 +35,7 @@ impl Frame {
 /// Largest merged canvas of many maps, pixels, relative to the maps together: a fleet's maps along a
 /// diagonal corridor leave most of their box unknown (ten maps sharing a fifth of their width in a
 /// diagonal line fill a sixth of it), but a placement that spreads maps further is not a merge of one
-/// place. (Two maps: [`super::compose::MAX_CANVAS_FACTOR`].)
+/// place. (Two maps: [`crate::merge::compose::MAX_CANVAS_FACTOR`].)
 pub const MAX_MANY_CANVAS_FACTOR: u64 = 16;
 
 /// Coordinates further than this from a frame's origin, pixels, are no placement of a map.
@@ -240,7 +240,7 @@ pub fn overlay_many(maps: &[&OccupancyMap], poses: &[Rigid]) -> Result<image::Rg
         f.width,
         f.height,
         |x, y| match owner[y as usize * f.width as usize + x as usize] {
-            NONE => super::compose::OVERLAY_UNKNOWN,
+            NONE => crate::merge::compose::OVERLAY_UNKNOWN,
             FREE => image::Rgb([255, 255, 255]),
             k => image::Rgb(MAP_COLOURS[k as usize % MAP_COLOURS.len()]),
         },

@@ -3,7 +3,7 @@
 
 use std::path::Path;
 
-use super::merged::ManyMerge;
+use crate::merge::many::merged::ManyMerge;
 use crate::support::error::Result;
 use crate::support::report::{file_name, Cell, Report, Staged, Table};
 

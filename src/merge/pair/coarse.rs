@@ -5,13 +5,13 @@
 use rustfft::num_complex::Complex32;
 use rustfft::FftPlanner;
 
-use super::fft::{padded, Fft2};
-use super::fft::{FINE_FFT, MAX_FFT};
-use super::hypotheses::{vote, Hypotheses};
-use super::prepare::{Prepared, CELLS};
-use super::score::{score_both, Counts, Probe};
-use super::transform::Rigid;
 use crate::backend::Backend;
+use crate::merge::pair::fft::{padded, Fft2};
+use crate::merge::pair::fft::{FINE_FFT, MAX_FFT};
+use crate::merge::pair::hypotheses::{vote, Hypotheses};
+use crate::merge::pair::prepare::{Prepared, CELLS};
+use crate::merge::pair::score::{score_both, Counts, Probe};
+use crate::merge::transform::Rigid;
 use crate::support::error::{Error, Result};
 
 /// Weight of walls on free space in the coarse score.
@@ -22,14 +22,14 @@ const OFFSETS: [f64; 5] = [-2.0, -1.0, 0.0, 1.0, 2.0];
 const PEAKS: usize = 32;
 
 /// Rotation matrix entries (cos, sin) of `deg`.
-pub(super) fn cs(deg: f64) -> (f64, f64) {
+pub(in crate::merge) fn cs(deg: f64) -> (f64, f64) {
     let (s, c) = deg.to_radians().sin_cos();
     (c, s)
 }
 
 /// A transform of coarse cells (`p -> R(theta) p + tc`, cells of `cell` px) as one of crop pixels: a cell's
 /// centre is at `cell * p + half` px, so `P -> R P + cell * tc + half - R half`.
-pub(super) fn cells_to_crop(theta: f64, tc: (f64, f64), cell: usize) -> Rigid {
+pub(in crate::merge) fn cells_to_crop(theta: f64, tc: (f64, f64), cell: usize) -> Rigid {
     let (c, s) = cs(theta);
     let (cell, half) = (cell as f64, (cell as f64 - 1.0) / 2.0);
     Rigid {
@@ -41,16 +41,16 @@ pub(super) fn cells_to_crop(theta: f64, tc: (f64, f64), cell: usize) -> Rigid {
 
 /// A rigid transform in crop coordinates, as (theta, tx, ty).
 #[derive(Clone, Copy, Debug)]
-pub(super) struct Crop(pub(super) Rigid);
+pub(in crate::merge) struct Crop(pub(in crate::merge) Rigid);
 
 /// The coarse hypotheses of a pair (src crop to dst crop).
-pub(super) struct CoarseSet {
+pub(in crate::merge) struct CoarseSet {
     /// The correlation's cell side, pixels.
-    pub(super) cell: usize,
+    pub(in crate::merge) cell: usize,
     /// Each hypothesis with its coarse score, best first.
-    pub(super) list: Vec<(f64, Crop)>,
+    pub(in crate::merge) list: Vec<(f64, Crop)>,
     /// The coarse score of every wall cell of the smaller map landing on a wall (as the FFT scales it).
-    pub(super) unit: f64,
+    pub(in crate::merge) unit: f64,
 }
 
 /// The coarse hypotheses of placing src onto dst: the finest coarse level whose correlation fits
@@ -58,7 +58,7 @@ pub(super) struct CoarseSet {
 /// quarter turns and offsets of -2..2 degrees; for each, src's coarse masks turned into dst's orientation
 /// and correlated with dst's over every shift (walls on dilated walls, minus walls on free cells either
 /// way) and its [`PEAKS`] best peaks, and, with a detector, the corner votes ([`vote`]).
-pub(super) fn coarse_hypotheses(
+pub(in crate::merge) fn coarse_hypotheses(
     src: &Prepared,
     dst: &Prepared,
     hypotheses: &Hypotheses,
@@ -230,7 +230,7 @@ pub(super) fn coarse_hypotheses(
         }
     }
     coarse.sort_by(|x, y| y.0.total_cmp(&x.0));
-    let walls_cells = |c: &super::prepare::Coarse| c.cwall.iter().sum::<f32>();
+    let walls_cells = |c: &crate::merge::pair::prepare::Coarse| c.cwall.iter().sum::<f32>();
     let unit = (n * n) as f64 * f64::from(walls_cells(sc).min(walls_cells(dc)).max(1.0));
     Ok(CoarseSet {
         cell,
@@ -245,7 +245,7 @@ pub(super) fn coarse_hypotheses(
 /// are often off by more than a few pixels) and strict (less, too, twice those over 8 px deep: a wrong
 /// placement in a building of many like rooms puts walls within 20 px of the other's walls everywhere).
 /// Each as its index and its best shift's transform.
-pub(super) fn screen(
+pub(in crate::merge) fn screen(
     src: &Prepared,
     dst: &Prepared,
     coarse: &[(f64, Crop)],
@@ -349,7 +349,7 @@ pub(crate) const TOO_LARGE: &str = "too large to align";
 /// Refuses maps whose prepared parts (`src` moved onto `dst`, pixels) are too large to align: the
 /// correlation at the coarsest cells would be over [`MAX_FFT`] cells a side. Known from the sizes alone,
 /// so callers check before preparing.
-pub(super) fn check_size(src: (usize, usize), dst: (usize, usize)) -> Result<()> {
+pub(in crate::merge) fn check_size(src: (usize, usize), dst: (usize, usize)) -> Result<()> {
     let cell = CELLS[CELLS.len() - 1];
     let (sw, sh) = (src.0.div_ceil(cell), src.1.div_ceil(cell));
     let (dw, dh) = (dst.0.div_ceil(cell), dst.1.div_ceil(cell));

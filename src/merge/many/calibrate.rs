@@ -3,7 +3,7 @@
 //! Two maps at their right pose still put some walls in each other's free space: SLAM drift beyond a
 //! few pixels, furniture moved, a door open in one run. How much depends on the robots, the sensor and
 //! the building: on the real sensor maps the right poses leave 4-30% of the walls there (after each
-//! tile's best shift of a few px, [`Features::residual`](crate::merge::accept::Features)), on clean
+//! tile's best shift of a few px, [`Features::residual`](crate::merge::pair::accept::Features)), on clean
 //! maps under 7%; a wrong pose among many alike rooms leaves 4-26%. No fixed limit tells them apart, but
 //! a set of maps of one fleet measures its own level: its accepted pairs that a cycle of two other
 //! accepted pairs confirms. A candidate far above that level is no pose of this fleet's maps, however
@@ -11,7 +11,7 @@
 
 use serde::Serialize;
 
-use super::Pairwise;
+use crate::merge::many::Pairwise;
 
 /// Confirmed pairs needed to measure a set's level: with fewer, no candidate is excluded for it (each
 /// confirmed pair is itself checked by a cycle, so a few suffice; on the synthetic sets 3 calibrated
@@ -103,7 +103,7 @@ pub fn calibrate(pairwise: &Pairwise, ev: &[EdgeEvidence]) -> Calibration {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::merge::global::Edge;
+    use crate::merge::many::Edge;
     use crate::merge::Rigid;
 
     fn edge(residual: f64, accepted: bool) -> Edge {

@@ -3,18 +3,18 @@
 //! kernel, on any backend); and the change between a transform of the maps' crops and one of their
 //! own pixels.
 
-use super::accept::Features;
-use super::coarse::cs;
-use super::prepare::Prepared;
-use super::score::{score_both, Probe};
-use super::transform::{fit_rigid, Rigid};
 use crate::backend::Backend;
+use crate::merge::pair::accept::Features;
+use crate::merge::pair::coarse::cs;
+use crate::merge::pair::prepare::Prepared;
+use crate::merge::pair::score::{score_both, Probe};
+use crate::merge::transform::{fit_rigid, Rigid};
 use crate::support::error::Result;
 
 /// `t` (src crop to dst crop) moved by up to `scale` half pixels and turned by up to `scale` tenths of
 /// a degree about src's walls' centre to where most wall pixels of each map land on occupied pixels of
 /// the other: 75 transforms scored by the kernel at once, the first best one kept (`t` itself first).
-pub(super) fn polish(
+pub(in crate::merge) fn polish(
     src: &Prepared,
     dst: &Prepared,
     t: &Rigid,
@@ -64,7 +64,7 @@ pub(super) fn polish(
 
 /// Trimmed ICP of src's wall pixels onto dst's nearest wall pixels: 20 iterations, the trimming
 /// distance falling from 12 to 4 px, closed-form 2-D rotation and translation each time.
-pub(super) fn icp(src: &Prepared, dst: &Prepared, mut t: Rigid) -> Rigid {
+pub(in crate::merge) fn icp(src: &Prepared, dst: &Prepared, mut t: Rigid) -> Rigid {
     const ITERS: usize = 20;
     // At most about 6000 wall pixels: enough for a rigid fit.
     let step = src.walls.len().div_ceil(6000).max(1);
@@ -126,7 +126,7 @@ pub(super) fn icp(src: &Prepared, dst: &Prepared, mut t: Rigid) -> Rigid {
 
 /// The verification features of each candidate (src crop to dst crop): both maps' walls mapped into the
 /// other by the scoring kernel on `backend`, one batch of transforms each way.
-pub(super) fn verify(
+pub(in crate::merge) fn verify(
     src: &Prepared,
     dst: &Prepared,
     candidates: &[Rigid],
@@ -168,7 +168,7 @@ pub(super) fn verify(
 
 /// A transform between the crops of src and dst as one between the maps' own pixels:
 /// p_dst = R (p_src - off_src) + t + off_dst.
-pub(super) fn crop_to_map(src: &Prepared, dst: &Prepared, t: &Rigid) -> Rigid {
+pub(in crate::merge) fn crop_to_map(src: &Prepared, dst: &Prepared, t: &Rigid) -> Rigid {
     let (c, s) = cs(t.theta_deg);
     Rigid {
         theta_deg: t.theta_deg,
@@ -179,7 +179,7 @@ pub(super) fn crop_to_map(src: &Prepared, dst: &Prepared, t: &Rigid) -> Rigid {
 }
 
 /// The inverse of [`crop_to_map`]: a transform between the maps' pixels as one between their crops.
-pub(super) fn map_to_crop(src: &Prepared, dst: &Prepared, t: &Rigid) -> Rigid {
+pub(in crate::merge) fn map_to_crop(src: &Prepared, dst: &Prepared, t: &Rigid) -> Rigid {
     let (c, s) = cs(t.theta_deg);
     Rigid {
         theta_deg: t.theta_deg,
