@@ -1,5 +1,5 @@
 //! The bodies of the fuzz targets, shared by `fuzz/fuzz_targets/*.rs` (libFuzzer, `scripts/fuzz.sh`) and
-//! by `tests/fuzz_regressions.rs`, which replays the kept corpus and every crash ever found in the
+//! by `tests/house/fuzz_regressions.rs`, which replays the kept corpus and every crash ever found in the
 //! ordinary test suite. Each body panics exactly when it finds a bug: a panic inside the library, or two
 //! backends (or two paths that must agree) that disagree.
 #![allow(dead_code)]

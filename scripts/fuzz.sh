@@ -10,11 +10,11 @@
 # With a nightly toolchain the targets run under AddressSanitizer; without one, on stable with
 # `--sanitizer none` (coverage guidance works the same). FUZZ_SANITIZER=none forces the latter (about 4x the
 # executions a second on the detect target). cargo-fuzz is installed when missing. The targets are built
-# with debug assertions (overflow checks included), as tests/fuzz_regressions.rs replays the corpus in the
+# with debug assertions (overflow checks included), as tests/house/fuzz_regressions.rs replays the corpus in the
 # test profile: an input that only overflows there is a crash here too. FUZZ_DEBUG_ASSERTIONS=0 leaves
 # them out (faster).
 # Afterwards: the corpus (fuzz/corpus/TARGET) is minimised with `cargo fuzz cmin`, and every crash
-# (fuzz/artifacts/TARGET) is copied to fuzz/regressions/TARGET, which tests/fuzz_regressions.rs replays
+# (fuzz/artifacts/TARGET) is copied to fuzz/regressions/TARGET, which tests/house/fuzz_regressions.rs replays
 # in the ordinary test suite. Commit both.
 set -euo pipefail
 cd "$(dirname "$0")/../fuzz"

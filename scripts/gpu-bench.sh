@@ -9,7 +9,8 @@
 # OUT_DIR defaults to target/gpu-bench. MAP_DIRs (real maps) are optional; ../shared/maps is used when it
 # exists. Environment:
 #   OGM_BIN               a prebuilt ogm-corners (else cargo build --release)
-#   OGM_CONFORMANCE_BIN   a prebuilt tests/gpu_conformance binary (cargo test --no-run --test gpu_conformance)
+#   OGM_CONFORMANCE_BIN   a prebuilt backends' test binary (cargo test --no-run --test backend); its
+#                         gpu_conformance tests are run
 #   OGM_PEAK_BANDWIDTH    the GPU's peak memory bandwidth, GB/s, when bench does not know the adapter
 #   OGM_BIG               set to 0 to leave out the 65536^2 map (4 GiB of host memory, 4 GiB on the GPU)
 #   OGM_SIZES             the other synthetic sizes (default "4096x4096 16384x16384")
@@ -94,7 +95,7 @@ if [ -n "${OGM_CONFORMANCE_BIN:-}" ]; then
     # above, so no GPU test can skip for want of one; the real-map tests read the first map folder.
     envs=()
     [ -n "${maps[0]:-}" ] && envs=(OGM_MAPS_DIR="${maps[0]}")
-    if env "${envs[@]}" timeout 240 "$OGM_CONFORMANCE_BIN" --test-threads 4 >"$out/conformance.txt" 2>&1; then
+    if env "${envs[@]}" timeout 240 "$OGM_CONFORMANCE_BIN" gpu_conformance:: --test-threads 4 >"$out/conformance.txt" 2>&1; then
         log "conformance: ok ($((SECONDS - t0)) s)"
     else
         log "conformance: FAILED ($((SECONDS - t0)) s; see conformance.txt)"

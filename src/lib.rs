@@ -23,7 +23,7 @@
 //! ## The layers, bottom to top
 //!
 //! A file imports only its own layer and the layers below it, and no file imports one that imports it
-//! back: `tests/layering.rs` checks both on the source.
+//! back: `tests/house/layering.rs` checks both on the source.
 //!
 //! 1. **Services** ([`support`]): errors, stopping on a signal, the worker pool, the memory budget, files
 //!    written whole, the marks the tool's own outputs carry, drawing, HTML pages.

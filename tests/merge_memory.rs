@@ -3,6 +3,11 @@
 //! their working memory, a map far larger than the others in several pairs at once, the cache of what
 //! was aligned, the allocator's slack. Measured as the tool's peak resident memory under a budget of
 //! its own estimate; and a map too large to align with any other spoils nothing.
+//!
+//! A binary of its own, not a module of `tests/merge/`: a child's peak resident memory as the kernel
+//! reports it includes its parent's (the image it was started from, before `exec`), so a test binary running other
+//! merges in its own threads at the same time would lend the tool their memory (measured: 845 MiB
+//! against an estimate of 371 when it ran beside them).
 
 use std::path::Path;
 

@@ -9,7 +9,7 @@ use std::cell::RefCell;
 use numpy::PyReadonlyArray2;
 use ogm_corners::merge::many::codec::{self, Form};
 use ogm_corners::merge::many::prescreen::Signature;
-use ogm_corners::merge::many::{self, report, Engine, GlobalOptions, PairRecord};
+use ogm_corners::merge::many::{self, poses, Engine, GlobalOptions, PairRecord};
 use ogm_corners::merge::pair::align::Prepared;
 use ogm_corners::{Error, MapImage, OccupancyMap};
 use pyo3::prelude::*;
@@ -138,7 +138,7 @@ pub fn merge_many_on(
     let options = GlobalOptions::with_partners(partners);
     let mut engine = PyEngine {
         executor,
-        options: report::options_id(&options),
+        options: poses::options_id(&options),
         raised: RefCell::new(None),
     };
     let outcome = interruptible(py, || {
@@ -207,11 +207,11 @@ pub fn _prepare_encoded<'py>(
 
 /// One pair's alignment for a worker of a distributed run: map `b`'s whole preparation aligned onto map
 /// `a`'s, as its record (JSON). `options` is the id of the options the run places with
-/// (`report::options_id`): a worker of another version refuses rather than answer differently.
+/// (`poses::options_id`): a worker of another version refuses rather than answer differently.
 #[pyfunction]
 pub fn _align_encoded(py: Python<'_>, a: &[u8], b: &[u8], options: &str) -> PyResult<String> {
     let global_options = GlobalOptions::default();
-    let here = report::options_id(&global_options);
+    let here = poses::options_id(&global_options);
     if options != here {
         return Err(to_py(Error::invalid(format!(
             "this worker aligns with options {here}, the run places with {options}: install the same \

@@ -7,7 +7,7 @@
 //! trait, the reference's [`ReferenceBackend`] that the merger scores with by default, and the data the
 //! kernels take and give: the coarse [`Mosaic`] and its [`CellRule`], the scoring kernel's
 //! [`ScoreTarget`] and [`FixedRigid`]). Only the detector's choice of backend names an implementation
-//! directly (`tests/layering.rs` checks it).
+//! directly (`tests/house/layering.rs` checks it).
 
 pub mod baselines;
 pub mod fast;

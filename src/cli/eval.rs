@@ -6,7 +6,7 @@ use clap::Args;
 
 use ogm_corners::backend::reference_working_bytes;
 use ogm_corners::map::output_names;
-use ogm_corners::measure::detection::report::{self, EvalPage};
+use ogm_corners::measure::detection::page::{self, EvalPage};
 use ogm_corners::measure::detection::{self, MAX_TRIALS};
 use ogm_corners::support::files;
 use ogm_corners::support::memory::Budget;
@@ -98,7 +98,7 @@ pub(super) fn run(a: EvalArgs, budget: &Budget) -> Result<()> {
         inputs.claim_output(&dir.join(ogm_corners::support::report::INDEX), "--html")?;
         let marked = a.annotations.is_some();
         let named = if marked { &stems } else { &names };
-        for file in report::picture_files(named, marked) {
+        for file in page::picture_files(named, marked) {
             inputs.claim_output(&dir.join(file), "--html")?;
         }
     }

@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use ogm_corners::map::{merged_yaml_text, save_names, write_merged_pgm_to};
 use ogm_corners::merge::footprint;
 use ogm_corners::merge::many::previous::Previous;
-use ogm_corners::merge::many::{merge_maps_cached, page, report, Cache, GlobalOptions};
+use ogm_corners::merge::many::{merge_maps_cached, page, poses, Cache, GlobalOptions};
 use ogm_corners::support::files;
 use ogm_corners::support::memory::Budget;
 use ogm_corners::{Error, OccupancyMap, Result};
@@ -235,7 +235,7 @@ pub(super) fn run(a: MergeArgs, budget: &Budget) -> Result<()> {
         })?;
     }
     if let Some(p) = &a.init_poses {
-        let text = report::init_poses_yaml(&doc)?;
+        let text = poses::init_poses_yaml(&doc)?;
         if doc.maps.iter().all(|m| m.world.is_none()) {
             ogm_corners::say!(
                 "ogm-corners: note: {}: no placed map has a world frame (a yaml), so it lists none",
@@ -262,7 +262,7 @@ pub(super) fn run(a: MergeArgs, budget: &Budget) -> Result<()> {
             serde_json::to_writer_pretty(&mut *out, &doc)?;
             writeln!(out)
         }
-        super::TextOrJson::Text => report::write_text(out, &doc),
+        super::TextOrJson::Text => poses::write_text(out, &doc),
     })?;
     if many.groups() == 0 {
         return Err(Error::Declined(

@@ -5,7 +5,7 @@
 //! divided by the smaller of the two counts in that region.
 
 pub mod annotations;
-pub mod report;
+pub mod page;
 
 use std::io::{self, Write};
 

@@ -8,7 +8,7 @@ use std::time::Instant;
 use crate::backend::Backend;
 use crate::map::OccupancyMap;
 use crate::merge::many::mosaic::{self, Frame};
-use crate::merge::many::report::{self, Poses};
+use crate::merge::many::poses::{self, Poses};
 use crate::merge::many::{Cache, GlobalOptions, Run};
 use crate::merge::{resample, Rigid};
 use crate::support::error::Result;
@@ -18,7 +18,7 @@ use crate::support::error::Result;
 pub struct ManyMerge {
     /// The maps as placed: each at the first georeferenced map's resolution.
     pub maps: Vec<OccupancyMap>,
-    /// Each map's resolution over that reference resolution, where it differs ([`report::MapEntry::scale`]).
+    /// Each map's resolution over that reference resolution, where it differs ([`poses::MapEntry::scale`]).
     pub scales: Vec<Option<f64>>,
     /// The placement and every pair's verdict.
     pub run: Run,
@@ -91,7 +91,7 @@ pub fn merge_maps_with(
         })
         .collect::<Result<Vec<_>>>()?;
     let seconds = start.elapsed().as_secs_f64();
-    let report = report::poses(names, &maps, &scales, &run, &frames, seconds, options);
+    let report = poses::poses(names, &maps, &scales, &run, &frames, seconds, options);
     Ok(ManyMerge {
         maps,
         scales,

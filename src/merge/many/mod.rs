@@ -30,10 +30,10 @@ mod merged;
 pub mod mosaic;
 pub mod page;
 pub mod posegraph;
+pub mod poses;
 pub mod prescreen;
 pub mod previous;
 mod record;
-pub mod report;
 mod rounds;
 mod verify;
 

@@ -9,7 +9,7 @@ use std::collections::HashMap;
 
 use serde::Deserialize;
 
-use crate::merge::many::{report, Cache, ContentId, GlobalOptions, PairRecord};
+use crate::merge::many::{poses, Cache, ContentId, GlobalOptions, PairRecord};
 use crate::support::error::{Error, Result};
 
 /// What a run reads of an earlier run's `--poses` file.
@@ -21,7 +21,7 @@ pub struct Previous {
     pub ids: Vec<ContentId>,
     /// Each aligned pair: the two maps' indices in [`Previous::maps`] (reference, moved) and the record.
     pub records: Vec<(usize, usize, PairRecord)>,
-    /// [`report::options_id`] of the run that made them.
+    /// [`poses::options_id`] of the run that made them.
     pub options: String,
 }
 
@@ -104,7 +104,7 @@ impl Previous {
 
     /// Whether its alignments were made by this build with `options` (else none is taken up).
     pub fn fits(&self, options: &GlobalOptions) -> bool {
-        self.options == report::options_id(options)
+        self.options == poses::options_id(options)
     }
 
     /// A cache holding its alignments, when they [`Previous::fits`] `options` (an empty one else).

@@ -446,9 +446,9 @@ fn the_checks_see_what_they_look_for() {
     assert_eq!(b, [("f".into(), "x.md".into(), "<sub>Measured by".into())]);
     assert_eq!(
         repo_paths(
-            "see `src/map/yaml.rs`, [x](../tests/cli.rs) and python/src/x.rs, not tests/*.rs."
+            "see `src/map/yaml.rs`, [x](../tests/cli/commands.rs) and python/src/x.rs, not tests/*.rs."
         ),
-        ["src/map/yaml.rs", "tests/cli.rs"]
+        ["src/map/yaml.rs", "tests/cli/commands.rs"]
     );
     let top = BTreeSet::from(["merge".to_string()]);
     assert_eq!(

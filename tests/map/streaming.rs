@@ -3,8 +3,7 @@
 //! every backend, for windows down to two rows; files of every format stream through the command line to
 //! the same keypoint files as the in-memory path; and a map far larger than a memory cap streams under it.
 
-mod common;
-
+use crate::common;
 use std::path::Path;
 
 use ogm_corners::backend::baselines::{cpu_scores, select, Baseline, BaselineParams};

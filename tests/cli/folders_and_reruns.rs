@@ -3,8 +3,7 @@
 //! back as robots' maps, the round trips the docs promise work, and messages say what happened. Each test
 //! fails on the code before its fix.
 
-mod common;
-
+use crate::common;
 use common::run::*;
 
 use std::fs;

@@ -4,8 +4,7 @@
 //! names that cannot split records or reach the terminal raw, and plain messages. Each test fails on the
 //! code before its fix.
 
-mod common;
-
+use crate::common;
 use std::fs;
 use std::path::{Path, PathBuf};
 

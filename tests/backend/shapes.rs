@@ -1,8 +1,6 @@
 //! Synthetic shapes with known corners: every detector finds each corner of a rectangular room, an
 //! L-shaped room and a rotated rectangular room (a keypoint within a few pixels of each inner corner).
 
-mod common;
-
 use ogm_corners::map::synthetic::{FREE, OCCUPIED, UNKNOWN};
 use ogm_corners::{Baseline, DetectOptions, Detector, DetectorKind, MapImage, OccupancyMap};
 

@@ -2,8 +2,7 @@
 //! overwritten, bounded memory and time on any input, clear one-line errors. One test (or more) per defect
 //! of the reliability issue; each fails on the code before its fix.
 
-mod common;
-
+use crate::common;
 use common::run::*;
 
 use std::fs;

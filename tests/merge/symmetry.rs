@@ -6,8 +6,7 @@
 //! of an office whose wrong pose laid a third of its walls across rooms, a hall whose one extra
 //! room, in both windows, decides its turn, and a two-wing hall bent 7 degrees off its half turn.
 
-mod common;
-
+use crate::common;
 use ogm_corners::measure::synthetic::{
     extra_room_in_both, extra_room_turns_seen, hall_pair, synthetic_pair, SymmetricKind,
     SyntheticPair, SyntheticSpec,

@@ -1,7 +1,6 @@
 //! Rotating or mirroring a map by multiples of 90 degrees rotates or mirrors its keypoints exactly.
 
-mod common;
-
+use crate::common;
 use common::detect;
 use ogm_corners::backend::rules::{mirror_code, rotate_code};
 use ogm_corners::map::synthetic::{FREE, OCCUPIED, UNKNOWN};

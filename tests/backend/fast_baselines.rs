@@ -3,8 +3,7 @@
 //! keypoints, bit for bit, on tiny and odd sizes, noise, synthetic office maps, non-default parameters,
 //! different band splits (thread counts), random inputs (proptest) and every shared real map.
 
-mod common;
-
+use crate::common;
 use ogm_corners::backend::baselines::{cpu_scores, select, Baseline, BaselineParams, ExactParams};
 use ogm_corners::backend::fast::{baselines as fast, FastCpuBackend};
 use ogm_corners::backend::reference::ReferenceBackend;

@@ -1,8 +1,7 @@
 //! Every real map under `../shared/maps` loads and detects; the CLI, CSV and overlay run on one of them.
 //! Says clearly when the folder is missing, and fails then under CI=true.
 
-mod common;
-
+use crate::common;
 use std::process::Command;
 
 use ogm_corners::{DetectOptions, Detector, OccupancyMap, RuleSet};

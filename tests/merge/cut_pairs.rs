@@ -3,8 +3,7 @@
 //! windows and truth, and the sets written by `--save-pairs` run again from their pair file with each
 //! pair named by its building.
 
-mod common;
-
+use crate::common;
 use common::run::*;
 
 use ogm_corners::map::synthetic::{office_map, FREE, OCCUPIED, UNKNOWN};

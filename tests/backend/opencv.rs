@@ -3,8 +3,7 @@
 //! bit. OpenCV runs through `scripts/opencv_keypoints.py` in the virtual environment that the test command
 //! sets up (`target/opencv-venv`, or `$OGM_OPENCV_PYTHON`).
 
-mod common;
-
+use crate::common;
 use std::collections::HashSet;
 use std::path::PathBuf;
 use std::process::Command;

@@ -1,7 +1,6 @@
 //! The rule table: counts, symmetry, and the patterns the paper means and does not mean.
 
-mod common;
-
+use crate::common;
 use common::{art, detect};
 use ogm_corners::backend::rules::{
     canonical_rule, code_picture, mirror_code, rotate_code, RuleTable,

@@ -2,8 +2,7 @@
 //! pairs of one building are merged (when the shared data is present), and the merged map keeps A's world
 //! coordinates.
 
-mod common;
-
+use crate::common;
 use ogm_corners::measure::pairs::PairSet;
 use ogm_corners::merge::{align, compose, MergeOptions, Rigid};
 use ogm_corners::{GeoRef, MapImage, OccupancyMap};

@@ -1,8 +1,7 @@
 //! The fast CPU path returns exactly the reference's OGM keypoints, in the same order, on every kind of map
 //! the GPU conformance suite uses, plus grey-level maps under several thresholds and the real shared maps.
 
-mod common;
-
+use crate::common;
 use ogm_corners::backend::fast::bitplanes::{
     interval_scalar, plane_row, plane_rows2, plane_rows2_on, words, ValueSet,
 };

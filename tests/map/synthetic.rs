@@ -1,7 +1,6 @@
 //! The synthetic office map: seeded, deterministic, realistic enough to have every state and corners.
 
-mod common;
-
+use crate::common;
 use ogm_corners::map::synthetic::{office_map, Rng, FREE, OCCUPIED, UNKNOWN};
 use ogm_corners::RuleSet;
 

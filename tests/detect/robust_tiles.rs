@@ -1,8 +1,7 @@
 //! The robust detector over a map in tiles of its turned grid (how it runs on maps of any size) finds the
 //! keypoints of the map in memory, bit for bit, whatever the tile size, angle or options.
 
-mod common;
-
+use crate::common;
 use ogm_corners::backend::fast::FastCpuBackend;
 use ogm_corners::detect::robust::tiles::{detect_tiled, ImageReader, TilePlan};
 use ogm_corners::detect::robust::{self, Anchor, RobustParams};

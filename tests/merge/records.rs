@@ -4,8 +4,6 @@
 //! way round). A record that does not hold is aligned again (`--from`) or refuses the run (an engine);
 //! no edit places a map elsewhere than the maps themselves put it.
 
-mod common;
-
 use ogm_corners::backend::reference::ReferenceBackend;
 use ogm_corners::measure::merging::many::synthetic_maps;
 use ogm_corners::measure::pairs::TruePair;

@@ -2,8 +2,7 @@
 //! truth, a wrong pairwise accept repaired by cycles, unrelated sets kept apart, determinism, the CLI and
 //! its outputs, and the real buildings when the shared data is there.
 
-mod common;
-
+use crate::common;
 use ogm_corners::backend::reference::ReferenceBackend;
 use ogm_corners::measure::merging::many::{run_maps, score, synthetic_maps, synthetic_maps_of};
 use ogm_corners::measure::pairs::TruePair;

@@ -1,8 +1,7 @@
 //! The GPU backend returns exactly the CPU reference's keypoints, in the same order.
 //! Runs on whatever adapter wgpu finds (lavapipe in CI); with CI=true a missing adapter fails.
 
-mod common;
-
+use crate::common;
 use ogm_corners::backend::baselines;
 use ogm_corners::backend::gpu::{GpuBackend, GpuOptions};
 use ogm_corners::backend::reference::ReferenceBackend;

@@ -1,8 +1,7 @@
 //! `eval --annotations`: recall of hand-marked corners, on a synthetic room and on the shared merge-pairs
 //! maps (whose figures this pins, so a change to a detector shows up as a changed table).
 
-mod common;
-
+use crate::common;
 use std::process::Command;
 
 fn eval(args: &[&str]) -> (String, String, Option<i32>) {

@@ -2,8 +2,7 @@
 //! the merger's promise, a regression test for each failure class they were built from, and the
 //! leave-one-building-out command on a small subset of the real pairs.
 
-mod common;
-
+use crate::common;
 use ogm_corners::measure::synthetic::{
     synthetic_crops, synthetic_pair_with, CropSpec, LayoutKind, PairShape, SyntheticSpec,
     MIN_ALIAS_CONTRADICTION,

@@ -2,7 +2,7 @@
 //! found (`fuzz/regressions/TARGET`) through the same harness the fuzz targets run, so a bug found once by
 //! `scripts/fuzz.sh` stays fixed in the ordinary test suite.
 
-#[path = "../fuzz/harness.rs"]
+#[path = "../../fuzz/harness.rs"]
 mod harness;
 
 use std::path::Path;

@@ -1,8 +1,7 @@
 //! The robust OGM detector: it finds the corners of turned, jagged rooms the paper's detector misses,
 //! the fast path and the reference agree bit for bit, and its options are checked.
 
-mod common;
-
+use crate::common;
 use ogm_corners::backend::fast::FastCpuBackend;
 use ogm_corners::backend::reference::coarsen::{self, CellRule};
 use ogm_corners::backend::reference::ReferenceBackend;

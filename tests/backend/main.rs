@@ -1,0 +1,14 @@
+//! The backends: the rule table, the shaders, every backend against the reference.
+//!
+//! One binary a layer: linking one test binary, not one a file, is most of the build. Run one
+//! file's tests with a filter: `cargo test --test backend -- fast_baselines::`.
+
+#[path = "../common/mod.rs"]
+mod common;
+mod fast_baselines;
+mod fast_ogm;
+mod gpu_conformance;
+mod opencv;
+mod rules;
+mod shaders;
+mod shapes;

@@ -1,0 +1,11 @@
+//! Maps: decoding, loading, the synthetic office, streaming rows.
+//!
+//! One binary a layer: linking one test binary, not one a file, is most of the build. Run one
+//! file's tests with a filter: `cargo test --test map -- decode::`.
+
+#[path = "../common/mod.rs"]
+mod common;
+mod decode;
+mod loading;
+mod streaming;
+mod synthetic;
