@@ -7,8 +7,9 @@ use std::collections::{BTreeMap, BTreeSet};
 
 use serde::Serialize;
 
+use crate::merge::many::pairs::pair_order;
 use crate::merge::many::prescreen::{self, Prescreen, Signature};
-use crate::merge::many::{pair_order, CacheUse, PairRecord};
+use crate::merge::many::{CacheUse, PairRecord};
 use crate::merge::pair::align::Prepared;
 use crate::merge::transform::Rigid;
 use crate::support::error::Result;
