@@ -299,27 +299,28 @@ fn module_paths(text: &str, top: &BTreeSet<String>) -> Vec<String> {
     out
 }
 
+/// Every `.rs` file of `src/` as one text, read once for all the paths the pages name (the walk is
+/// the layering check's).
+fn all_sources() -> &'static str {
+    static ALL: std::sync::OnceLock<String> = std::sync::OnceLock::new();
+    ALL.get_or_init(|| {
+        let src = root().join("src");
+        let mut files = Vec::new();
+        crate::layering::sources(&src, &src, &mut files);
+        files
+            .iter()
+            .map(|f| std::fs::read_to_string(src.join(f)).unwrap())
+            .collect::<Vec<_>>()
+            .join("\n")
+    })
+}
+
 /// Whether `path` (`a::b::Item::method`) names a public module path of the library and an item in it:
 /// each module declared `pub mod` in its parent, the first other segment defined or re-exported in the
 /// last module's file, any further one (a method, a variant, a field) defined somewhere in `src/`.
 fn module_path_exists(path: &str) -> Result<(), String> {
     let src = root().join("src");
     let read = |f: &Path| std::fs::read_to_string(f).unwrap_or_default();
-    let all_src = {
-        let mut files = Vec::new();
-        let mut dirs = vec![src.clone()];
-        while let Some(d) = dirs.pop() {
-            for e in std::fs::read_dir(&d).unwrap() {
-                let p = e.unwrap().path();
-                if p.is_dir() {
-                    dirs.push(p);
-                } else if p.extension().is_some_and(|x| x == "rs") {
-                    files.push(read(&p));
-                }
-            }
-        }
-        files.join("\n")
-    };
     let segs: Vec<&str> = path.split("::").collect();
     let (mut file, mut dir) = (src.join("lib.rs"), src.clone());
     let mut k = 0;
@@ -378,7 +379,8 @@ fn module_path_exists(path: &str) -> Result<(), String> {
         ));
     }
     for rest in &segs[k + 1..] {
-        let member = defined(&all_src, rest)
+        let all_src = all_sources();
+        let member = defined(all_src, rest)
             || all_src.contains(&format!("pub {rest}:"))
             || all_src.lines().any(|l| {
                 l.trim().starts_with(&format!("{rest},"))

@@ -9,7 +9,7 @@ use std::collections::{BTreeMap, BTreeSet};
 use std::path::Path;
 
 /// Every `.rs` file under `dir`, relative to `root`, `/`-separated.
-fn sources(root: &Path, dir: &Path, out: &mut Vec<String>) {
+pub(crate) fn sources(root: &Path, dir: &Path, out: &mut Vec<String>) {
     for e in std::fs::read_dir(dir).unwrap() {
         let p = e.unwrap().path();
         if p.is_dir() {
