@@ -47,6 +47,18 @@ def test_the_package_is_an_ament_python_package_named_as_m_explores():
     assert "install_scripts=$base/lib/multirobot_map_merge" in cfg  # where ros2 run / launch look
 
 
+def test_the_package_is_licensed_as_the_project_with_both_licence_texts_present():
+    root = ET.parse(os.path.join(PKG, "package.xml")).getroot()
+    assert sorted(e.text for e in root.findall("license")) == ["Apache-2.0", "MIT"]
+    cargo = open(os.path.join(ROOT, "Cargo.toml")).read()
+    assert 'license = "MIT OR Apache-2.0"' in cargo
+    mit = open(os.path.join(ROOT, "LICENSE-MIT")).read()
+    apache = open(os.path.join(ROOT, "LICENSE-APACHE")).read()
+    assert mit.startswith("Copyright (c)") and "Permission is hereby granted, free of charge" in mit
+    assert "Apache License" in apache and "Version 2.0, January 2004" in apache
+    assert "END OF TERMS AND CONDITIONS" in apache
+
+
 def test_the_launch_files_compile_and_start_the_node():
     for path in (os.path.join(PKG, "launch", "map_merge.launch.py"),
                  os.path.join(ROOT, "ros", "map_merge.launch.py")):
