@@ -3,6 +3,9 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
+# Each phase's end, with the seconds since the start: CI's log says where its time goes.
+phase() { echo "scripts/test.sh: [${SECONDS} s] $*" >&2; }
+
 if ! command -v cargo >/dev/null 2>&1; then
     echo "scripts/test.sh: cargo not found; install the Rust toolchain with rustup first (see README)" >&2
     exit 1
@@ -25,11 +28,12 @@ have_vulkan() {
     done
     return 1
 }
-if ! have_vulkan; then
+install_vulkan() {
+    have_vulkan && return 0
     echo "scripts/test.sh: no Vulkan driver found; installing mesa-vulkan-drivers (lavapipe)" >&2
     apt_install --no-install-recommends mesa-vulkan-drivers libvulkan1
     have_vulkan || { echo "scripts/test.sh: installing lavapipe did not give a Vulkan driver" >&2; exit 1; }
-fi
+}
 
 if [ -z "${OGM_MAPS_DIR:-}" ] && [ ! -d ../shared/maps ]; then
     echo "scripts/test.sh: NOTE: ../shared/maps not found; the real-map tests will say SKIPPED (and fail under CI=true)" >&2
@@ -61,23 +65,39 @@ have_browser() {
     done
     return 1
 }
-if ! have_browser; then
+install_browser() {
+    have_browser && return 0
     echo "scripts/test.sh: installing chromium and chromium-driver (the HTML report tests)" >&2
     if ! apt_install --no-install-recommends chromium chromium-driver; then
         echo "scripts/test.sh: NOTE: could not install chromium; the browser tests will say SKIPPED (and fail under CI=true)" >&2
     fi
-fi
+}
 
-# OpenCV (for the Harris / Shi-Tomasi agreement test).
-python_env target/opencv-venv "import cv2, numpy" opencv-python-headless numpy
-# The Python package's build tool (its metadata check) and test tools (rosbags: the ROS bag example, no ROS
-# install needed; the ROS 2 Jazzy wheels: the map_merge node's tests, its `ros` extra; Ray: the distributed
-# engine's test on a local Ray instance, its `ray` extra).
 pyvenv=target/python-venv
-python_env "$pyvenv" "import maturin, numpy, pytest, rosbags, rclpy, nav_msgs.msg, geometry_msgs.msg, ray" \
-    "maturin>=1.9.4,<2" numpy pytest rosbags \
-    ros-jazzy-rclpy ros-jazzy-nav-msgs ros-jazzy-geometry-msgs ros-jazzy-rmw-fastrtps-cpp \
-    "ray>=2.9"
+# Everything the tests need beside the build: the Vulkan driver, the browser, OpenCV (the Harris /
+# Shi-Tomasi agreement test), and the Python package's build tool (its metadata check) and test tools
+# (rosbags: the ROS bag example, no ROS install needed; the ROS 2 Jazzy wheels: the map_merge node's
+# tests, its `ros` extra; Ray: the distributed engine's test on a local Ray instance, its `ray` extra).
+set_up() {
+    install_vulkan
+    install_browser
+    python_env target/opencv-venv "import cv2, numpy" opencv-python-headless numpy
+    python_env "$pyvenv" "import maturin, numpy, pytest, rosbags, rclpy, nav_msgs.msg, geometry_msgs.msg, ray" \
+        "maturin>=1.9.4,<2" numpy pytest rosbags \
+        ros-jazzy-rclpy ros-jazzy-nav-msgs ros-jazzy-geometry-msgs ros-jazzy-rmw-fastrtps-cpp \
+        "ray>=2.9"
+}
+
+# The set-up runs in the background beside the build: its downloads and unpacking take minutes on a fresh
+# machine and need little of the CPU the compiler uses. Its output is printed once it ends; a password
+# sudo needs is asked for first, here, not from the background. A build that fails still waits for it,
+# so no install is left half done.
+if [ "$(id -u)" != 0 ] && ! { have_vulkan && have_browser; }; then sudo -v; fi
+mkdir -p target
+setup_log=target/test-setup.log
+set_up >"$setup_log" 2>&1 &
+setup_pid=$!
+trap 'wait "$setup_pid" 2>/dev/null || true' EXIT
 
 # Unit, integration and doc tests, and the Python extension, in one build: with the same dependency graph
 # (feature unification spans the selected packages) the extension costs only itself. The extension links
@@ -85,7 +105,17 @@ python_env "$pyvenv" "import maturin, numpy, pytest, rosbags, rclpy, nav_msgs.ms
 # (Cargo.toml), so real maps stay quick.
 export PYO3_BUILD_EXTENSION_MODULE=1
 cargo build --locked --workspace --lib --bins --tests --examples
+phase "built"
+if wait "$setup_pid"; then
+    cat "$setup_log" >&2
+else
+    cat "$setup_log" >&2
+    echo "scripts/test.sh: setting up the test environment failed (above)" >&2
+    exit 1
+fi
+phase "set up: Vulkan driver, browser, Python environments"
 cargo test --locked --workspace
+phase "Rust tests passed"
 
 # The runnable examples (examples/), on the demo's robot maps; then the API documentation, warnings as
 # errors (every public item documented, no broken link).
@@ -99,6 +129,7 @@ cargo run --locked -q --example merge_folder -- "$ex/maps" "$ex/all.yaml" >/dev/
 [ -f "$ex/two.yaml" ] && [ -f "$ex/all.yaml" ] || { echo "scripts/test.sh: an example wrote no merged map" >&2; exit 1; }
 echo "scripts/test.sh: examples detect_map, merge_two, merge_folder ran"
 RUSTDOCFLAGS="-D warnings" cargo doc --locked --no-deps -p ogm-corners -q
+phase "examples ran, API documentation built"
 
 # The Python package: the extension placed in python/ogm_corners/ as `maturin develop` places it, the
 # package's metadata checked by making its source distribution (`pip install ./python` builds the same
@@ -110,9 +141,11 @@ cp target/debug/lib_core.so python/ogm_corners/_core.abi3.so
 }
 PYTHONPATH="$PWD/python" OGM_CORNERS_BIN="$PWD/target/debug/ogm-corners" \
     "$pyvenv/bin/python" -m pytest python/tests -q -p no:cacheprovider
+phase "Python tests passed"
 
 # The HTML reports (`--html DIR`) in a real browser: headless Chromium loads each page from file://, the
 # tables' row counts are checked against the command's JSON, every picture must load, a column is sorted
 # by a click; screenshots go to target/browser/.
 OGM_CORNERS_BIN="$PWD/target/debug/ogm-corners" \
     "$pyvenv/bin/python" -m pytest tests/browser -q -p no:cacheprovider
+phase "browser tests passed; all done"

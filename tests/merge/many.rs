@@ -72,15 +72,22 @@ fn synthetic_sets_are_placed_within_a_pixel_and_half_a_degree() {
 fn a_set_of_small_alike_rooms_is_never_placed_wrongly() {
     let office =
         OccupancyMap::from_image(ogm_corners::map::synthetic::office_map(512, 384, 1).unwrap());
+    use ogm_corners::measure::merging::many::SetResult;
+    use ogm_corners::merge::many::{run_cached, Cache};
     let (names, maps, truths) = synthetic_maps_of(&office, 20, 1).unwrap();
-    // Every pair aligned.
-    let r = run_maps(
-        names.clone(),
-        &maps,
-        &GlobalOptions::with_partners(0),
-        &|_, _| {},
-    )
-    .unwrap();
+    // Every pair aligned; the maps' preparations and the pairs' alignments are kept for the screened
+    // run below (the screen does not change them, only which pairs it reads).
+    let mut cache = Cache::new();
+    let run = |options: &GlobalOptions, cache: &mut Cache| {
+        let r = run_cached(&maps, options, &mut ReferenceBackend, &|_, _| {}, cache).unwrap();
+        SetResult {
+            names: names.clone(),
+            pairwise: r.pairwise,
+            placement: r.placement,
+            timing: r.timing,
+        }
+    };
+    let r = run(&GlobalOptions::with_partners(0), &mut cache);
     let row = score("own scale", &r, &truths, &|_| "synthetic".to_string());
     assert_eq!(row.pairwise_wrong, 0, "{row:?}");
     let level = r.placement.level;
@@ -91,7 +98,8 @@ fn a_set_of_small_alike_rooms_is_never_placed_wrongly() {
     assert_eq!(row.wrong, 0, "{row:?}");
     assert!(row.placed >= 8 && row.derived_wrong == 0, "{row:?}");
     // Screened (the default for 20 maps): no map placed wrongly either.
-    let r = run_maps(names, &maps, &GlobalOptions::default(), &|_, _| {}).unwrap();
+    let r = run(&GlobalOptions::default(), &mut cache);
+    assert_eq!(cache.last_use().pairs_aligned, 0);
     let row = score("own scale", &r, &truths, &|_| "synthetic".to_string());
     assert!(row.wrong == 0 && row.derived_wrong == 0, "{row:?}");
 }
@@ -570,8 +578,17 @@ fn a_cached_run_redoes_only_the_changed_maps_and_pairs_and_equals_a_fresh_run() 
 #[test]
 fn a_screened_set_places_every_map_with_a_fraction_of_the_pairs() {
     use ogm_corners::measure::merging::many::synthetic_mixed;
+    use ogm_corners::merge::many::{run_cached, Cache};
     let (names, maps, truths) = synthetic_mixed(16, 2, 3).unwrap();
-    let r = run_maps(names.clone(), &maps, &GlobalOptions::default(), &|_, _| {}).unwrap();
+    let mut cache = Cache::new();
+    let r = run_cached(
+        &maps,
+        &GlobalOptions::default(),
+        &mut ReferenceBackend,
+        &|_, _| {},
+        &mut cache,
+    )
+    .unwrap();
     let poses = placed_poses(&r.placement);
     assert!(poses.iter().all(Option::is_some), "{:?}", r.placement.maps);
     assert_eq!(r.placement.groups.len(), 2, "{:?}", r.placement.groups);
@@ -592,8 +609,18 @@ fn a_screened_set_places_every_map_with_a_fraction_of_the_pairs() {
         r.pairwise.rounds.iter().map(|x| x.pairs).sum::<usize>(),
         aligned
     );
-    // Every pair aligned: the same groups.
-    let all = run_maps(names, &maps, &GlobalOptions::with_partners(0), &|_, _| {}).unwrap();
+    // Every pair aligned: the same groups. The maps' preparations and the screened pairs' alignments
+    // are kept from the run above (the screen does not change them; a cached run equals a fresh one,
+    // as tested above), so only the pairs the screen left are aligned here.
+    let all = run_cached(
+        &maps,
+        &GlobalOptions::with_partners(0),
+        &mut ReferenceBackend,
+        &|_, _| {},
+        &mut cache,
+    )
+    .unwrap();
+    assert_eq!(cache.last_use().pairs_reused, aligned);
     assert_eq!(all.pairwise.pairs.len(), 120);
     assert!(all.pairwise.rounds.is_empty());
     assert_eq!(all.placement.groups, r.placement.groups);
@@ -731,16 +758,28 @@ fn a_map_added_to_an_earlier_merge_aligns_only_its_pairs_and_places_as_a_full_ru
     );
     let full = run(&maps, &options, &mut ReferenceBackend, &|_, _| {}).unwrap();
     assert_eq!(added.placement.groups, full.placement.groups);
-    // Other options: the file's alignments are not taken up.
+    // Other options: the file's alignments are not taken up. Four of the maps show it, at a fraction
+    // of the whole set's cost: under the file's options their pairs are taken up.
     let other = GlobalOptions {
         weak_from: options.weak_from + 0.5,
         ..options
     };
-    let previous = Previous::parse(&text, "test").unwrap();
-    assert!(!previous.fits(&other));
-    let mut cache = previous.cache(&other);
-    run_cached(&maps, &other, &mut ReferenceBackend, &|_, _| {}, &mut cache).unwrap();
-    assert_eq!(cache.last_use().pairs_reused, 0);
+    for (opts, fits) in [(options, true), (other, false)] {
+        let previous = Previous::parse(&text, "test").unwrap();
+        assert_eq!(previous.fits(&opts), fits);
+        let mut cache = previous.cache(&opts);
+        run_cached(
+            &maps[..4],
+            &opts,
+            &mut ReferenceBackend,
+            &|_, _| {},
+            &mut cache,
+        )
+        .unwrap();
+        let used = cache.last_use();
+        assert_eq!(used.pairs_reused > 0, fits, "{used:?}");
+        assert!(fits || used.pairs_aligned > 0, "{used:?}");
+    }
 }
 
 /// The real buildings, one map added to the other 21's merge: every annotated pair accurate through the

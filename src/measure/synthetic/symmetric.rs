@@ -91,8 +91,9 @@ struct Rect {
 }
 
 impl Rect {
-    fn contains(&self, x: f64, y: f64) -> bool {
-        let (s, c) = self.angle.sin_cos();
+    /// Whether `(x, y)` lies inside, given `self.angle.sin_cos()` (worked out once a rectangle, not
+    /// once a pixel: the plan's drawing spent most of its time there).
+    fn contains(&self, (s, c): (f64, f64), x: f64, y: f64) -> bool {
         let (dx, dy) = (x - self.cx, y - self.cy);
         let (u, v) = (c * dx + s * dy, -s * dx + c * dy);
         u.abs() <= self.hx && v.abs() <= self.hy
@@ -292,13 +293,19 @@ fn canvas(rects: &[Rect], r: f64) -> (f64, f64, usize, usize) {
 /// The free union of `rects` and a regular polygon (corners, circumradius, turn) about the origin, walls
 /// around, unknown beyond, on a canvas that holds it with a margin; with the origin in its pixels.
 fn draw(rects: &[Rect], (n, r, turn): (usize, f64, f64)) -> Result<(MapImage, (f64, f64))> {
-    let in_hub = |x: f64, y: f64| {
-        (0..n).all(|k| {
+    // The hall's sides as half-planes, and each rectangle's turn, worked out once.
+    let sides: Vec<(f64, f64)> = (0..n)
+        .map(|k| {
             let a = turn + std::f64::consts::TAU * (k as f64 + 0.5) / n as f64;
-            x * a.cos() + y * a.sin() <= r * (std::f64::consts::PI / n as f64).cos()
+            (a.cos(), a.sin())
         })
+        .collect();
+    let apothem = r * (std::f64::consts::PI / n as f64).cos();
+    let in_hub = |x: f64, y: f64| sides.iter().all(|&(c, s)| x * c + y * s <= apothem);
+    let turns: Vec<(f64, f64)> = rects.iter().map(|r| r.angle.sin_cos()).collect();
+    let free_at = |x: f64, y: f64| {
+        in_hub(x, y) || rects.iter().zip(&turns).any(|(r, &t)| r.contains(t, x, y))
     };
-    let free_at = |x: f64, y: f64| in_hub(x, y) || rects.iter().any(|r| r.contains(x, y));
     let (x0, y0, w, h) = canvas(rects, r);
     let mut free = vec![false; w * h];
     for (i, f) in free.iter_mut().enumerate() {
