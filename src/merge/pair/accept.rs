@@ -3,6 +3,8 @@
 
 use serde::Serialize;
 
+use crate::merge::transform::{signed_deg, Rigid};
+
 /// Whatever the rule says, an alignment is contradicted when more than this share of the walls that fall
 /// in the other map lie over 3 px deep in its free space ([`Features::conflict_fine`]). The highest of the
 /// accepted right real pairs of the calibration half is 0.50 (held-out: 0.54); the half-turned offices
@@ -140,6 +142,121 @@ impl Decline {
             Decline::NotConfident => "not confident",
         }
     }
+}
+
+/// The `why:` line of an alignment declined for `why` ([`decline`]), in the units its test compares:
+/// the chosen pose `best` (of rule value `rule_value`) and, for the alternative-pose tests, the rivals
+/// they measured (`alternative`, the best other pose; `unrefuted`, the best one nothing contradicts).
+pub(in crate::merge) fn why_declined(
+    why: Decline,
+    features: &Features,
+    rule_value: f64,
+    best: &Rigid,
+    alternative: Option<&Rigid>,
+    unrefuted: Option<&Rigid>,
+) -> String {
+    let f = features;
+    match why {
+        Decline::Repeat => ambiguous_why(best, alternative.unwrap_or(best), f.alias),
+        Decline::Uncontradicted => {
+            uncontradicted_why(best, unrefuted.unwrap_or(best), f.alias_uncontradicted)
+        }
+        Decline::LittleSupport => format!(
+            "too little to go on: {:.0} wall pixels of the two maps match each other (at least \
+             {MIN_SUPPORT:.0} are needed to tell a right pose from a wrong one)",
+            f.support
+        ),
+        Decline::SelfMatch if f.self_match_held > MAX_SELF_SYMMETRY => format!(
+            "ambiguous: a map matches itself shifted (self-match {:.2} over {MAX_SELF_SYMMETRY}), so \
+             it could be merged more than one way",
+            f.self_match_held
+        ),
+        Decline::SelfMatch => self_match_why(best, alternative, f.self_match, f.alias),
+        Decline::Contradicted if contradiction(f) > MAX_CONTRADICTION => format!(
+            "contradicted: {:.0}% of the walls that fall in the other map lie inside its free space, \
+             and {:.1}% of the free space that falls in it on its walls or unknown",
+            100.0 * f.conflict_fine,
+            100.0 * (1.0 - f.free_agree)
+        ),
+        Decline::Contradicted => format!(
+            "contradicted: {:.0}% of the walls that fall in the other map lie inside its free space",
+            100.0 * f.conflict_fine
+        ),
+        Decline::NotConfident => format!(
+            "not confident: {:.0}% of the smaller map's free space falls in the other ({:.1}% of it on \
+             occupied or unknown pixels), the consistent coarse score stands {:.2}x the best distinct \
+             alternative's (rule value {rule_value:.2} below 0)",
+            100.0 * f.free_inside,
+            100.0 * (1.0 - f.free_agree),
+            f.coarse_ratio
+        ),
+    }
+}
+
+/// The `why:` line of a pair declined for an alternative pose `alt` with `ratio` of the chosen pose
+/// `best`'s evidence: how the alternative differs from it (a turn, or a shift when it turns less than a
+/// degree), in the units the test compares.
+fn ambiguous_why(best: &Rigid, alt: &Rigid, ratio: f64) -> String {
+    let how = how_it_differs(best, alt);
+    if ratio >= 1.0 {
+        format!(
+            "ambiguous: B fits A better {how} ({ratio:.2} of its evidence: walls that agree after a few \
+             px of local shift), so it could be merged more than one way"
+        )
+    } else {
+        format!(
+            "ambiguous: B fits A {how} nearly as well ({ratio:.2} of its evidence: walls that agree \
+             after a few px of local shift), so it could be merged more than one way"
+        )
+    }
+}
+
+/// The `why:` line of a pair declined for an alternative pose `alt` that nothing in the maps
+/// contradicts, with `ratio` of the chosen pose `best`'s evidence
+/// ([`MAX_UNCONTRADICTED_ALIAS`]).
+fn uncontradicted_why(best: &Rigid, alt: &Rigid, ratio: f64) -> String {
+    format!(
+        "ambiguous: B also fits A {} with {ratio:.2} of the evidence and nothing against it (no wall \
+         on the other map's free space, a share of free space in common), so it could be merged \
+         more than one way",
+        how_it_differs(best, alt)
+    )
+}
+
+/// The `why:` line of a pair declined because a map matches itself (`self_match`, over
+/// [`MAX_SELF_SYMMETRY`]) and the alternative pose `alt` it offers keeps `ratio` of the
+/// chosen pose `best`'s evidence, hardly more contradicted.
+fn self_match_why(best: &Rigid, alt: Option<&Rigid>, self_match: f64, ratio: f64) -> String {
+    let limit = MAX_SELF_SYMMETRY;
+    let alt = alt.map_or_else(
+        || "at another pose".to_string(),
+        |alt| how_it_differs(best, alt),
+    );
+    format!(
+        "ambiguous: a map matches itself (self-match {self_match:.2} over {limit}), \
+         and B fits A {alt} with {ratio:.2} of the evidence and hardly more walls on free space, so it \
+         could be merged more than one way"
+    )
+}
+
+/// How `alt` differs from `best`: "turned by 120 deg from the chosen pose (theta .., t (.., ..))", or
+/// "shifted by .. px ..." when it turns less than a degree.
+fn how_it_differs(best: &Rigid, alt: &Rigid) -> String {
+    let turn = signed_deg(alt.theta_deg - best.theta_deg);
+    let how = if turn.abs() >= 1.0 {
+        format!("turned by {turn:.0} deg")
+    } else {
+        // Where the alternative puts B's origin, from where the chosen pose does.
+        format!(
+            "shifted by {:.0} px",
+            (alt.tx - best.tx).hypot(alt.ty - best.ty)
+        )
+    };
+    let alt = alt.normalized();
+    format!(
+        "{how} from the chosen pose (theta {:.1} deg, t ({:.0}, {:.0}))",
+        alt.theta_deg, alt.tx, alt.ty
+    )
 }
 
 /// Whether a map's self-match declines an alignment: its held part ([`Features::self_match_held`], a

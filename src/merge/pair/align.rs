@@ -22,19 +22,25 @@ use serde::Serialize;
 use crate::backend::Backend;
 use crate::backend::ReferenceBackend;
 use crate::map::OccupancyMap;
+use crate::merge::pair::accept::why_declined;
 pub use crate::merge::pair::accept::{
     accepts, contradiction, decline, not_contradicted, Acceptance, Decline, Features, MAX_ALIAS,
     MAX_CONTRADICTION, MAX_FINE_CONFLICT, MAX_SELF_SYMMETRY, MAX_UNCONTRADICTED_ALIAS, MIN_SUPPORT,
 };
-use crate::merge::pair::alias::{add_turns, ambiguous_why, self_match_why, uncontradicted_why};
+use crate::merge::pair::alias::add_turns;
 pub(in crate::merge) use crate::merge::pair::alias::{alias, Repeats};
 pub use crate::merge::pair::alias::{ALIAS_EXTRA_CONFLICT, ALIAS_SELF_MATCH};
-use crate::merge::pair::coarse::{coarse_hypotheses, screen, CoarseSet, Crop};
+pub(in crate::merge) use crate::merge::pair::choose::reference_rms;
+pub use crate::merge::pair::choose::MAX_RATIO;
+use crate::merge::pair::choose::{
+    choose, distinct_ratios, refine_all, screened_distinct, Chosen, REFINED, STRICT,
+};
+use crate::merge::pair::coarse::{coarse_hypotheses, CoarseSet};
 pub use crate::merge::pair::fft::FINE_FFT;
 use crate::merge::pair::hypotheses::Hypotheses;
-use crate::merge::pair::local::{local_both, local_fit};
+use crate::merge::pair::local::local_fit;
 pub use crate::merge::pair::prepare::{kept_bytes, prepared_bytes, Prepared, Symmetry, CELLS};
-use crate::merge::pair::refine::{crop_to_map, icp, map_to_crop, polish, verify};
+use crate::merge::pair::refine::{crop_to_map, map_to_crop, verify};
 use crate::merge::pair::symmetry::NEAR_IDENTITY_DEG;
 use crate::merge::transform::{signed_deg, transform_distance, Rigid, DISTINCT_PX};
 use crate::support::error::{Error, Result};
@@ -42,18 +48,10 @@ use crate::support::error::{Error, Result};
 /// The rule value from which the self-symmetry is measured: the operating curve's lowest offset.
 const SYMMETRY_FROM: f64 = -8.0;
 
-/// The polish's step scales (1: a quarter pixel and 0.1 degree) and rounds at each, at most.
-const POLISH_SCALES: [f64; 3] = [4.0, 2.0, 1.0];
-const POLISH_ROUNDS: usize = 4;
-/// Candidates refined: the best distinct ones of the tolerant screening, then more of the strict one.
-const REFINED: usize = 8;
-const STRICT: usize = 4;
 /// What a pair declined before any search for want of walls says (a placement tells it apart).
 pub(crate) const NO_WALLS: &str = "no walls next to free space";
 /// The most candidates an alignment refines (so the most a pair's record may carry).
 pub const MAX_CANDIDATES: usize = REFINED + STRICT;
-/// The coarse ratio's cap: no distinct alternative at all counts as this.
-pub const MAX_RATIO: f64 = 10.0;
 /// How to align.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct MergeOptions {
@@ -174,85 +172,13 @@ pub fn align_prepared_with(
             "no hypothesis: the maps' corners agree on no placement",
         ));
     }
-    // Every coarse hypothesis screened on the full maps (an even sample of their walls), each at four
-    // shifts around it: a coarse peak is off by up to half a cell, and the walls of a
-    // building of many like rooms correlate almost as well with a wrong placement at the coarse level.
-    let [tolerant, strict] = screen(src, dst, &coarse, cell as f64, backend)?;
-    crate::support::stop::check()?;
-    let mut picked: Vec<(f64, Crop)> = Vec::new();
-    for (order, most) in [(&tolerant, REFINED), (&strict, REFINED + STRICT)] {
-        for &(i, t) in order {
-            if picked.len() >= most {
-                break;
-            }
-            let c = (coarse[i].0, Crop(t));
-            if picked
-                .iter()
-                .all(|p| reference_rms(src, &p.1 .0, &c.1 .0) > DISTINCT_PX)
-            {
-                picked.push(c);
-            }
-        }
-    }
-    let icped: Vec<(f64, Rigid)> = {
-        use rayon::prelude::*;
-        picked
-            .par_iter()
-            .map(|&(score, Crop(t))| (score, icp(src, dst, t)))
-            .collect()
-    };
-    let crops: Vec<Rigid> = icped.iter().map(|r| r.1).collect();
-    let verified = verify(src, dst, &crops, backend)?;
-    crate::support::stop::check()?;
-    // Every candidate's local agreement: the choice below and its margin over the runner-up need them all.
-    let top = icped.iter().map(|r| r.0).fold(f64::MIN, f64::max).max(1e-9);
-    let locals: Vec<(f64, f64, f64)> = {
-        use rayon::prelude::*;
-        icped
-            .par_iter()
-            .map(|(_, t)| local_both(src, dst, t))
-            .collect()
-    };
-    let to_full = |t: &Rigid| crop_to_map(src, dst, t);
-    let refined: Vec<(f64, Rigid, Features)> = icped
-        .iter()
-        .zip(verified)
-        .zip(locals.iter().copied())
-        .map(|((&(score, t), mut f), (local, residual, _))| {
-            f.coarse = score;
-            f.local = local;
-            f.residual = residual;
-            f.coarse_norm = score / coarse_unit;
-            (score, to_full(&t), f)
-        })
-        .collect();
-    // The choice: the best product of the coarse score (relative to the best one), the local agreement,
-    // the square root of the share of walls not deep in the other map's free space and the fourth power
-    // of the share of free space on the other's free space. The coarse score
-    // alone prefers a wrong placement laying one map fully over the other to a true, smaller overlap;
-    // the local agreement alone, small overlaps of a few matching walls; in a building of many like
-    // rooms, a wrong placement matches walls locally but puts others in the other map's rooms.
-    let key = |r: &(f64, Rigid, Features)| {
-        r.2.local * (1.0 - r.2.conflict_fine).max(0.0).sqrt() * r.2.free_agree.powi(4) * r.0 / top
-    };
-    let unordered: Vec<f64> = refined.iter().map(key).collect();
-    let mut order: Vec<usize> = (0..refined.len()).collect();
-    // Stable: ties keep the coarse order.
-    order.sort_by(|&x, &y| unordered[y].total_cmp(&unordered[x]));
-    let mut refined: Vec<(f64, Rigid, Features)> = order.iter().map(|&i| refined[i]).collect();
-    let keys: Vec<f64> = order.iter().map(|&i| unordered[i]).collect();
-    // The chosen one polished to a fraction of a pixel, and verified again.
-    let polished = polish_fully(src, dst, &crops[order[0]], backend)?;
-    let again = verify(src, dst, &[polished], backend)?[0];
-    crate::support::stop::check()?;
-    refined[0].1 = to_full(&polished);
-    refined[0].2 = Features {
-        coarse: refined[0].2.coarse,
-        local: refined[0].2.local,
-        residual: refined[0].2.residual,
-        coarse_norm: refined[0].2.coarse_norm,
-        ..again
-    };
+    let picked = screened_distinct(src, dst, &coarse, cell, backend)?;
+    let found = refine_all(src, dst, &picked, coarse_unit, backend)?;
+    let Chosen {
+        refined,
+        keys,
+        order,
+    } = choose(src, dst, &found, backend)?;
     let (_, best, mut features) = refined[0];
     // How far it stands out, by the choice's key and by the coarse score: over the best distinct
     // alternative's (both before the polish, as the alternatives are).
@@ -261,120 +187,119 @@ pub fn align_prepared_with(
     let score = options.accept.margin(&features);
     // Only for what could be merged (down to the operating curve's lowest offset): each map's
     // self-match costs an alignment (cached in the map).
-    let (mut alternative, mut unrefuted) = (None, None);
     let could = score >= SYMMETRY_FROM && accepts(&features, score);
-    if options.check_symmetry && (could || options.always_verify) {
-        let (sa, sb) = (
-            self_symmetry_with(a, backend)?,
-            self_symmetry_with(b, backend)?,
-        );
-        features.self_match = sa.value.max(sb.value);
-        // The self-match the veto holds whatever the alternatives show: a repeat's (a turn is judged
-        // pose by pose).
-        features.self_match_held = sa.repeat.max(sb.repeat);
-        // The search's own candidates turned from the chosen pose are poses too (a turn of the overlap
-        // that neither map's symmetry offers), measured already; shifts are the maps' repeats' to offer.
-        let found: Vec<(Rigid, (f64, f64, f64))> = order
+    let (alternative, unrefuted) = if options.check_symmetry && (could || options.always_verify) {
+        let found = order
             .iter()
-            .map(|&i| (to_full(&crops[i]), locals[i]))
-            .collect();
-        let judged = features.self_match_held > MAX_SELF_SYMMETRY;
-        let mode = if judged {
-            Repeats::Screen
-        } else {
-            Repeats::Held
-        };
-        let mut alt = alias(src, dst, &best, (sa, sb), &found, mode, backend)?;
-        if judged {
-            // Listing a repeat's lattice costs a few alignments' scoring: only for a pair the screen
-            // (a lower bound of the listed alternative) leaves to be merged.
-            let unheld = Features {
-                alias: alt.ratio,
-                self_match_held: 0.0,
-                ..features
-            };
-            if accepts(&unheld, score) {
-                alt = alias(src, dst, &best, (sa, sb), &found, Repeats::List, backend)?;
-            }
-        }
-        (features.alias, alternative) = (alt.ratio, alt.pose);
-        (features.alias_uncontradicted, unrefuted) = (alt.uncontradicted, alt.uncontradicted_pose);
-        if alt.repeats_listed {
-            // Every step of the repeat measured: nothing of it needs holding.
-            features.self_match_held = 0.0;
-        }
-    }
+            .map(|&i| (crop_to_map(src, dst, &found.crops[i]), found.locals[i]))
+            .collect::<Vec<_>>();
+        other_poses(src, dst, &best, &mut features, score, &found, backend)?
+    } else {
+        (None, None)
+    };
     let accepted = accepts(&features, score);
-    let reason = decline(&features, score).map(|why| match why {
-        Decline::Repeat => ambiguous_why(&best, &alternative.unwrap_or(best), features.alias),
-        Decline::Uncontradicted => uncontradicted_why(
-            &best,
-            &unrefuted.unwrap_or(best),
-            features.alias_uncontradicted,
-        ),
-        Decline::LittleSupport => format!(
-            "too little to go on: {:.0} wall pixels of the two maps match each other (at least \
-             {MIN_SUPPORT:.0} are needed to tell a right pose from a wrong one)",
-            features.support
-        ),
-        Decline::SelfMatch if features.self_match_held > MAX_SELF_SYMMETRY => format!(
-            "ambiguous: a map matches itself shifted (self-match {:.2} over {MAX_SELF_SYMMETRY}), so \
-             it could be merged more than one way",
-            features.self_match_held
-        ),
-        Decline::SelfMatch => self_match_why(
+    let reason = decline(&features, score).map(|why| {
+        why_declined(
+            why,
+            &features,
+            score,
             &best,
             alternative.as_ref(),
-            features.self_match,
-            features.alias,
-        ),
-        Decline::Contradicted if contradiction(&features) > MAX_CONTRADICTION => format!(
-            "contradicted: {:.0}% of the walls that fall in the other map lie inside its free space, \
-             and {:.1}% of the free space that falls in it on its walls or unknown",
-            100.0 * features.conflict_fine,
-            100.0 * (1.0 - features.free_agree)
-        ),
-        Decline::Contradicted => format!(
-            "contradicted: {:.0}% of the walls that fall in the other map lie inside its free space",
-            100.0 * features.conflict_fine
-        ),
-        Decline::NotConfident => format!(
-            "not confident: {:.0}% of the smaller map's free space falls in the other ({:.1}% of it on \
-             occupied or unknown pixels), the consistent coarse score stands {:.2}x the best distinct \
-             alternative's (rule value {score:.2} below 0)",
-            100.0 * features.free_inside,
-            100.0 * (1.0 - features.free_agree),
-            features.coarse_ratio
-        ),
+            unrefuted.as_ref(),
+        )
     });
-    // Each other candidate's ratios over the best candidate distinct from it, and its rule value.
-    let mut candidates: Vec<Candidate> = Vec::with_capacity(refined.len());
-    for (i, &(_, transform, mut f)) in refined.iter().enumerate() {
-        if i == 0 {
-            f = features;
-        } else {
-            (f.coarse_ratio, f.choice_ratio) = distinct_ratios(&refined, &keys, i);
-            f.choice = keys[i];
-        }
-        let score = if i == 0 {
-            score
-        } else {
-            options.accept.margin(&f)
-        };
-        candidates.push(Candidate {
-            transform,
-            features: f,
-            score,
-        });
-    }
     Ok(Alignment {
         transform: best,
         features,
         score,
         accepted,
         reason,
-        candidates,
+        candidates: candidates_of(&refined, &keys, features, score, options),
     })
+}
+
+/// The other poses the maps offer the chosen pose `best` (the alternative-pose test): each map's
+/// self-match and the poses its symmetry offers, and the search's own candidates turned from the chosen
+/// pose (`found`, between the maps, with their local measures, in the choice's order). Fills in
+/// `features`' self-match and alternative-pose measures; returns the best other pose and the best one
+/// nothing contradicts, when measured.
+fn other_poses(
+    src: &Prepared,
+    dst: &Prepared,
+    best: &Rigid,
+    features: &mut Features,
+    score: f64,
+    found: &[(Rigid, (f64, f64, f64))],
+    backend: &mut dyn Backend,
+) -> Result<(Option<Rigid>, Option<Rigid>)> {
+    // A is the reference (dst), B the moved map (src).
+    let (sa, sb) = (
+        self_symmetry_with(dst, backend)?,
+        self_symmetry_with(src, backend)?,
+    );
+    features.self_match = sa.value.max(sb.value);
+    // The self-match the veto holds whatever the alternatives show: a repeat's (a turn is judged
+    // pose by pose).
+    features.self_match_held = sa.repeat.max(sb.repeat);
+    // The search's own candidates turned from the chosen pose are poses too (a turn of the overlap
+    // that neither map's symmetry offers), measured already; shifts are the maps' repeats' to offer.
+    let judged = features.self_match_held > MAX_SELF_SYMMETRY;
+    let mode = if judged {
+        Repeats::Screen
+    } else {
+        Repeats::Held
+    };
+    let mut alt = alias(src, dst, best, (sa, sb), found, mode, backend)?;
+    if judged {
+        // Listing a repeat's lattice costs a few alignments' scoring: only for a pair the screen
+        // (a lower bound of the listed alternative) leaves to be merged.
+        let unheld = Features {
+            alias: alt.ratio,
+            self_match_held: 0.0,
+            ..*features
+        };
+        if accepts(&unheld, score) {
+            alt = alias(src, dst, best, (sa, sb), found, Repeats::List, backend)?;
+        }
+    }
+    features.alias = alt.ratio;
+    features.alias_uncontradicted = alt.uncontradicted;
+    if alt.repeats_listed {
+        // Every step of the repeat measured: nothing of it needs holding.
+        features.self_match_held = 0.0;
+    }
+    Ok((alt.pose, alt.uncontradicted_pose))
+}
+
+/// Every candidate as the alignment lists it, the chosen one first (with `features` and rule value
+/// `score`): each other one with its ratios over the best candidate distinct from it, and its rule value.
+fn candidates_of(
+    refined: &[(f64, Rigid, Features)],
+    keys: &[f64],
+    features: Features,
+    score: f64,
+    options: &MergeOptions,
+) -> Vec<Candidate> {
+    refined
+        .iter()
+        .enumerate()
+        .map(|(i, &(_, transform, mut f))| {
+            if i == 0 {
+                return Candidate {
+                    transform,
+                    features,
+                    score,
+                };
+            }
+            (f.coarse_ratio, f.choice_ratio) = distinct_ratios(refined, keys, i);
+            f.choice = keys[i];
+            Candidate {
+                transform,
+                features: f,
+                score: options.accept.margin(&f),
+            }
+        })
+        .collect()
 }
 
 impl Alignment {
@@ -423,35 +348,6 @@ impl Alignment {
     }
 }
 
-/// Candidate `i`'s consistent coarse score and choice key (`keys`) over the best of the candidates
-/// distinct from it (more than [`DISTINCT_PX`] apart), each at most [`MAX_RATIO`] (also when there is
-/// none). The consistent coarse score is the coarse score times the share of the walls that no local
-/// shift of a few px keeps out of the other map's free space ([`Features::residual`]): the correlation
-/// counts walls on walls, and a rival that lays one map over the other (a half turn of an office, a
-/// shift by a period) earns it with walls that the other map says are open space. A bent map's true pose
-/// correlates less well than such a rival, but its conflicts vanish under the local shifts.
-fn distinct_ratios(refined: &[(f64, Rigid, Features)], keys: &[f64], i: usize) -> (f64, f64) {
-    let consistent = |r: &(f64, Rigid, Features)| r.0 * (1.0 - r.2.residual).max(0.0);
-    let (mut other_coarse, mut other_key) = (f64::NEG_INFINITY, f64::NEG_INFINITY);
-    for (j, r) in refined.iter().enumerate() {
-        if j != i && transform_distance(&r.1, &refined[i].1) > DISTINCT_PX {
-            other_coarse = other_coarse.max(consistent(r));
-            other_key = other_key.max(keys[j]);
-        }
-    }
-    let ratio = |mine: f64, other: f64| {
-        if other > 0.0 {
-            (mine / other).min(MAX_RATIO)
-        } else {
-            MAX_RATIO
-        }
-    };
-    (
-        ratio(consistent(&refined[i]), other_coarse),
-        ratio(keys[i], other_key),
-    )
-}
-
 /// A declined alignment with no candidate.
 pub(crate) fn declined(why: &str) -> Alignment {
     Alignment {
@@ -462,42 +358,6 @@ pub(crate) fn declined(why: &str) -> Alignment {
         reason: Some(why.to_string()),
         candidates: Vec::new(),
     }
-}
-
-/// `t` (src crop to dst crop) polished to a fraction of a pixel: hill-climbing from 2 px and 0.4 degree
-/// steps down to the finest. ICP stops short of the best fit of a small overlap's few walls, by up to a
-/// degree.
-pub(in crate::merge) fn polish_fully(
-    src: &Prepared,
-    dst: &Prepared,
-    t: &Rigid,
-    backend: &mut dyn Backend,
-) -> Result<Rigid> {
-    let mut polished = *t;
-    for scale in POLISH_SCALES {
-        for _ in 0..POLISH_ROUNDS {
-            let next = polish(src, dst, &polished, scale, backend)?;
-            let stayed = next == polished;
-            polished = next;
-            if stayed {
-                break;
-            }
-        }
-    }
-    Ok(polished)
-}
-
-/// RMS distance between where two transforms put src's reference points.
-pub(in crate::merge) fn reference_rms(src: &Prepared, x: &Rigid, y: &Rigid) -> f64 {
-    let sum: f64 = src
-        .reference
-        .iter()
-        .map(|&p| {
-            let (a, b) = (x.apply(p), y.apply(p));
-            (a.0 - b.0).powi(2) + (a.1 - b.1).powi(2)
-        })
-        .sum();
-    (sum / src.reference.len() as f64).sqrt()
 }
 
 /// The verification features of `t` (B's pixels to A's) on the full maps, as [`align`] measures its
