@@ -106,10 +106,10 @@ trap 'wait "$setup_pid" 2>/dev/null || true' EXIT
 export PYO3_BUILD_EXTENSION_MODULE=1
 cargo build --locked --workspace --lib --bins --tests --examples
 phase "built"
-if wait "$setup_pid"; then
-    cat "$setup_log" >&2
-else
-    cat "$setup_log" >&2
+setup_status=0
+wait "$setup_pid" || setup_status=$?
+cat "$setup_log" >&2
+if [ "$setup_status" != 0 ]; then
     echo "scripts/test.sh: setting up the test environment failed (above)" >&2
     exit 1
 fi

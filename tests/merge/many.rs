@@ -70,22 +70,17 @@ fn synthetic_sets_are_placed_within_a_pixel_and_half_a_degree() {
 /// maps placed wrongly.
 #[test]
 fn a_set_of_small_alike_rooms_is_never_placed_wrongly() {
-    let office =
-        OccupancyMap::from_image(ogm_corners::map::synthetic::office_map(512, 384, 1).unwrap());
     use ogm_corners::measure::merging::many::SetResult;
     use ogm_corners::merge::many::{run_cached, Cache};
+    let office =
+        OccupancyMap::from_image(ogm_corners::map::synthetic::office_map(512, 384, 1).unwrap());
     let (names, maps, truths) = synthetic_maps_of(&office, 20, 1).unwrap();
     // Every pair aligned; the maps' preparations and the pairs' alignments are kept for the screened
     // run below (the screen does not change them, only which pairs it reads).
     let mut cache = Cache::new();
     let run = |options: &GlobalOptions, cache: &mut Cache| {
         let r = run_cached(&maps, options, &mut ReferenceBackend, &|_, _| {}, cache).unwrap();
-        SetResult {
-            names: names.clone(),
-            pairwise: r.pairwise,
-            placement: r.placement,
-            timing: r.timing,
-        }
+        SetResult::of(names.clone(), r)
     };
     let r = run(&GlobalOptions::with_partners(0), &mut cache);
     let row = score("own scale", &r, &truths, &|_| "synthetic".to_string());
@@ -825,12 +820,7 @@ fn a_real_map_added_to_an_earlier_merge_is_placed_as_in_a_full_run() {
         "{:?}",
         cache.last_use()
     );
-    let r = ogm_corners::measure::merging::many::SetResult {
-        names: names.clone(),
-        pairwise: added.pairwise,
-        placement: added.placement,
-        timing: added.timing,
-    };
+    let r = ogm_corners::measure::merging::many::SetResult::of(names.clone(), added);
     assert_real_placed_right(&r, &set);
 }
 

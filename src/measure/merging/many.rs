@@ -9,7 +9,7 @@ use crate::backend::ReferenceBackend;
 use crate::map::OccupancyMap;
 use crate::measure::pairs::TruePair;
 use crate::merge::many::graph::Placement;
-use crate::merge::many::{GlobalOptions, Pairwise, Timing};
+use crate::merge::many::{GlobalOptions, Pairwise, Run, Timing};
 use crate::merge::transform::Rigid;
 use crate::support::error::Result;
 
@@ -34,15 +34,20 @@ pub fn run_maps(
     progress: &(dyn Fn(usize, usize) + Sync),
 ) -> Result<SetResult> {
     let r = crate::merge::many::run(maps, options, &mut ReferenceBackend, progress)?;
-    Ok(SetResult {
-        names,
-        pairwise: r.pairwise,
-        placement: r.placement,
-        timing: r.timing,
-    })
+    Ok(SetResult::of(names, r))
 }
 
 impl SetResult {
+    /// A run's result under the maps' `names` (from [`crate::merge::many::run`] or its cached forms).
+    pub fn of(names: Vec<String>, run: Run) -> SetResult {
+        SetResult {
+            names,
+            pairwise: run.pairwise,
+            placement: run.placement,
+            timing: run.timing,
+        }
+    }
+
     /// The transform from map `src`'s pixels to map `dst`'s that the placement implies, when both are
     /// placed in one group.
     pub fn derived(&self, src: usize, dst: usize) -> Option<Rigid> {

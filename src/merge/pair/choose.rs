@@ -56,9 +56,7 @@ pub(in crate::merge) fn screened_distinct(
 /// kernel, and measured for its local agreement (the choice and its margin over the runner-up need
 /// every candidate's).
 pub(in crate::merge) struct Refined {
-    /// Each candidate's coarse score and transform between the crops.
-    pub(in crate::merge) icped: Vec<(f64, Rigid)>,
-    /// The transforms alone.
+    /// Each candidate's transform between the crops.
     pub(in crate::merge) crops: Vec<Rigid>,
     /// Each one's local agreement, residual conflict and wall pixels measured ([`local_both`]).
     pub(in crate::merge) locals: Vec<(f64, f64, f64)>,
@@ -74,31 +72,27 @@ pub(in crate::merge) fn refine_all(
     backend: &mut dyn Backend,
 ) -> Result<Refined> {
     use rayon::prelude::*;
-    let icped: Vec<(f64, Rigid)> = picked
+    let crops: Vec<Rigid> = picked
         .par_iter()
-        .map(|&(score, Crop(t))| (score, icp(src, dst, t)))
+        .map(|&(_, Crop(t))| icp(src, dst, t))
         .collect();
-    let crops: Vec<Rigid> = icped.iter().map(|r| r.1).collect();
     let verified = verify(src, dst, &crops, backend)?;
     crate::support::stop::check()?;
-    let locals: Vec<(f64, f64, f64)> = icped
-        .par_iter()
-        .map(|(_, t)| local_both(src, dst, t))
-        .collect();
-    let candidates = icped
+    let locals: Vec<(f64, f64, f64)> = crops.par_iter().map(|t| local_both(src, dst, t)).collect();
+    let candidates = picked
         .iter()
+        .zip(&crops)
         .zip(verified)
         .zip(locals.iter().copied())
-        .map(|((&(score, t), mut f), (local, residual, _))| {
+        .map(|(((&(score, _), t), mut f), (local, residual, _))| {
             f.coarse = score;
             f.local = local;
             f.residual = residual;
             f.coarse_norm = score / coarse_unit;
-            (score, crop_to_map(src, dst, &t), f)
+            (score, crop_to_map(src, dst, t), f)
         })
         .collect();
     Ok(Refined {
-        icped,
         crops,
         locals,
         candidates,
@@ -129,7 +123,7 @@ pub(in crate::merge) fn choose(
     backend: &mut dyn Backend,
 ) -> Result<Chosen> {
     let top = found
-        .icped
+        .candidates
         .iter()
         .map(|r| r.0)
         .fold(f64::MIN, f64::max)
@@ -198,7 +192,7 @@ pub(in crate::merge) fn distinct_ratios(
 /// `t` (src crop to dst crop) polished to a fraction of a pixel: hill-climbing from 2 px and 0.4 degree
 /// steps down to the finest. ICP stops short of the best fit of a small overlap's few walls, by up to a
 /// degree.
-pub(in crate::merge) fn polish_fully(
+fn polish_fully(
     src: &Prepared,
     dst: &Prepared,
     t: &Rigid,
