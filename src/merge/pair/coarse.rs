@@ -7,7 +7,7 @@ use rustfft::FftPlanner;
 
 use crate::backend::Backend;
 use crate::merge::pair::fft::{padded, Fft2};
-use crate::merge::pair::fft::{FINE_FFT, MAX_FFT};
+use crate::merge::pair::fft::{zeros, FINE_FFT, MAX_FFT};
 use crate::merge::pair::hypotheses::{vote, Hypotheses};
 use crate::merge::pair::prepare::{Prepared, CELLS};
 use crate::merge::pair::score::{score_both, Counts, Probe};
@@ -83,9 +83,10 @@ pub(in crate::merge) fn coarse_hypotheses(
         Fft2::new(&mut planner, n, false),
         Fft2::new(&mut planner, n, true),
     );
-    let spectrum = |m: &[f32], w, h| {
+    let mut scratch = zeros(n);
+    let mut spectrum = |m: &[f32], w, h| {
         let mut c = padded(m, w, h, n);
-        fwd.run(&mut c);
+        fwd.run(&mut c, &mut scratch);
         c
     };
     let fb_wall_dil = spectrum(&dc.cwall_dil, dc.cw, dc.ch);
@@ -114,7 +115,7 @@ pub(in crate::merge) fn coarse_hypotheses(
     let spectrum_of = |theta: f64| -> Vec<Complex32> {
         let (c, s) = cs(theta);
         // src's coarse masks turned by theta about their centre into a diag x diag canvas.
-        let mut z = vec![Complex32::new(0.0, 0.0); n * n];
+        let mut z = zeros(n);
         for j in 0..diag {
             for i in 0..diag {
                 let (dx, dy) = (i as f64 - cr.0, j as f64 - cr.1);
@@ -126,20 +127,21 @@ pub(in crate::merge) fn coarse_hypotheses(
                 }
             }
         }
-        fwd.run(&mut z);
+        // The spectrum's buffer is the FFT's scratch first: a task holds no more buffers than before.
+        let mut out = zeros(n);
+        fwd.run(&mut z, &mut out);
         let half_c = Complex32::new(0.5, 0.0);
         let minus_half_i = Complex32::new(0.0, -0.5);
-        (0..n * n)
-            .map(|idx| {
-                let (ky, kx) = (idx / n, idx % n);
-                let mirror = ((n - ky) % n) * n + (n - kx) % n;
-                let (zk, zm) = (z[idx], z[mirror].conj());
-                let fa1 = (zk + zm) * half_c; // walls
-                let fa2 = (zk - zm) * minus_half_i; // free cells
-                                                    // corr(s) = sum_q src(q) dst(q + s) = IFFT(conj(FA) FB).
-                fa1.conj() * fb1[idx] - fa2.conj() * fb_wall[idx] * LAMBDA
-            })
-            .collect()
+        for (idx, o) in out.iter_mut().enumerate() {
+            let (ky, kx) = (idx / n, idx % n);
+            let mirror = ((n - ky) % n) * n + (n - kx) % n;
+            let (zk, zm) = (z[idx], z[mirror].conj());
+            let fa1 = (zk + zm) * half_c; // walls
+            let fa2 = (zk - zm) * minus_half_i; // free cells
+                                                // corr(s) = sum_q src(q) dst(q + s) = IFFT(conj(FA) FB).
+            *o = fa1.conj() * fb1[idx] - fa2.conj() * fb_wall[idx] * LAMBDA;
+        }
+        out
     };
     // Each rotation's correlation, kept when corner hypotheses are scored on it.
     let want_corners = hypotheses.detector().is_some();
@@ -152,13 +154,19 @@ pub(in crate::merge) fn coarse_hypotheses(
         .par_iter()
         .map(|&h| {
             let mut both = spectrum_of(thetas[h]);
-            if let Some(&second) = thetas.get(h + 1) {
-                let second = spectrum_of(second);
-                for (a, b) in both.iter_mut().zip(&second) {
-                    *a += b * Complex32::new(0.0, 1.0);
+            // The second rotation's spectrum, once added in, is the inverse FFT's scratch.
+            let mut scratch = match thetas.get(h + 1) {
+                Some(&second) => {
+                    let second = spectrum_of(second);
+                    for (a, b) in both.iter_mut().zip(&second) {
+                        *a += b * Complex32::new(0.0, 1.0);
+                    }
+                    second
                 }
-            }
-            inv.run(&mut both);
+                None => zeros(n),
+            };
+            inv.run(&mut both, &mut scratch);
+            drop(scratch);
             let (mut peaks_found, mut maps) = (Vec::new(), Vec::new());
             for (which, theta) in thetas[h..(h + 2).min(thetas.len())].iter().enumerate() {
                 let (c, s) = cs(*theta);

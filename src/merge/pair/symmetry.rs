@@ -17,7 +17,7 @@ use rustfft::num_complex::Complex32;
 use rustfft::FftPlanner;
 
 use crate::merge::pair::coarse::cells_to_crop;
-use crate::merge::pair::fft::{padded, Fft2, FINE_FFT};
+use crate::merge::pair::fft::{padded, zeros, Fft2, FINE_FFT};
 use crate::merge::pair::prepare::{Coarse, Prepared};
 use crate::merge::transform::{signed_deg as signed, Rigid};
 
@@ -131,7 +131,7 @@ impl<'a> Sweep<'a> {
             .map(|(w, f)| w - f)
             .collect();
         let mut target = padded(&contrast, c.cw, c.ch, n);
-        fwd.run(&mut target);
+        fwd.run(&mut target, &mut zeros(n));
         for v in &mut target {
             *v = v.conj();
         }
@@ -159,7 +159,7 @@ impl<'a> Sweep<'a> {
         let centre = ((c.cw as f64 - 1.0) / 2.0, (c.ch as f64 - 1.0) / 2.0);
         let mid = (diag as f64 - 1.0) / 2.0;
         // The wall cells turned by theta about the map's centre into a diag x diag canvas (nearest cell).
-        let mut z = vec![Complex32::new(0.0, 0.0); n * n];
+        let mut z = zeros(n);
         let mut kept = 0.0f64;
         for j in 0..diag {
             for i in 0..diag {
@@ -178,11 +178,12 @@ impl<'a> Sweep<'a> {
         if kept == 0.0 {
             return (0.0, 0);
         }
-        self.fwd.run(&mut z);
+        let mut scratch = zeros(n);
+        self.fwd.run(&mut z, &mut scratch);
         for (v, t) in z.iter_mut().zip(&self.target) {
             *v *= t;
         }
-        self.inv.run(&mut z);
+        self.inv.run(&mut z, &mut scratch);
         let (at, peak) =
             z.iter().enumerate().fold(
                 (0, 0.0f32),
