@@ -583,10 +583,11 @@ def fig_gpu_lavapipe(r):
                   "--backend", "gpu", "--repeat", "5")
     rows = []
     for x in ogm["records"] + base["records"]:
+        launches = [("-" if x.get(k) is None else str(x[k])) for k in ("write_passes", "dispatches")]
         rows.append([f"{x['width']}^2", x["detector"], x["stage"], f"{x['median_ms']:.1f}",
-                     f"{x['mpx_per_s']:.0f}"])
+                     f"{x['mpx_per_s']:.0f}"] + launches)
     return (f"Adapter: {ogm['gpu']}.\n\n"
-            + table(["size", "detector", "stage", "median ms", "Mpx/s"], rows))
+            + table(["size", "detector", "stage", "median ms", "Mpx/s", "write passes", "dispatches"], rows))
 
 
 def fig_opencv(r):

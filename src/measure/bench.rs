@@ -99,6 +99,11 @@ pub struct BenchRecord {
     /// With `--bandwidth`, CPU backends: the map's pixels a second (one byte each) as a percentage of the
     /// `read` record's GB/s, the plain read of the same bytes on the same threads in the same run.
     pub read_percent: Option<f64>,
+    /// GPU `end_to_end` and `kernel_resident`: the most write passes a timed run took (passes over the
+    /// map's tiles writing the keypoint list; one unless the list outgrew the buffer or the pass limit).
+    pub write_passes: Option<usize>,
+    /// GPU `end_to_end` and `kernel_resident`: the most compute dispatches a timed run recorded for the map.
+    pub dispatches: Option<usize>,
     pub keypoints: usize,
     /// Peak resident memory of the process while this stage ran (CPU backends, Linux), map included.
     pub peak_rss_mb: Option<f64>,
@@ -370,6 +375,8 @@ impl Runner {
             peak_percent: None,
             vs_upload_ref: None,
             read_percent: Some(100.0),
+            write_passes: None,
+            dispatches: None,
             keypoints: 0,
             peak_rss_mb: None,
             peak_rss_ratio: None,
@@ -528,6 +535,8 @@ impl Runner {
             peak_percent: None,
             vs_upload_ref: None,
             read_percent: None,
+            write_passes: None,
+            dispatches: None,
             keypoints: n,
             peak_rss_mb: mem.map(|m| m.peak_mb),
             peak_rss_ratio: mem.map(|m| m.peak_mb * 1e6 / (f64::from(w) * f64::from(h))),
@@ -570,15 +579,22 @@ impl Runner {
                     .gpu
                     .as_mut()
                     .ok_or_else(|| Error::Internal("GPU backend not open".into()))?;
-                let mut kernel = Vec::new();
+                let (mut kernel, mut launches) = (Vec::new(), Vec::new());
                 let (kps, ms, _) = timed(repeat, || {
                     let kps = end_to_end(&mut *g)?;
-                    if let Some(k) = g.stats().kernel_time {
+                    let s = g.stats();
+                    if let Some(k) = s.kernel_time {
                         kernel.push(k.as_secs_f64() * 1e3);
                     }
+                    launches.push((s.write_passes, s.dispatches));
                     Ok(kps)
                 })?;
-                records.push(record("end_to_end", ms, None, kps.len()));
+                // The timed runs' (the warm-up's is first): the warm-up may grow the buffers.
+                let most = |f: fn(&(usize, usize)) -> usize| launches.iter().skip(1).map(f).max();
+                let (passes, dispatches) = (most(|l| l.0), most(|l| l.1));
+                let mut r = record("end_to_end", ms, None, kps.len());
+                (r.write_passes, r.dispatches) = (passes, dispatches);
+                records.push(r);
                 let e2e = records.len() - 1;
                 // The warm-up's kernel time is the first entry; the median uses the timed runs only.
                 // The robust detector dispatches dozens of kernels between host stages, and the stats
@@ -595,6 +611,7 @@ impl Runner {
                         .peak_gbs
                         .zip(r.gb_per_s)
                         .map(|(peak, got)| 100.0 * got / peak);
+                    (r.write_passes, r.dispatches) = (passes, dispatches);
                     records.push(r);
                 } else if kernel_row {
                     crate::say!(

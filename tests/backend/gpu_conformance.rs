@@ -288,6 +288,61 @@ fn output_grows_and_splits_instead_of_truncating() {
     assert!(gpu.stats().keypoint_capacity >= got.len() as u64 && got.len() > 1);
 }
 
+/// The keypoint buffer grows to the whole list, not to what was left of it: after one call on a map, a
+/// call on a map like it writes its list in one pass, tiled or not, at odd sizes and past a scan level. The
+/// dispatches a map costs are printed and asserted: four a tile (detect, the scan's one level, scatter,
+/// finish), two more when a tile's counts need a second scan level.
+#[test]
+fn a_map_is_written_in_one_pass_once_the_buffer_has_grown() {
+    let classes = ClassTable::default();
+    let rules = RuleTable::new(RuleSet::Paper);
+    for (w, h, tile, per_tile) in [
+        (301, 199, None, 4),
+        (97, 61, None, 4),
+        (301, 199, Some((64, 32)), 4),
+        (200, 2100, None, 6),
+    ] {
+        let Some(mut gpu) = common::gpu_backend(GpuOptions {
+            initial_keypoint_capacity: 1,
+            tile,
+            ..GpuOptions::default()
+        }) else {
+            return;
+        };
+        let img = common::random_map(w, h, u64::from(w + h));
+        let want = ReferenceBackend
+            .detect(&img, &classes, &rules, false)
+            .unwrap();
+        assert_eq!(gpu.detect(&img, &classes, &rules, false).unwrap(), want);
+        let first = gpu.stats();
+        assert_eq!(gpu.detect(&img, &classes, &rules, false).unwrap(), want);
+        let s = gpu.stats();
+        println!(
+            "{w}x{h} tile {tile:?}: {} keypoints, {} tiles; first call {} write passes, {} dispatches; \
+             then {} and {}",
+            want.len(),
+            s.tiles,
+            first.write_passes,
+            first.dispatches,
+            s.write_passes,
+            s.dispatches
+        );
+        assert!(
+            want.len() > 1,
+            "{w}x{h}: too few keypoints to grow the buffer"
+        );
+        assert!(first.write_passes <= 2, "{w}x{h}: {first:?}");
+        assert_eq!(s.write_passes, 1, "{w}x{h} tile {tile:?}: {s:?}");
+        assert_eq!(
+            s.dispatches,
+            per_tile * s.tiles,
+            "{w}x{h} tile {tile:?}: {s:?}"
+        );
+        assert!(s.keypoint_capacity >= want.len() as u64);
+        assert_eq!(tile.is_some(), s.tiles > 1, "{s:?}");
+    }
+}
+
 #[test]
 fn the_backend_is_reused_across_maps() {
     let Some(mut gpu) = common::gpu_backend(GpuOptions::default()) else {

@@ -571,6 +571,22 @@ fn bench_sizes_and_maps_in_one_run_and_the_gpu_rows() {
             .iter()
             .filter(|r| r["backend"] == "gpu")
             .all(|r| r["peak_rss_mb"].is_null() && r["gb_per_s"].as_f64().unwrap() > 0.0));
+        // One write pass a map (its list fits the buffer the warm-up grew), and what it dispatched: the
+        // OGM detector's 64 x 64 map is one tile of four kernels.
+        for r in recs.iter().filter(|r| {
+            r["backend"] == "gpu" && (r["stage"] == "end_to_end" || r["stage"] == "kernel_resident")
+        }) {
+            assert_eq!(r["write_passes"], 1, "{r}");
+            let d = r["dispatches"].as_u64().unwrap();
+            assert!(
+                if r["detector"] == "ogm" {
+                    d == 4
+                } else {
+                    d > 4
+                },
+                "{r}"
+            );
+        }
         // End to end is reported against the transfer floor.
         assert!(recs
             .iter()

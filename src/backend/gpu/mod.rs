@@ -117,10 +117,15 @@ impl Default for GpuOptions {
 pub struct GpuStats {
     /// Tiles the map was split into.
     pub tiles: usize,
-    /// Write passes run (more than the tiles with keypoints when the output exceeded one pass).
+    /// Write passes run: passes writing the keypoint list, one a slab of rows for the OGM detector (each
+    /// over all the slab's tiles), one a tile for the baselines; more when a list outgrew its buffer (it
+    /// then grows to the whole list, so a later call on a like map takes one).
     pub write_passes: usize,
     /// OGM runs repeated because a workgroup found more keypoints than its scratch held.
     pub scratch_reruns: usize,
+    /// Compute dispatches the call recorded (every kernel and every level of the prefix scans, over all
+    /// its tiles and passes): with `write_passes`, what one map costs in GPU launches.
+    pub dispatches: usize,
     /// Keypoint buffer capacity after the call, in keypoints.
     pub keypoint_capacity: u64,
     /// Kernel time measured on the GPU (timestamp queries), when the adapter supports it.
@@ -390,12 +395,13 @@ impl GpuBackend {
     /// Records one compute pass per (pipeline, bind group, workgroups); the first pass writes the start
     /// timestamp and the last the end one, so the kernels' time covers them all.
     fn encode(
-        &self,
+        &mut self,
         dispatches: &[(&wgpu::ComputePipeline, &wgpu::BindGroup, (u32, u32))],
     ) -> wgpu::CommandEncoder {
         let mut encoder = self.device.create_command_encoder(&Default::default());
         let ts = self.timestamps.as_ref().map(|t| &t.0);
         let last = dispatches.len().saturating_sub(1);
+        self.stats.dispatches += dispatches.len();
         for (n, (pipeline, bind_group, (gx, gy))) in dispatches.iter().enumerate() {
             let mut pass = Self::pass(&mut encoder, ts, n == 0, n == last);
             pass.set_pipeline(pipeline);

@@ -358,7 +358,7 @@ impl GpuBackend {
             pass.set_pipeline(&self.ogm.detect);
             pass.set_bind_group(0, &sb.detect, &[]);
             pass.dispatch_workgroups(p.groups_x, strips, 1);
-            scan.encode(
+            self.stats.dispatches += 3 + scan.encode(
                 &mut pass,
                 &self.ogm.scan_blocks,
                 &self.ogm.scan_add,
@@ -554,12 +554,12 @@ impl GpuBackend {
                 if total <= window.1 {
                     break;
                 }
-                // The list outgrew the buffer: grow it (within the pass limit) and write the next window.
+                // The list outgrew the buffer: grow it to the whole list (within the pass limit), so the
+                // next call on a map like this one writes it in one pass, and write the next window.
                 start = window.1;
-                let rest = u64::from(total - start);
                 self.ogm_bufs.keypoints.get(
                     &self.device,
-                    rest.min(u64::from(per_pass)) * KEYPOINT_BYTES,
+                    u64::from(total.min(per_pass)) * KEYPOINT_BYTES,
                     u64::from(per_pass) * KEYPOINT_BYTES,
                 );
             }

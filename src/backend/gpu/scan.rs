@@ -77,7 +77,7 @@ impl ScanPlan {
         add: &wgpu::ComputePipeline,
         binds: &[wgpu::BindGroup],
         max_groups: u32,
-    ) {
+    ) -> usize {
         let shape = |n: u32| {
             let groups = (u64::from(n).div_ceil(BLOCK) as u32).max(1);
             let gx = groups.min(max_groups);
@@ -95,6 +95,7 @@ impl ScanPlan {
             pass.set_bind_group(0, &binds[k], &[]);
             pass.dispatch_workgroups(gx, gy, 1);
         }
+        2 * self.levels.len() - 1
     }
 }
 
@@ -176,7 +177,7 @@ impl GpuBackend {
         let mut encoder = self.device.create_command_encoder(&Default::default());
         {
             let mut pass = encoder.begin_compute_pass(&Default::default());
-            plan.encode(
+            let _ = plan.encode(
                 &mut pass,
                 &self.ogm.scan_blocks,
                 &self.ogm.scan_add,

@@ -206,7 +206,8 @@ impl GpuBackend {
             pass.set_pipeline(&st.count);
             pass.set_bind_group(0, &bg_count, &[]);
             pass.dispatch_workgroups(gx, gy, 1);
-            scan.encode(
+            self.stats.write_passes += 1;
+            self.stats.dispatches += 3 + scan.encode(
                 &mut pass,
                 &self.ogm.scan_blocks,
                 &self.ogm.scan_add,
@@ -235,9 +236,10 @@ impl GpuBackend {
         let mut start = 0u32;
         while start < total {
             if start > 0 || total > params.out_end {
-                // The list outgrew the buffer: grow it and scatter the next window again (the scores and
-                // the scanned counts are still on the device).
-                let want = u64::from((total - start).min(per_pass)) * CANDIDATE_BYTES;
+                // The list outgrew the buffer: grow it to the whole list (the next tile or call writes it in
+                // one pass) and scatter the next window again (the scores and the scanned counts are
+                // still on the device).
+                let want = u64::from(total.min(per_pass)) * CANDIDATE_BYTES;
                 let out = st
                     .out
                     .get(&device, want, u64::from(per_pass) * CANDIDATE_BYTES)
@@ -261,6 +263,7 @@ impl GpuBackend {
                 }
                 self.queue.submit([encoder.finish()]);
                 self.stats.write_passes += 1;
+                self.stats.dispatches += 1;
             }
             let len = total.min(params.out_end) - start;
             let bytes = u64::from(len) * CANDIDATE_BYTES;
