@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The GPU check on a machine with a real GPU, in one command and under 5 minutes: the Vulkan loader, the
 # adapter, CPU = GPU on real maps and every synthetic size (bench fails when any backend's keypoints differ
-# from the others'), the bench stages (kernel_resident, upload, upload_ref, end_to_end) at 4096^2, 16384^2
+# from the others'), the bench stages (kernel_resident, upload, upload_ref, transfer_floor, end_to_end, with
+# the write passes and dispatches a map took) at 4096^2, 16384^2
 # and 65536^2, and the conformance tests when their binary is given. Everything goes to one folder.
 #
 #   scripts/gpu-bench.sh [OUT_DIR] [MAP_DIR...]

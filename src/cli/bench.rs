@@ -310,7 +310,7 @@ pub(super) fn bench(a: BenchArgs, budget: &Budget) -> Result<()> {
             ));
         }
         lines.push(format!(
-            "{:<label_w$}  {:<11}  {:<10}  {:<9}  {:<15}  {:>10}  {:>9}  {:>9}  {:>9}  {:>6}  {:>8}  {:>8}  {:>6}  {:>6}  {:>6}  {:>6}  {:>10}",
+            "{:<label_w$}  {:<11}  {:<10}  {:<9}  {:<15}  {:>10}  {:>9}  {:>9}  {:>9}  {:>6}  {:>8}  {:>8}  {:>6}  {:>6}  {:>7}  {:>6}  {:>6}  {:>10}",
             "map",
             "size",
             "detector",
@@ -325,6 +325,7 @@ pub(super) fn bench(a: BenchArgs, budget: &Budget) -> Result<()> {
             "GB/s",
             "% peak",
             "x ref",
+            "x floor",
             "% read",
             "passes",
             "dispatches"
@@ -395,7 +396,7 @@ pub(super) fn bench(a: BenchArgs, budget: &Budget) -> Result<()> {
                     };
                     writeln!(
                         out,
-                        "{:<label_w$}  {:<11}  {:<10}  {:<9}  {:<15}  {:>10.3}  {:>9.1}  {:>9}  {:>9}  {:>6}  {:>8}  {:>8}  {:>6}  {:>6}  {:>6}  {:>6}  {:>10}",
+                        "{:<label_w$}  {:<11}  {:<10}  {:<9}  {:<15}  {:>10.3}  {:>9.1}  {:>9}  {:>9}  {:>6}  {:>8}  {:>8}  {:>6}  {:>6}  {:>7}  {:>6}  {:>6}  {:>10}",
                         r.map,
                         format!("{}x{}", r.width, r.height),
                         r.detector,
@@ -410,6 +411,7 @@ pub(super) fn bench(a: BenchArgs, budget: &Budget) -> Result<()> {
                         f(r.gb_per_s, 2),
                         f(r.peak_percent, 1),
                         f(r.vs_upload_ref, 2),
+                        f(r.vs_transfer_floor, 2),
                         f(r.read_percent, 1),
                         r.write_passes.map_or("-".to_string(), |v| v.to_string()),
                         r.dispatches.map_or("-".to_string(), |v| v.to_string())

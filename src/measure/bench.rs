@@ -84,8 +84,9 @@ pub struct BenchRecord {
     /// `end_to_end` (image in memory to keypoints in memory); `kernel` (the reference's work before
     /// keypoint selection); on a GPU `kernel_resident` (timestamp queries around the kernels alone, the
     /// map's band already on the device), `upload` (the bands through the staging ring as the backend
-    /// uploads them, alone) and `upload_ref` (the same bands copied from staging buffers filled
-    /// beforehand: the transfer floor).
+    /// uploads them, alone), `upload_ref` (the same bands copied from staging buffers filled
+    /// beforehand) and `transfer_floor` (the same bands copied by the device from host memory: the
+    /// bus alone, where the device can copy from host buffers).
     pub stage: &'static str,
     pub median_ms: f64,
     pub mpx_per_s: f64,
@@ -94,8 +95,12 @@ pub struct BenchRecord {
     /// `gb_per_s` as a percentage of the device's peak memory bandwidth (`--peak-bandwidth`, or the
     /// known figure for the adapter), for `kernel_resident`.
     pub peak_percent: Option<f64>,
-    /// GPU `end_to_end` over `upload_ref`: how far end to end is from the transfer floor.
+    /// GPU `end_to_end` over `upload_ref` (a copy from filled staging buffers, within the device where
+    /// they are device memory).
     pub vs_upload_ref: Option<f64>,
+    /// GPU `end_to_end` over `transfer_floor`: how far end to end is from moving the map's bytes from
+    /// host memory into the device alone.
+    pub vs_transfer_floor: Option<f64>,
     /// With `--bandwidth`, CPU backends: the map's pixels a second (one byte each) as a percentage of the
     /// `read` record's GB/s, the plain read of the same bytes on the same threads in the same run.
     pub read_percent: Option<f64>,
@@ -374,6 +379,7 @@ impl Runner {
             gb_per_s: Some(gbs),
             peak_percent: None,
             vs_upload_ref: None,
+            vs_transfer_floor: None,
             read_percent: Some(100.0),
             write_passes: None,
             dispatches: None,
@@ -534,6 +540,7 @@ impl Runner {
             gb_per_s: (engine == Engine::Gpu).then(|| mpx / 1e3 / (ms / 1e3)),
             peak_percent: None,
             vs_upload_ref: None,
+            vs_transfer_floor: None,
             read_percent: None,
             write_passes: None,
             dispatches: None,
@@ -634,6 +641,23 @@ impl Runner {
                 records[e2e].vs_upload_ref = Some(records[e2e].median_ms / floor);
                 records.push(record("upload", median(up), None, kps.len()));
                 records.push(record("upload_ref", floor, None, kps.len()));
+                if g.transfer_floor_time(image)?.is_some() {
+                    let mut bus = Vec::with_capacity(repeat as usize);
+                    for _ in 0..repeat {
+                        if let Some(t) = g.transfer_floor_time(image)? {
+                            bus.push(t.as_secs_f64() * 1e3);
+                        }
+                    }
+                    let bus = median(bus);
+                    records[e2e].vs_transfer_floor = Some(records[e2e].median_ms / bus);
+                    records.push(record("transfer_floor", bus, None, kps.len()));
+                } else {
+                    crate::say!(
+                        "ogm-corners: {}: {} cannot copy from host buffers; no transfer_floor row",
+                        self.cmd,
+                        g.adapter().name
+                    );
+                }
                 kps
             }
         };

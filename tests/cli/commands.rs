@@ -559,6 +559,7 @@ fn bench_sizes_and_maps_in_one_run_and_the_gpu_rows() {
                 ("gpu", "kernel_resident"),
                 ("gpu", "upload"),
                 ("gpu", "upload_ref"),
+                ("gpu", "transfer_floor"),
             ] {
                 assert!(
                     recs.iter()
@@ -591,7 +592,8 @@ fn bench_sizes_and_maps_in_one_run_and_the_gpu_rows() {
         assert!(recs
             .iter()
             .filter(|r| r["backend"] == "gpu" && r["stage"] == "end_to_end")
-            .all(|r| r["vs_upload_ref"].as_f64().unwrap() > 0.0));
+            .all(|r| r["vs_upload_ref"].as_f64().unwrap() > 0.0
+                && r["vs_transfer_floor"].as_f64().unwrap() > 0.0));
     }
 }
 

@@ -162,6 +162,8 @@ pub struct GpuBackend {
     blurred: Slot,
     tensor: Slot,
     scores: Slot,
+    /// The device copies from buffers in host memory (`MAPPABLE_PRIMARY_BUFFERS`): the transfer floor.
+    host_copies: bool,
 }
 
 impl GpuBackend {
@@ -197,6 +199,14 @@ impl GpuBackend {
         let native_int64 = report.shader_int64 && !options.emulate_int64;
         if native_int64 {
             features |= wgpu::Features::SHADER_INT64;
+        }
+        // Buffers in host memory that the GPU copies from: bench's transfer floor (profile.rs) alone
+        // makes them; detection never does.
+        let host_copies = adapter
+            .features()
+            .contains(wgpu::Features::MAPPABLE_PRIMARY_BUFFERS);
+        if host_copies {
+            features |= wgpu::Features::MAPPABLE_PRIMARY_BUFFERS;
         }
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("ogm-corners"),
@@ -274,6 +284,7 @@ impl GpuBackend {
             error,
             stats: GpuStats::default(),
             staging: Vec::new(),
+            host_copies,
         };
         backend.check()?;
         Ok(backend)

@@ -35,9 +35,36 @@ impl GpuBackend {
         Ok(start.elapsed())
     }
 
-    /// The transfer floor: the same bands copied from staging buffers that are already filled (no host
-    /// work at all), one submission per band, waited for.
+    /// The same bands copied from staging buffers that are already filled (no host work at all), one
+    /// submission per band, waited for. Not a bus transfer on a discrete GPU with a resizable BAR: its
+    /// mappable staging memory is then device memory (wgpu's allocator prefers host-visible device-local
+    /// memory for buffers the host writes), so this times a copy within the device.
     pub fn upload_ref_time(&mut self, image: &MapImage) -> Result<Duration> {
+        let usage = wgpu::BufferUsages::MAP_WRITE | wgpu::BufferUsages::COPY_SRC;
+        self.copy_bands_time(image, usage, "upload_ref staging")
+    }
+
+    /// The transfer floor: the same bands copied by the device from buffers in host memory to its own
+    /// (buffers the host only reads back are placed in host-cached system memory, and the copy moves
+    /// them across the bus by DMA), one submission per band, waited for; no host work. `None` when the
+    /// device cannot copy from such buffers (`MAPPABLE_PRIMARY_BUFFERS`).
+    pub fn transfer_floor_time(&mut self, image: &MapImage) -> Result<Option<Duration>> {
+        if !self.host_copies {
+            return Ok(None);
+        }
+        let usage = wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_SRC;
+        self.copy_bands_time(image, usage, "transfer floor host buffer")
+            .map(Some)
+    }
+
+    /// The time to copy the first slab's bands from two source buffers of `usage` into the device's
+    /// pixel buffers, as the OGM path lays them out.
+    fn copy_bands_time(
+        &mut self,
+        image: &MapImage,
+        usage: wgpu::BufferUsages,
+        label: &str,
+    ) -> Result<Duration> {
         self.check()?;
         let (w, h) = (image.width(), image.height());
         let plan = self.ogm_plan(w, h, 0, h.min(self.ogm_slab(w)))?;
@@ -46,18 +73,22 @@ impl GpuBackend {
             .map(|t| u64::from(t.ogm_pitch()) * u64::from(t.buf_h()))
             .max()
             .unwrap_or(16);
-        let staging: Vec<wgpu::Buffer> = (0..2)
+        let sources: Vec<wgpu::Buffer> = (0..2)
             .map(|_| {
                 let b = self.device.create_buffer(&wgpu::BufferDescriptor {
-                    label: Some("upload_ref staging"),
+                    label: Some(label),
                     size: largest.next_multiple_of(16),
-                    usage: wgpu::BufferUsages::MAP_WRITE | wgpu::BufferUsages::COPY_SRC,
+                    usage,
                     mapped_at_creation: true,
                 });
                 b.unmap();
                 b
             })
             .collect();
+        // Filled before the clock starts: a buffer the host cannot write is filled by a copy wgpu queues
+        // at unmap, which would otherwise run in the first timed submission.
+        self.queue.submit([]);
+        buffers::wait_idle(&self.device)?;
         let start = std::time::Instant::now();
         for (i, t) in plan.iter().enumerate() {
             let bytes = u64::from(t.ogm_pitch()) * u64::from(t.buf_h());
@@ -65,7 +96,7 @@ impl GpuBackend {
                 .get(&self.device, bytes, self.max_binding)
                 .clone();
             let mut encoder = self.device.create_command_encoder(&Default::default());
-            encoder.copy_buffer_to_buffer(&staging[i % 2], 0, &pixels, 0, bytes);
+            encoder.copy_buffer_to_buffer(&sources[i % 2], 0, &pixels, 0, bytes);
             self.queue.submit([encoder.finish()]);
         }
         buffers::wait_idle(&self.device)?;
