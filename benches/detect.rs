@@ -4,7 +4,7 @@
 //! Throughput is in elements = pixels, so criterion's "elem/s" are pixels per second.
 //!
 //! Benchmark ids are `MAP-WxH/DETECTOR/BACKEND`, e.g. `synthetic-4096x4096/harris/cpu`; a filter runs a
-//! subset: `cargo bench --bench detect -- synthetic-1024x1024`.
+//! subset: `cargo bench -p ogm-corners-benches -- synthetic-1024x1024`.
 //!
 //! - The real maps come from `$OGM_MAPS_DIR`, else `../shared/maps` beside the project; a line says so when
 //!   the folder is missing.
@@ -28,8 +28,8 @@ use ogm_corners::{
     Backend, Baseline, BaselineParams, ClassTable, DetectorKind, OccupancyMap, RuleSet, RuleTable,
 };
 
-#[path = "../tests/common/mod.rs"]
-mod common;
+#[path = "../tests/common/maps.rs"]
+mod maps;
 
 const SIZES: [u32; 3] = [1024, 4096, 16384];
 
@@ -88,7 +88,7 @@ fn engines() -> Vec<Engine> {
 fn shared_maps() -> Vec<(String, PathBuf)> {
     let dir = std::env::var_os("OGM_MAPS_DIR")
         .map(PathBuf::from)
-        .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/maps"));
+        .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/maps"));
     if !dir.is_dir() {
         println!(
             "detect bench: NO REAL-MAP ROWS: the shared maps folder {} is missing (set OGM_MAPS_DIR)",
@@ -97,7 +97,7 @@ fn shared_maps() -> Vec<(String, PathBuf)> {
         return Vec::new();
     }
     let mut seen = std::collections::HashMap::new();
-    common::real_maps(&dir)
+    maps::real_maps(&dir)
         .into_iter()
         .map(|p| {
             // ROS's usual map.yaml is named after its folder.

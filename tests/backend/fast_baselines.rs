@@ -395,7 +395,7 @@ fn every_shared_map() {
     let Some(dir) = common::shared_maps() else {
         return;
     };
-    let maps = common::real_maps(&dir);
+    let maps = common::maps::real_maps(&dir);
     assert!(
         maps.len() >= 20,
         "expected the shared maps, found {}",

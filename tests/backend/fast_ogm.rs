@@ -173,7 +173,7 @@ fn real_shared_maps() {
     let Some(dir) = common::shared_maps() else {
         return;
     };
-    let maps = common::real_maps(&dir);
+    let maps = common::maps::real_maps(&dir);
     assert!(!maps.is_empty(), "no maps under {}", dir.display());
     for path in maps {
         let map = OccupancyMap::load(&path).unwrap();

@@ -372,7 +372,7 @@ fn every_real_map() {
         ..GpuOptions::default()
     })
     .unwrap();
-    for p in common::real_maps(&dir) {
+    for p in common::maps::real_maps(&dir) {
         let map = OccupancyMap::load(&p).unwrap();
         let name = p.display().to_string();
         assert_same(&mut gpu, &map.image, &map.thresholds, &name);
@@ -582,7 +582,7 @@ fn baselines_on_every_real_map() {
         return;
     };
     let mut gpu_det = ogm_corners::Detector::with_backend(Default::default(), Box::new(gpu));
-    for p in common::real_maps(&dir) {
+    for p in common::maps::real_maps(&dir) {
         let map = OccupancyMap::load(&p).unwrap();
         for kind in BASELINES {
             let opts = ogm_corners::DetectOptions {

@@ -61,7 +61,7 @@ fn harris_and_shi_tomasi_agree_with_opencv_on_real_maps() {
     let Some(py) = python() else { return };
     let tmp = std::env::temp_dir().join(format!("ogm-opencv-{}", std::process::id()));
     std::fs::create_dir_all(&tmp).unwrap();
-    let maps = common::real_maps(&dir);
+    let maps = common::maps::real_maps(&dir);
     let mut inputs = Vec::new();
     let mut loaded = Vec::new();
     for (i, p) in maps.iter().enumerate() {

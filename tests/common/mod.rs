@@ -3,6 +3,7 @@
 
 use std::path::PathBuf;
 
+pub mod maps;
 pub mod run;
 
 use ogm_corners::map::synthetic::{FREE, OCCUPIED, UNKNOWN};
@@ -158,43 +159,6 @@ fn shared_dir(
     }
     eprintln!("SKIPPED: {msg}");
     None
-}
-
-/// Every map under `dir`: each yaml, and each image that no yaml names.
-pub fn real_maps(dir: &std::path::Path) -> Vec<PathBuf> {
-    let mut files = Vec::new();
-    let mut stack = vec![dir.to_path_buf()];
-    while let Some(d) = stack.pop() {
-        for e in std::fs::read_dir(&d).unwrap() {
-            let p = e.unwrap().path();
-            if p.is_dir() {
-                stack.push(p);
-            } else {
-                files.push(p);
-            }
-        }
-    }
-    files.sort();
-    let ext = |p: &PathBuf| {
-        p.extension()
-            .and_then(|e| e.to_str())
-            .unwrap_or("")
-            .to_string()
-    };
-    let yamls: Vec<PathBuf> = files.iter().filter(|p| ext(p) == "yaml").cloned().collect();
-    let named: Vec<PathBuf> = yamls
-        .iter()
-        .filter_map(|y| OccupancyMap::load(y).ok().and_then(|m| m.image_path))
-        .map(|p| p.canonicalize().unwrap())
-        .collect();
-    let mut maps = yamls;
-    for p in files {
-        if matches!(ext(&p).as_str(), "pgm" | "png") && !named.contains(&p.canonicalize().unwrap())
-        {
-            maps.push(p);
-        }
-    }
-    maps
 }
 
 /// A GPU backend for conformance tests, or None with a loud message. Under CI=true a missing adapter is

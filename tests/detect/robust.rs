@@ -344,7 +344,7 @@ fn quarter_turns_and_mirrors_give_exactly_the_turned_keypoints() {
         )
     }));
     if let Some(dir) = common::shared_maps() {
-        for p in common::real_maps(&dir).into_iter().take(8) {
+        for p in common::maps::real_maps(&dir).into_iter().take(8) {
             let map = OccupancyMap::load(&p).unwrap();
             maps.push((p.display().to_string(), map.image, false));
         }

@@ -249,7 +249,7 @@ fn real_maps_stream_to_their_keypoints() {
     let Some(dir) = common::shared_maps() else {
         return;
     };
-    let maps = common::real_maps(&dir);
+    let maps = common::maps::real_maps(&dir);
     assert!(maps.len() >= 10, "{} maps", maps.len());
     for path in maps {
         let map = OccupancyMap::load(&path).unwrap();
