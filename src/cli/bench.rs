@@ -224,21 +224,102 @@ pub(super) fn bench(a: BenchArgs, budget: &Budget) -> Result<()> {
     };
     super::check_stdout()?;
     // Every size and path is checked before anything is printed or measured.
-    for &(w, h) in &sizes {
+    check_sizes(&sizes, &kinds, budget)?;
+    let mut inputs = Inputs::new();
+    let (sources, mut problems) = sources_of(&a.maps, &sizes, &mut inputs)?;
+    let saves = save_paths(a.save_map.as_deref(), &sizes, a.seed)?;
+    for s in saves.iter().flatten() {
+        inputs.claim_output(s, "--save-map")?;
+    }
+    let mut runner = Runner::new(
+        "bench",
+        &a.backend,
+        a.repeat,
+        a.rules.into(),
+        a.baseline.params(),
+    )?;
+    runner.set_peak_bandwidth(a.peak_bandwidth);
+    let label_w = sources
+        .iter()
+        .map(|s| match s {
+            Source::Synthetic(..) => "synthetic".len(),
+            Source::File(p) => map_name(p).len(),
+        })
+        .max()
+        .unwrap_or(0)
+        .max(3);
+    let text = a.format == TextOrJson::Text;
+    if text {
+        print_header(&runner, &a, !sizes.is_empty(), label_w)?;
+    }
+    let mut all = Vec::new();
+    let mut synthetic = 0;
+    for src in sources {
+        let bm = match src {
+            Source::Synthetic(w, h) => {
+                synthetic += 1;
+                synthetic_map(w, h, a.seed, saves[synthetic - 1].clone())?
+            }
+            Source::File(p) => {
+                match OccupancyMap::load_within(&p, budget, &|w, h| bench_bytes(&kinds, w, h)) {
+                    Ok(map) => BenchMap::from_file(&p, map),
+                    // One bad map does not end the measurement of the others; the run fails at the end.
+                    Err(e) => {
+                        ogm_corners::say!("ogm-corners: error: {e}");
+                        problems += 1;
+                        continue;
+                    }
+                }
+            }
+        };
+        let records = measure(&mut runner, bm, &kinds, a.bandwidth)?;
+        if text {
+            print_records(&records, label_w)?;
+        } else {
+            all.extend(records);
+        }
+    }
+    if !text {
+        write_json(&runner, a.repeat, &all)?;
+    }
+    match problems {
+        0 => Ok(()),
+        // A problem is a map that could not be read, or a folder with none: said above, each.
+        1 => Err(Error::invalid(
+            "1 input could not be used and was skipped (see above); the others were measured",
+        )),
+        n => Err(Error::invalid(format!(
+            "{n} inputs could not be used and were skipped (see above); the others were measured"
+        ))),
+    }
+}
+
+/// Each synthetic size is one the generator draws, within the memory budget with its detectors.
+fn check_sizes(sizes: &[(u32, u32)], kinds: &[DetectorKind], budget: &Budget) -> Result<()> {
+    for &(w, h) in sizes {
         synthetic::check_office_size(w, h)?;
         let px = u64::from(w) * u64::from(h);
         budget.check(
             format_args!("bench --size {w}x{h}"),
-            px.saturating_add(bench_bytes(&kinds, w, h)),
+            px.saturating_add(bench_bytes(kinds, w, h)),
         )?;
     }
+    Ok(())
+}
+
+/// The sizes' synthetic maps, then every map file of `paths` (folders searched), each read up to its
+/// header; with the number of inputs that could not be used (each said on standard error).
+fn sources_of(
+    paths: &[PathBuf],
+    sizes: &[(u32, u32)],
+    inputs: &mut Inputs,
+) -> Result<(Vec<Source>, usize)> {
     let mut sources: Vec<Source> = sizes
         .iter()
         .map(|&(w, h)| Source::Synthetic(w, h))
         .collect();
     let mut problems = 0;
-    let mut inputs = Inputs::new();
-    for p in &a.maps {
+    for p in paths {
         if p.is_dir() {
             let found = ogm_corners::map::find_maps(std::slice::from_ref(p));
             for n in found.notes {
@@ -278,182 +359,145 @@ pub(super) fn bench(a: BenchArgs, budget: &Budget) -> Result<()> {
     if sources.is_empty() {
         return Err(Error::invalid("no maps to measure (see above)"));
     }
-    let saves = save_paths(a.save_map.as_deref(), &sizes, a.seed)?;
-    for s in saves.iter().flatten() {
-        inputs.claim_output(s, "--save-map")?;
+    Ok((sources, problems))
+}
+
+/// A synthetic office map of `w` x `h`, written to `saved` when given (`--save-map`).
+fn synthetic_map(w: u32, h: u32, seed: u64, saved: Option<PathBuf>) -> Result<BenchMap> {
+    // Large maps are drawn on all threads so that making them does not dominate the run.
+    let image = if u64::from(w) * u64::from(h) > synthetic::PARALLEL_PIXELS {
+        synthetic::office_map_parallel(w, h, seed)?
+    } else {
+        synthetic::office_map(w, h, seed)?
+    };
+    if let Some(p) = &saved {
+        image.write_pgm(p)?;
+        ogm_corners::say!(
+            "ogm-corners: bench: wrote {}",
+            ogm_corners::support::error::one_line(&p.display().to_string())
+        );
     }
-    let mut runner = Runner::new(
-        "bench",
-        &a.backend,
-        a.repeat,
-        a.rules.into(),
-        a.baseline.params(),
-    )?;
-    runner.set_peak_bandwidth(a.peak_bandwidth);
-    let label_w = sources
-        .iter()
-        .map(|s| match s {
-            Source::Synthetic(..) => "synthetic".len(),
-            Source::File(p) => map_name(p).len(),
-        })
-        .max()
-        .unwrap_or(0)
-        .max(3);
-    let text = a.format == TextOrJson::Text;
-    if text {
-        let mut lines = runner.header((!sizes.is_empty()).then_some(a.seed));
-        if a.bandwidth {
-            lines.push(format!(
-                "# read: a plain read of the map's bytes on all threads ({} loads), timed before and after its \
-                 detectors; % read: a CPU record's pixels a second (one byte each) over the read's bytes a second",
-                ogm_corners::backend::fast::simd::Isa::best().name()
-            ));
-        }
+    Ok(BenchMap {
+        label: "synthetic".to_string(),
+        source: None,
+        image_path: saved,
+        map: OccupancyMap::from_image(image),
+    })
+}
+
+/// Every record of one map, with `--bandwidth` the plain read first; the map is dropped after, so only
+/// one is in memory at a time.
+fn measure(
+    runner: &mut Runner,
+    bm: BenchMap,
+    kinds: &[DetectorKind],
+    bandwidth: bool,
+) -> Result<Vec<BenchRecord>> {
+    let before = bandwidth.then(|| runner.read_times(&bm));
+    let mut records: Vec<BenchRecord> = runner
+        .measure_map(&bm, kinds)?
+        .into_iter()
+        .flat_map(|m| m.records)
+        .collect();
+    if let Some(before) = before {
+        let after = runner.read_times(&bm);
+        let read = runner.read_record(&bm, &[before, after], &mut records);
+        records.insert(0, read);
+    }
+    Ok(records)
+}
+
+/// The text table's header: the machine and build, then the column names.
+fn print_header(runner: &Runner, a: &BenchArgs, synthetic: bool, label_w: usize) -> Result<()> {
+    let mut lines = runner.header(synthetic.then_some(a.seed));
+    if a.bandwidth {
         lines.push(format!(
-            "{:<label_w$}  {:<11}  {:<10}  {:<9}  {:<15}  {:>10}  {:>9}  {:>9}  {:>9}  {:>6}  {:>8}  {:>8}  {:>6}  {:>6}  {:>7}  {:>6}  {:>6}  {:>10}",
-            "map",
-            "size",
-            "detector",
-            "backend",
-            "stage",
-            "median ms",
-            "Mpx/s",
-            "keypoints",
-            "peak MB",
-            "x map",
-            "start MB",
-            "GB/s",
-            "% peak",
-            "x ref",
-            "x floor",
-            "% read",
-            "passes",
-            "dispatches"
+            "# read: a plain read of the map's bytes on all threads ({} loads), timed before and after its \
+             detectors; % read: a CPU record's pixels a second (one byte each) over the read's bytes a second",
+            ogm_corners::backend::fast::simd::Isa::best().name()
         ));
-        write_stdout(|out| {
-            for l in &lines {
-                writeln!(out, "{l}")?;
-            }
-            out.flush()
-        })?;
     }
-    let mut all = Vec::new();
-    let mut synthetic = 0;
-    for src in sources {
-        let bm = match src {
-            Source::Synthetic(w, h) => {
-                // Large maps are drawn on all threads so that making them does not dominate the run.
-                let image = if u64::from(w) * u64::from(h) > synthetic::PARALLEL_PIXELS {
-                    synthetic::office_map_parallel(w, h, a.seed)?
-                } else {
-                    synthetic::office_map(w, h, a.seed)?
-                };
-                let saved = saves[synthetic].clone();
-                synthetic += 1;
-                if let Some(p) = &saved {
-                    image.write_pgm(p)?;
-                    ogm_corners::say!(
-                        "ogm-corners: bench: wrote {}",
-                        ogm_corners::support::error::one_line(&p.display().to_string())
-                    );
-                }
-                BenchMap {
-                    label: "synthetic".to_string(),
-                    source: None,
-                    image_path: saved,
-                    map: OccupancyMap::from_image(image),
-                }
-            }
-            Source::File(p) => {
-                match OccupancyMap::load_within(&p, budget, &|w, h| bench_bytes(&kinds, w, h)) {
-                    Ok(map) => BenchMap::from_file(&p, map),
-                    // One bad map does not end the measurement of the others; the run fails at the end.
-                    Err(e) => {
-                        ogm_corners::say!("ogm-corners: error: {e}");
-                        problems += 1;
-                        continue;
-                    }
-                }
-            }
-        };
-        let before = a.bandwidth.then(|| runner.read_times(&bm));
-        let mut records: Vec<BenchRecord> = runner
-            .measure_map(&bm, &kinds)?
-            .into_iter()
-            .flat_map(|m| m.records)
-            .collect();
-        if let Some(before) = before {
-            let after = runner.read_times(&bm);
-            let read = runner.read_record(&bm, &[before, after], &mut records);
-            records.insert(0, read);
+    lines.push(format!(
+        "{:<label_w$}  {:<11}  {:<10}  {:<9}  {:<15}  {:>10}  {:>9}  {:>9}  {:>9}  {:>6}  {:>8}  {:>8}  {:>6}  {:>6}  {:>7}  {:>6}  {:>6}  {:>10}",
+        "map",
+        "size",
+        "detector",
+        "backend",
+        "stage",
+        "median ms",
+        "Mpx/s",
+        "keypoints",
+        "peak MB",
+        "x map",
+        "start MB",
+        "GB/s",
+        "% peak",
+        "x ref",
+        "x floor",
+        "% read",
+        "passes",
+        "dispatches"
+    ));
+    write_stdout(|out| {
+        for l in &lines {
+            writeln!(out, "{l}")?;
         }
-        drop(bm); // only one map in memory at a time
-        if text {
-            write_stdout(|out| {
-                for r in &records {
-                    let f = |v: Option<f64>, p: usize| {
-                        v.map_or("-".to_string(), |v| format!("{v:.p$}"))
-                    };
-                    writeln!(
-                        out,
-                        "{:<label_w$}  {:<11}  {:<10}  {:<9}  {:<15}  {:>10.3}  {:>9.1}  {:>9}  {:>9}  {:>6}  {:>8}  {:>8}  {:>6}  {:>6}  {:>7}  {:>6}  {:>6}  {:>10}",
-                        r.map,
-                        format!("{}x{}", r.width, r.height),
-                        r.detector,
-                        r.backend,
-                        r.stage,
-                        r.median_ms,
-                        r.mpx_per_s,
-                        r.keypoints,
-                        f(r.peak_rss_mb, 1),
-                        f(r.peak_rss_ratio, 2),
-                        f(r.rss_before_mb, 1),
-                        f(r.gb_per_s, 2),
-                        f(r.peak_percent, 1),
-                        f(r.vs_upload_ref, 2),
-                        f(r.vs_transfer_floor, 2),
-                        f(r.read_percent, 1),
-                        r.write_passes.map_or("-".to_string(), |v| v.to_string()),
-                        r.dispatches.map_or("-".to_string(), |v| v.to_string())
-                    )?;
-                }
-                out.flush()
-            })?;
-        } else {
-            all.extend(records);
+        out.flush()
+    })
+}
+
+/// One map's records as rows of the text table.
+fn print_records(records: &[BenchRecord], label_w: usize) -> Result<()> {
+    let f = |v: Option<f64>, p: usize| v.map_or("-".to_string(), |v| format!("{v:.p$}"));
+    let n = |v: Option<usize>| v.map_or("-".to_string(), |v| v.to_string());
+    write_stdout(|out| {
+        for r in records {
+            writeln!(
+                out,
+                "{:<label_w$}  {:<11}  {:<10}  {:<9}  {:<15}  {:>10.3}  {:>9.1}  {:>9}  {:>9}  {:>6}  {:>8}  {:>8}  {:>6}  {:>6}  {:>7}  {:>6}  {:>6}  {:>10}",
+                r.map,
+                format!("{}x{}", r.width, r.height),
+                r.detector,
+                r.backend,
+                r.stage,
+                r.median_ms,
+                r.mpx_per_s,
+                r.keypoints,
+                f(r.peak_rss_mb, 1),
+                f(r.peak_rss_ratio, 2),
+                f(r.rss_before_mb, 1),
+                f(r.gb_per_s, 2),
+                f(r.peak_percent, 1),
+                f(r.vs_upload_ref, 2),
+                f(r.vs_transfer_floor, 2),
+                f(r.read_percent, 1),
+                n(r.write_passes),
+                n(r.dispatches)
+            )?;
         }
-    }
-    if !text {
-        let report = BenchReport {
-            version: env!("CARGO_PKG_VERSION"),
-            commit: GIT_COMMIT,
-            cpu: cpu_model(),
-            threads: threads(),
-            os: std::env::consts::OS,
-            arch: std::env::consts::ARCH,
-            isa: ogm_corners::backend::fast::simd::Isa::active().name(),
-            gpu: runner.gpu_label(),
-            repeat: a.repeat,
-            records: &all,
-        };
-        write_stdout(|out| {
-            serde_json::to_writer_pretty(&mut *out, &report)?;
-            writeln!(out)?;
-            out.flush()
-        })?;
-    }
-    if problems > 0 {
-        // A problem is a map that could not be read, or a folder with none: said above, each.
-        return Err(Error::invalid(if problems == 1 {
-            "1 input could not be used and was skipped (see above); the others were measured"
-                .to_string()
-        } else {
-            format!(
-                "{problems} inputs could not be used and were skipped (see above); the others were measured"
-            )
-        }));
-    }
-    Ok(())
+        out.flush()
+    })
+}
+
+/// Every map's records as one JSON report with the machine and the build.
+fn write_json(runner: &Runner, repeat: u32, all: &[BenchRecord]) -> Result<()> {
+    let report = BenchReport {
+        version: env!("CARGO_PKG_VERSION"),
+        commit: GIT_COMMIT,
+        cpu: cpu_model(),
+        threads: threads(),
+        os: std::env::consts::OS,
+        arch: std::env::consts::ARCH,
+        isa: ogm_corners::backend::fast::simd::Isa::active().name(),
+        gpu: runner.gpu_label(),
+        repeat,
+        records: all,
+    };
+    write_stdout(|out| {
+        serde_json::to_writer_pretty(&mut *out, &report)?;
+        writeln!(out)?;
+        out.flush()
+    })
 }
 
 #[cfg(test)]

@@ -5,16 +5,16 @@
 use std::fs;
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
-use crate::backend::baselines::{self, BaselineParams};
+use crate::backend::baselines::{self, BaselineParams, ExactParams};
 use crate::backend::fast::FastCpuBackend;
 use crate::backend::gpu::{GpuBackend, GpuOptions};
 use crate::backend::reference::{classify::classify, ogm_corners::ogm_corners, ReferenceBackend};
 use crate::backend::rules::{RuleSet, RuleTable};
 use crate::backend::{Backend, DetectorKind, Keypoint};
 use crate::map::states::ClassTable;
-use crate::map::{map_name, OccupancyMap};
+use crate::map::{map_name, MapImage, OccupancyMap};
 use crate::support::error::{Error, Result};
 use crate::support::stats::median;
 
@@ -188,6 +188,68 @@ impl PeakRss {
 struct Memory {
     before_mb: f64,
     peak_mb: f64,
+}
+
+/// The reference's twins of the GPU kernels on `image`: the work before keypoint selection; returns how
+/// many cells or candidates it produced.
+fn reference_kernels(
+    kind: DetectorKind,
+    image: &MapImage,
+    classes: &ClassTable,
+    rules: &RuleTable,
+    exact: &ExactParams,
+) -> Result<usize> {
+    let (w, h) = (image.width(), image.height());
+    Ok(match kind {
+        DetectorKind::Ogm => ogm_corners(&classify(image, classes), w, h, rules, false).len(),
+        DetectorKind::OgmRobust => {
+            let robust = crate::detect::robust::detect(
+                &mut ReferenceBackend,
+                image,
+                classes,
+                rules,
+                &Default::default(),
+            )?;
+            robust.0.len()
+        }
+        DetectorKind::Baseline(k) => baselines::cpu_scores(k, image, exact).len(),
+    })
+}
+
+/// The GPU's transfer stages of `image`, medians of `repeat` runs after a warm-up each: `upload` (through
+/// the staging ring), `upload_ref` and, where the device copies from host buffers, `transfer_floor`; end
+/// to end's ratios to the last two are set on `e2e`. `record` makes a stage's record from its median.
+fn transfer_stages(
+    g: &mut GpuBackend,
+    image: &MapImage,
+    repeat: u32,
+    e2e: &mut BenchRecord,
+    record: &dyn Fn(&'static str, f64) -> BenchRecord,
+    cmd: &str,
+) -> Result<Vec<BenchRecord>> {
+    let medians = |f: &mut dyn FnMut() -> Result<Duration>| -> Result<f64> {
+        f()?; // warm-up
+        let mut t = Vec::with_capacity(repeat as usize);
+        for _ in 0..repeat {
+            t.push(f()?.as_secs_f64() * 1e3);
+        }
+        Ok(median(t))
+    };
+    let up = medians(&mut || g.upload_time(image))?;
+    let floor = medians(&mut || g.upload_ref_time(image))?;
+    e2e.vs_upload_ref = Some(e2e.median_ms / floor);
+    let mut out = vec![record("upload", up), record("upload_ref", floor)];
+    if g.transfer_floor_time(image)?.is_some() {
+        let bus = medians(&mut || Ok(g.transfer_floor_time(image)?.unwrap_or_default()))?;
+        e2e.vs_transfer_floor = Some(e2e.median_ms / bus);
+        out.push(record("transfer_floor", bus));
+    } else {
+        crate::say!(
+            "ogm-corners: {cmd}: {} cannot copy from host buffers; no transfer_floor row",
+            g.adapter().name
+        );
+    }
+    Ok(out)
 }
 
 /// Runs `f` once to warm up (first-use costs stay out of the median), then `repeat` timed times. Returns
@@ -561,22 +623,7 @@ impl Runner {
                 records.push(record("end_to_end", ms, mem, kps.len()));
                 // The reference's "kernels" are the twins of the GPU kernels: the work before selection.
                 let (_, ms, mem) = timed(repeat, || {
-                    Ok(match kind {
-                        DetectorKind::Ogm => {
-                            let states = classify(image, &classes);
-                            ogm_corners(&states, w, h, &rules, false).len()
-                        }
-                        DetectorKind::OgmRobust => crate::detect::robust::detect(
-                            &mut ReferenceBackend,
-                            image,
-                            &classes,
-                            &rules,
-                            &Default::default(),
-                        )?
-                        .0
-                        .len(),
-                        DetectorKind::Baseline(k) => baselines::cpu_scores(k, image, &exact).len(),
-                    })
+                    reference_kernels(kind, image, &classes, &rules, &exact)
                 })?;
                 records.push(record("kernel", ms, mem, kps.len()));
                 kps
@@ -590,35 +637,30 @@ impl Runner {
                 let (kps, ms, _) = timed(repeat, || {
                     let kps = end_to_end(&mut *g)?;
                     let s = g.stats();
-                    if let Some(k) = s.kernel_time {
-                        kernel.push(k.as_secs_f64() * 1e3);
-                    }
+                    kernel.extend(s.kernel_time.map(|k| k.as_secs_f64() * 1e3));
                     launches.push((s.write_passes, s.dispatches));
                     Ok(kps)
                 })?;
                 // The timed runs' (the warm-up's is first): the warm-up may grow the buffers.
                 let most = |f: fn(&(usize, usize)) -> usize| launches.iter().skip(1).map(f).max();
                 let (passes, dispatches) = (most(|l| l.0), most(|l| l.1));
-                let mut r = record("end_to_end", ms, None, kps.len());
-                (r.write_passes, r.dispatches) = (passes, dispatches);
-                records.push(r);
+                let gpu_record = |stage, ms| {
+                    let mut r = record(stage, ms, None, kps.len());
+                    (r.write_passes, r.dispatches) = (passes, dispatches);
+                    r
+                };
+                records.push(gpu_record("end_to_end", ms));
                 let e2e = records.len() - 1;
                 // The warm-up's kernel time is the first entry; the median uses the timed runs only.
                 // The robust detector dispatches dozens of kernels between host stages, and the stats
                 // time only the last dispatch: no kernel_resident row, rather than a wrong one.
                 let kernel_row = kind != DetectorKind::OgmRobust;
                 if kernel_row && kernel.len() > 1 {
-                    let mut r = record(
-                        "kernel_resident",
-                        median(kernel[1..].to_vec()),
-                        None,
-                        kps.len(),
-                    );
+                    let mut r = gpu_record("kernel_resident", median(kernel[1..].to_vec()));
                     r.peak_percent = self
                         .peak_gbs
                         .zip(r.gb_per_s)
                         .map(|(peak, got)| 100.0 * got / peak);
-                    (r.write_passes, r.dispatches) = (passes, dispatches);
                     records.push(r);
                 } else if kernel_row {
                     crate::say!(
@@ -627,37 +669,19 @@ impl Runner {
                         g.adapter().name
                     );
                 }
-                g.upload_time(image)?; // warm-up
-                let mut up = Vec::with_capacity(repeat as usize);
-                for _ in 0..repeat {
-                    up.push(g.upload_time(image)?.as_secs_f64() * 1e3);
-                }
-                g.upload_ref_time(image)?;
-                let mut floor = Vec::with_capacity(repeat as usize);
-                for _ in 0..repeat {
-                    floor.push(g.upload_ref_time(image)?.as_secs_f64() * 1e3);
-                }
-                let floor = median(floor);
-                records[e2e].vs_upload_ref = Some(records[e2e].median_ms / floor);
-                records.push(record("upload", median(up), None, kps.len()));
-                records.push(record("upload_ref", floor, None, kps.len()));
-                if g.transfer_floor_time(image)?.is_some() {
-                    let mut bus = Vec::with_capacity(repeat as usize);
-                    for _ in 0..repeat {
-                        if let Some(t) = g.transfer_floor_time(image)? {
-                            bus.push(t.as_secs_f64() * 1e3);
-                        }
-                    }
-                    let bus = median(bus);
-                    records[e2e].vs_transfer_floor = Some(records[e2e].median_ms / bus);
-                    records.push(record("transfer_floor", bus, None, kps.len()));
-                } else {
-                    crate::say!(
-                        "ogm-corners: {}: {} cannot copy from host buffers; no transfer_floor row",
-                        self.cmd,
-                        g.adapter().name
-                    );
-                }
+                let (r, e2e) = (&record, &mut records[e2e]);
+                let stages = transfer_stages(
+                    g,
+                    image,
+                    repeat,
+                    e2e,
+                    &|st, ms| r(st, ms, None, 0),
+                    self.cmd,
+                )?;
+                records.extend(stages.into_iter().map(|mut r| {
+                    r.keypoints = kps.len();
+                    r
+                }));
                 kps
             }
         };
