@@ -146,44 +146,8 @@ pub(super) fn run(a: MergeArgs, budget: &Budget) -> Result<()> {
     let start = Instant::now();
     let merged = pair::merge_pair(&map_a, &map_b, &MergeOptions::default(), backend.as_mut())?;
     let seconds = start.elapsed().as_secs_f64();
-    let (al, world) = (&merged.alignment, merged.world);
-    write_stdout(|out| match a.format {
-        super::TextOrJson::Json => {
-            serde_json::to_writer_pretty(
-                &mut *out,
-                &Timed {
-                    verdict: merged.verdict(),
-                    seconds,
-                },
-            )?;
-            writeln!(out)
-        }
-        super::TextOrJson::Text => {
-            let t = &al.transform;
-            let verdict = if al.accepted {
-                "merged".to_string()
-            } else {
-                format!(
-                    "not merged: {}",
-                    al.reason.as_deref().unwrap_or("not confident")
-                )
-            };
-            write!(
-                out,
-                "{verdict}; score {:.2}, overlap {:.0}%; B -> A: {:.2} deg, ({:.1}, {:.1}) px",
-                al.score,
-                100.0 * al.features.inside,
-                t.theta_deg,
-                t.tx,
-                t.ty
-            )?;
-            if let Some(w) = world {
-                write!(out, " = {w}")?;
-            }
-            writeln!(out, "; {:.0} ms", seconds * 1e3)?;
-            writeln!(out, "why: {}", al.explain())
-        }
-    })?;
+    print_verdict(a.format, &merged, seconds)?;
+    let al = &merged.alignment;
     if !al.accepted {
         return Err(Error::Declined(
             al.reason
@@ -229,4 +193,46 @@ pub(super) fn run(a: MergeArgs, budget: &Budget) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// The verdict on standard output: JSON (the verdict and the seconds) or one line with its why.
+fn print_verdict(format: super::TextOrJson, merged: &pair::PairMerge, seconds: f64) -> Result<()> {
+    let (al, world) = (&merged.alignment, merged.world);
+    write_stdout(|out| match format {
+        super::TextOrJson::Json => {
+            serde_json::to_writer_pretty(
+                &mut *out,
+                &Timed {
+                    verdict: merged.verdict(),
+                    seconds,
+                },
+            )?;
+            writeln!(out)
+        }
+        super::TextOrJson::Text => {
+            let t = &al.transform;
+            let verdict = if al.accepted {
+                "merged".to_string()
+            } else {
+                format!(
+                    "not merged: {}",
+                    al.reason.as_deref().unwrap_or("not confident")
+                )
+            };
+            write!(
+                out,
+                "{verdict}; score {:.2}, overlap {:.0}%; B -> A: {:.2} deg, ({:.1}, {:.1}) px",
+                al.score,
+                100.0 * al.features.inside,
+                t.theta_deg,
+                t.tx,
+                t.ty
+            )?;
+            if let Some(w) = world {
+                write!(out, " = {w}")?;
+            }
+            writeln!(out, "; {:.0} ms", seconds * 1e3)?;
+            writeln!(out, "why: {}", al.explain())
+        }
+    })
 }
