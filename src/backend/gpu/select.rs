@@ -229,42 +229,16 @@ impl GpuBackend {
         let small = buffers::map_read(&device, &small_buf, 16)?;
         // The kernel time covers the score passes (the selection's passes are not timed).
         self.add_kernel_time()?;
-        let st = self.select.as_mut().expect("made above");
         let total = u32::from_le_bytes(small[0..4].try_into().expect("4 bytes"));
         let max = i64::from_le_bytes(small[8..16].try_into().expect("8 bytes"));
         let mut found = Vec::with_capacity(total as usize);
         let mut start = 0u32;
         while start < total {
             if start > 0 || total > params.out_end {
-                // The list outgrew the buffer: grow it to the whole list (the next tile or call writes it in
-                // one pass) and scatter the next window again (the scores and the scanned counts are
-                // still on the device).
-                let want = u64::from(total.min(per_pass)) * CANDIDATE_BYTES;
-                let out = st
-                    .out
-                    .get(&device, want, u64::from(per_pass) * CANDIDATE_BYTES)
-                    .clone();
-                params.out_start = start;
-                params.out_end =
-                    start.saturating_add(((st.out.size / CANDIDATE_BYTES) as u32).min(per_pass));
-                self.queue
-                    .write_buffer(&st.params, 0, bytemuck::bytes_of(&params));
-                let bg = buffers::bind_group(
-                    &device,
-                    &st.scatter,
-                    &[(0, &st.params), (1, &scores), (2, &counts), (4, &out)],
-                );
-                let mut encoder = device.create_command_encoder(&Default::default());
-                {
-                    let mut pass = encoder.begin_compute_pass(&Default::default());
-                    pass.set_pipeline(&st.scatter);
-                    pass.set_bind_group(0, &bg, &[]);
-                    pass.dispatch_workgroups(gx, gy, 1);
-                }
-                self.queue.submit([encoder.finish()]);
-                self.stats.write_passes += 1;
-                self.stats.dispatches += 1;
+                let window = (start, total);
+                self.scatter_window(&mut params, window, per_pass, &scores, &counts, (gx, gy));
             }
+            let st = self.select.as_mut().expect("made above");
             let len = total.min(params.out_end) - start;
             let bytes = u64::from(len) * CANDIDATE_BYTES;
             let read = st.read.get(&device, bytes, u64::MAX).clone();
@@ -281,5 +255,46 @@ impl GpuBackend {
         }
         self.check()?;
         Ok((max, found))
+    }
+
+    /// The list outgrew the buffer: grows it to the whole list (`window.1` candidates, within `per_pass`;
+    /// the next tile or call writes it in one pass) and scatters the window from `window.0` again (the
+    /// scores and the scanned counts are still on the device).
+    fn scatter_window(
+        &mut self,
+        params: &mut SelParams,
+        (start, total): (u32, u32),
+        per_pass: u32,
+        scores: &wgpu::Buffer,
+        counts: &wgpu::Buffer,
+        (gx, gy): (u32, u32),
+    ) {
+        let device = self.device.clone();
+        let st = self.select.as_mut().expect("made by select_tile");
+        let want = u64::from(total.min(per_pass)) * CANDIDATE_BYTES;
+        let out = st
+            .out
+            .get(&device, want, u64::from(per_pass) * CANDIDATE_BYTES)
+            .clone();
+        params.out_start = start;
+        params.out_end =
+            start.saturating_add(((st.out.size / CANDIDATE_BYTES) as u32).min(per_pass));
+        self.queue
+            .write_buffer(&st.params, 0, bytemuck::bytes_of(&*params));
+        let bg = buffers::bind_group(
+            &device,
+            &st.scatter,
+            &[(0, &st.params), (1, scores), (2, counts), (4, &out)],
+        );
+        let mut encoder = device.create_command_encoder(&Default::default());
+        {
+            let mut pass = encoder.begin_compute_pass(&Default::default());
+            pass.set_pipeline(&st.scatter);
+            pass.set_bind_group(0, &bg, &[]);
+            pass.dispatch_workgroups(gx, gy, 1);
+        }
+        self.queue.submit([encoder.finish()]);
+        self.stats.write_passes += 1;
+        self.stats.dispatches += 1;
     }
 }
