@@ -6,10 +6,9 @@ use rustfft::num_complex::Complex32;
 use rustfft::FftPlanner;
 
 use crate::backend::Backend;
-use crate::merge::pair::fft::{padded, Fft2};
-use crate::merge::pair::fft::{zeros, FINE_FFT, MAX_FFT};
+use crate::merge::pair::fft::{padded, zeros, Fft2, FINE_FFT, MAX_FFT};
 use crate::merge::pair::hypotheses::{vote, Hypotheses};
-use crate::merge::pair::prepare::{Prepared, CELLS};
+use crate::merge::pair::prepare::{Coarse, Prepared, CELLS};
 use crate::merge::pair::score::{score_both, Counts, Probe};
 use crate::merge::transform::Rigid;
 use crate::support::error::{Error, Result};
@@ -100,7 +99,13 @@ pub(in crate::merge) fn coarse_hypotheses(
     let base = dst.angle - src.angle;
     let ca = ((sc.cw as f64 - 1.0) / 2.0, (sc.ch as f64 - 1.0) / 2.0);
     let cr = ((diag as f64 - 1.0) / 2.0, (diag as f64 - 1.0) / 2.0);
-    let half = (cell as f64 - 1.0) / 2.0;
+    let canvas = Canvas {
+        n,
+        diag,
+        cell,
+        ca,
+        cr,
+    };
     let thetas: Vec<f64> = (0..4)
         .flat_map(|k| {
             OFFSETS
@@ -113,20 +118,7 @@ pub(in crate::merge) fn coarse_hypotheses(
     use rayon::prelude::*;
     // A rotation's correlation spectrum.
     let spectrum_of = |theta: f64| -> Vec<Complex32> {
-        let (c, s) = cs(theta);
-        // src's coarse masks turned by theta about their centre into a diag x diag canvas.
-        let mut z = zeros(n);
-        for j in 0..diag {
-            for i in 0..diag {
-                let (dx, dy) = (i as f64 - cr.0, j as f64 - cr.1);
-                // Rounded half up by truncation (floor for the values kept; `round` is a libm call).
-                let (ax, ay) = (c * dx + s * dy + ca.0 + 0.5, -s * dx + c * dy + ca.1 + 0.5);
-                if ax >= 0.0 && ay >= 0.0 && (ax as usize) < sc.cw && (ay as usize) < sc.ch {
-                    let idx = ay as usize * sc.cw + ax as usize;
-                    z[j * n + i] = Complex32::new(sc.cwall[idx], sc.cfree[idx]);
-                }
-            }
-        }
+        let mut z = canvas.turned(sc, theta);
         // The spectrum's buffer is the FFT's scratch first: a task holds no more buffers than before.
         let mut out = zeros(n);
         fwd.run(&mut z, &mut out);
@@ -169,26 +161,11 @@ pub(in crate::merge) fn coarse_hypotheses(
             drop(scratch);
             let (mut peaks_found, mut maps) = (Vec::new(), Vec::new());
             for (which, theta) in thetas[h..(h + 2).min(thetas.len())].iter().enumerate() {
-                let (c, s) = cs(*theta);
                 let vals: Vec<f32> = both
                     .iter()
                     .map(|v| if which == 0 { v.re } else { v.im })
                     .collect();
-                for (idx, best) in peaks(&vals, n, k_peaks) {
-                    let (sx, sy) = (idx % n, idx / n);
-                    let signed = |v: usize| {
-                        if v < n - diag {
-                            v as f64
-                        } else {
-                            v as f64 - n as f64
-                        }
-                    };
-                    let tc = (
-                        cr.0 - (c * ca.0 - s * ca.1) + signed(sx),
-                        cr.1 - (s * ca.0 + c * ca.1) + signed(sy),
-                    );
-                    peaks_found.push((f64::from(best), Crop(cells_to_crop(*theta, tc, cell))));
-                }
+                peaks_found.extend(canvas.peaks(*theta, &vals, k_peaks));
                 if want_corners {
                     maps.push(vals);
                 }
@@ -203,48 +180,118 @@ pub(in crate::merge) fn coarse_hypotheses(
         maps.extend(m);
     }
     if want_corners {
-        if src.corners.is_none() || dst.corners.is_none() {
-            return Err(Error::Internal(
-                "corner hypotheses need maps prepared with their corners".to_string(),
-            ));
-        }
-        let (sk, dk) = (
-            src.corners.as_deref().unwrap_or(&[]),
-            dst.corners.as_deref().unwrap_or(&[]),
-        );
-        for (k, &theta) in thetas.iter().enumerate() {
-            let (c, s) = cs(theta);
-            for t in vote(sk, dk, theta) {
-                // Its coarse score: the correlation at the nearest shift (the inverse of the peak's
-                // translation above).
-                let u = (
-                    (t.tx - half + (c * half - s * half)) / cell as f64 - cr.0
-                        + (c * ca.0 - s * ca.1),
-                    (t.ty - half + (s * half + c * half)) / cell as f64 - cr.1
-                        + (s * ca.0 + c * ca.1),
-                );
-                let wrap = |v: f64| {
-                    let v = v.round() as i64;
-                    // The shifts the correlation holds: 0..n-diag, and -diag..0 wrapped to the end.
-                    (-(diag as i64)..(n - diag) as i64)
-                        .contains(&v)
-                        .then(|| v.rem_euclid(n as i64) as usize)
-                };
-                let (Some(sx), Some(sy)) = (wrap(u.0), wrap(u.1)) else {
-                    continue;
-                };
-                coarse.push((f64::from(maps[k][sy * n + sx]), Crop(t)));
-            }
-        }
+        coarse.extend(corner_votes(src, dst, &thetas, &maps, &canvas)?);
     }
     coarse.sort_by(|x, y| y.0.total_cmp(&x.0));
-    let walls_cells = |c: &crate::merge::pair::prepare::Coarse| c.cwall.iter().sum::<f32>();
+    let walls_cells = |c: &Coarse| c.cwall.iter().sum::<f32>();
     let unit = (n * n) as f64 * f64::from(walls_cells(sc).min(walls_cells(dc)).max(1.0));
     Ok(CoarseSet {
         cell,
         list: coarse,
         unit,
     })
+}
+
+/// Where src's turned coarse masks lie in the correlation: its `n` x `n` side, the `diag` x `diag`
+/// canvas the masks are turned into, the coarse `cell` (pixels), src's centre `ca` and the canvas's `cr`
+/// (in cells).
+struct Canvas {
+    n: usize,
+    diag: usize,
+    cell: usize,
+    ca: (f64, f64),
+    cr: (f64, f64),
+}
+
+impl Canvas {
+    /// src's coarse masks `sc` turned by `theta` about their centre into the diag x diag canvas (walls as
+    /// the real part, free cells as the imaginary), in an n x n array.
+    fn turned(&self, sc: &Coarse, theta: f64) -> Vec<Complex32> {
+        let (n, diag, ca, cr) = (self.n, self.diag, self.ca, self.cr);
+        let (c, s) = cs(theta);
+        let mut z = zeros(n);
+        for j in 0..diag {
+            for i in 0..diag {
+                let (dx, dy) = (i as f64 - cr.0, j as f64 - cr.1);
+                // Rounded half up by truncation (floor for the values kept; `round` is a libm call).
+                let (ax, ay) = (c * dx + s * dy + ca.0 + 0.5, -s * dx + c * dy + ca.1 + 0.5);
+                if ax >= 0.0 && ay >= 0.0 && (ax as usize) < sc.cw && (ay as usize) < sc.ch {
+                    let idx = ay as usize * sc.cw + ax as usize;
+                    z[j * n + i] = Complex32::new(sc.cwall[idx], sc.cfree[idx]);
+                }
+            }
+        }
+        z
+    }
+
+    /// The `k` best peaks of a rotation's correlation `vals`, each as its score and its transform.
+    fn peaks(&self, theta: f64, vals: &[f32], k: usize) -> Vec<(f64, Crop)> {
+        let (n, diag, ca, cr) = (self.n, self.diag, self.ca, self.cr);
+        let (c, s) = cs(theta);
+        let signed = |v: usize| {
+            if v < n - diag {
+                v as f64
+            } else {
+                v as f64 - n as f64
+            }
+        };
+        peaks(vals, n, k)
+            .into_iter()
+            .map(|(idx, best)| {
+                let (sx, sy) = (idx % n, idx / n);
+                let tc = (
+                    cr.0 - (c * ca.0 - s * ca.1) + signed(sx),
+                    cr.1 - (s * ca.0 + c * ca.1) + signed(sy),
+                );
+                (f64::from(best), Crop(cells_to_crop(theta, tc, self.cell)))
+            })
+            .collect()
+    }
+
+    /// The correlation's index nearest to transform `t` at rotation `theta` (the inverse of a peak's
+    /// translation above), when it holds that shift.
+    fn index_of(&self, theta: f64, t: &Rigid) -> Option<usize> {
+        let (n, diag, ca, cr, cell) = (self.n, self.diag, self.ca, self.cr, self.cell);
+        let half = (cell as f64 - 1.0) / 2.0;
+        let (c, s) = cs(theta);
+        let u = (
+            (t.tx - half + (c * half - s * half)) / cell as f64 - cr.0 + (c * ca.0 - s * ca.1),
+            (t.ty - half + (s * half + c * half)) / cell as f64 - cr.1 + (s * ca.0 + c * ca.1),
+        );
+        let wrap = |v: f64| {
+            let v = v.round() as i64;
+            // The shifts the correlation holds: 0..n-diag, and -diag..0 wrapped to the end.
+            (-(diag as i64)..(n - diag) as i64)
+                .contains(&v)
+                .then(|| v.rem_euclid(n as i64) as usize)
+        };
+        Some(wrap(u.1)? * n + wrap(u.0)?)
+    }
+}
+
+/// The corners' hypotheses at every rotation ([`vote`]), each with its coarse score: its rotation's
+/// correlation `maps[k]` at the nearest shift.
+fn corner_votes(
+    src: &Prepared,
+    dst: &Prepared,
+    thetas: &[f64],
+    maps: &[Vec<f32>],
+    canvas: &Canvas,
+) -> Result<Vec<(f64, Crop)>> {
+    let (Some(sk), Some(dk)) = (src.corners.as_deref(), dst.corners.as_deref()) else {
+        return Err(Error::Internal(
+            "corner hypotheses need maps prepared with their corners".to_string(),
+        ));
+    };
+    let mut out = Vec::new();
+    for (k, &theta) in thetas.iter().enumerate() {
+        for t in vote(sk, dk, theta) {
+            if let Some(i) = canvas.index_of(theta, &t) {
+                out.push((f64::from(maps[k][i]), Crop(t)));
+            }
+        }
+    }
+    Ok(out)
 }
 
 /// `coarse`'s hypotheses (src crop to dst crop), best first, by how well each agrees on the full maps at
