@@ -231,6 +231,8 @@ pub(super) fn bench(a: BenchArgs, budget: &Budget) -> Result<()> {
     for s in saves.iter().flatten() {
         inputs.claim_output(s, "--save-map")?;
     }
+    // One a size, in the order the synthetic sources come.
+    let mut saves = saves.into_iter();
     let mut runner = Runner::new(
         "bench",
         &a.backend,
@@ -253,13 +255,9 @@ pub(super) fn bench(a: BenchArgs, budget: &Budget) -> Result<()> {
         print_header(&runner, &a, !sizes.is_empty(), label_w)?;
     }
     let mut all = Vec::new();
-    let mut synthetic = 0;
     for src in sources {
         let bm = match src {
-            Source::Synthetic(w, h) => {
-                synthetic += 1;
-                synthetic_map(w, h, a.seed, saves[synthetic - 1].clone())?
-            }
+            Source::Synthetic(w, h) => synthetic_map(w, h, a.seed, saves.next().flatten())?,
             Source::File(p) => {
                 match OccupancyMap::load_within(&p, budget, &|w, h| bench_bytes(&kinds, w, h)) {
                     Ok(map) => BenchMap::from_file(&p, map),

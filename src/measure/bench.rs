@@ -239,8 +239,8 @@ fn transfer_stages(
     let floor = medians(&mut || g.upload_ref_time(image))?;
     e2e.vs_upload_ref = Some(e2e.median_ms / floor);
     let mut out = vec![record("upload", up), record("upload_ref", floor)];
-    if g.transfer_floor_time(image)?.is_some() {
-        let bus = medians(&mut || Ok(g.transfer_floor_time(image)?.unwrap_or_default()))?;
+    if g.copies_from_host() {
+        let bus = medians(&mut || g.transfer_floor_time(image))?;
         e2e.vs_transfer_floor = Some(e2e.median_ms / bus);
         out.push(record("transfer_floor", bus));
     } else {

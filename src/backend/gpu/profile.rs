@@ -46,15 +46,23 @@ impl GpuBackend {
 
     /// The transfer floor: the same bands copied by the device from buffers in host memory to its own
     /// (buffers the host only reads back are placed in host-cached system memory, and the copy moves
-    /// them across the bus by DMA), one submission per band, waited for; no host work. `None` when the
-    /// device cannot copy from such buffers (`MAPPABLE_PRIMARY_BUFFERS`).
-    pub fn transfer_floor_time(&mut self, image: &MapImage) -> Result<Option<Duration>> {
-        if !self.host_copies {
-            return Ok(None);
+    /// them across the bus by DMA), one submission per band, waited for; no host work. An error where
+    /// the device cannot copy from such buffers ([`GpuBackend::copies_from_host`]).
+    pub fn transfer_floor_time(&mut self, image: &MapImage) -> Result<Duration> {
+        if !self.copies_from_host() {
+            return Err(Error::Unavailable(format!(
+                "{} cannot copy from buffers in host memory",
+                self.adapter.name
+            )));
         }
         let usage = wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_SRC;
         self.copy_bands_time(image, usage, "transfer floor host buffer")
-            .map(Some)
+    }
+
+    /// Whether the device copies from buffers in host memory (`MAPPABLE_PRIMARY_BUFFERS`), which
+    /// [`GpuBackend::transfer_floor_time`] needs.
+    pub fn copies_from_host(&self) -> bool {
+        self.host_copies
     }
 
     /// The time to copy the first slab's bands from two source buffers of `usage` into the device's
