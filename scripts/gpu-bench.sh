@@ -2,8 +2,8 @@
 # The GPU check on a machine with a real GPU, in one command and under 5 minutes: the Vulkan loader, the
 # adapter, CPU = GPU on real maps and every synthetic size (bench fails when any backend's keypoints differ
 # from the others'), the bench stages (kernel_resident, upload, upload_ref, transfer_floor, end_to_end, with
-# the write passes and dispatches a map took) at 4096^2, 16384^2
-# and 65536^2, and the conformance tests when their binary is given. Everything goes to one folder.
+# the write passes and dispatches a map took; device_map, the map already in a device buffer) at 4096^2,
+# 16384^2 and 65536^2, and the conformance tests when their binary is given. Everything goes to one folder.
 #
 #   scripts/gpu-bench.sh [OUT_DIR] [MAP_DIR...]
 #
@@ -11,7 +11,7 @@
 # exists. Environment:
 #   OGM_BIN               a prebuilt ogm-corners (else cargo build --release)
 #   OGM_CONFORMANCE_BIN   a prebuilt backends' test binary (cargo test --no-run --test backend); its
-#                         gpu_conformance tests are run
+#                         GPU tests (gpu_conformance, gpu_device_map) are run
 #   OGM_PEAK_BANDWIDTH    the GPU's peak memory bandwidth, GB/s, when bench does not know the adapter
 #   OGM_BIG               set to 0 to leave out the 65536^2 map (4 GiB of host memory, 4 GiB on the GPU)
 #   OGM_SIZES             the other synthetic sizes (default "4096x4096 16384x16384")
@@ -96,7 +96,7 @@ if [ -n "${OGM_CONFORMANCE_BIN:-}" ]; then
     # above, so no GPU test can skip for want of one; the real-map tests read the first map folder.
     envs=()
     [ -n "${maps[0]:-}" ] && envs=(OGM_MAPS_DIR="${maps[0]}")
-    if env "${envs[@]}" timeout 240 "$OGM_CONFORMANCE_BIN" gpu_conformance:: --test-threads 4 >"$out/conformance.txt" 2>&1; then
+    if env "${envs[@]}" timeout 240 "$OGM_CONFORMANCE_BIN" gpu_ --test-threads 4 >"$out/conformance.txt" 2>&1; then
         log "conformance: ok ($((SECONDS - t0)) s)"
     else
         log "conformance: FAILED ($((SECONDS - t0)) s; see conformance.txt)"

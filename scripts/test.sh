@@ -128,8 +128,9 @@ cp "$ex"/robot-*.yaml "$ex"/robot-*.pgm "$ex/maps/"
 target/debug/examples/detect_map "$ex/maps/robot-1.yaml" >/dev/null
 target/debug/examples/merge_two "$ex/maps/robot-1.yaml" "$ex/maps/robot-2.yaml" "$ex/two.yaml" >/dev/null
 target/debug/examples/merge_folder "$ex/maps" "$ex/all.yaml" >/dev/null
+target/debug/examples/device_map "$ex/maps/robot-1.yaml" >/dev/null
 [ -f "$ex/two.yaml" ] && [ -f "$ex/all.yaml" ] || { echo "scripts/test.sh: an example wrote no merged map" >&2; exit 1; }
-echo "scripts/test.sh: examples detect_map, merge_two, merge_folder ran"
+echo "scripts/test.sh: examples detect_map, merge_two, merge_folder, device_map ran"
 # The whole workspace, for the same reason: its dependencies checked as the lints checked them.
 RUSTDOCFLAGS="-D warnings" cargo doc --locked --no-deps --workspace -q
 phase "examples ran, API documentation built"

@@ -1,5 +1,9 @@
-// The OGM corner detector in one pass over the raw map bytes. CPU twin: src/cpu/ogm_corners.rs (the
-// reference); src/fast/ogm.rs computes the same bit-planes on the CPU.
+// The OGM corner detector in one pass over the raw map bytes. CPU twin: src/backend/reference/ogm_corners.rs
+// (the reference); src/backend/fast/ogm.rs computes the same bit-planes on the CPU.
+//
+// The pixels' binding and how runs of them are read come from a library prepended to this file:
+// shaders/lib/ogm_fetch_runs.wgsl (rows 16-byte aligned: staged bands, aligned maps in device buffers) or
+// shaders/lib/ogm_fetch_bytes.wgsl (any offset and row pitch: maps in a caller's device buffer).
 //
 // `detect`: an invocation owns 32 pixels of a row (eight words, two 16-byte loads) and walks down a strip of
 // STRIP rows, keeping the free and blocking bit-planes of three rows in registers, so every byte is read
@@ -21,10 +25,10 @@ const STRIP: u32 = 16u;
 const SLOTS: u32 = 1024u; // LANES * STRIP
 
 struct Params {
-    buf_w: u32,      // pixels per buffer row; rows are `stride` words apart, stride a multiple of 8
+    buf_w: u32,      // pixels per buffer row
     buf_h: u32,
-    stride: u32,
-    lanes_x: u32,    // 32-pixel runs per row: stride / 8
+    row_bytes: u32,  // bytes from a buffer row to the next in the binding
+    lanes_x: u32,    // 32-pixel runs per row
     groups_x: u32,   // workgroups across a row
     core_x0: u32,    // the tile's own pixels, buffer coordinates; the rest is the one-pixel halo
     core_y0: u32,
@@ -42,7 +46,7 @@ struct Params {
     out_start: u32,  // list positions written: [out_start, out_end)
     out_end: u32,
     n_counts: u32,   // (core rows) * groups_x
-    _pad0: u32,
+    first_byte: u32, // the binding's byte of buffer pixel (0, 0)
     _pad1: u32,
     _pad2: u32,
 }
@@ -50,7 +54,7 @@ struct Params {
 @group(0) @binding(0) var<uniform> params: Params;
 // 0..256: the class table (bit 0 free, bit 1 blocking); 256..512: the rule table.
 @group(0) @binding(1) var<storage, read> tables: array<u32, 512>;
-@group(0) @binding(2) var<storage, read> pixels: array<vec4<u32>>;
+// Binding 2, the pixels, is declared by the fetch library.
 // Per (core row, workgroup column) keypoint counts, then the scan's levels (scan.wgsl).
 @group(0) @binding(3) var<storage, read_write> counts: array<u32>;
 // Two regions of `scratch` entries per workgroup: as found, and in (y, x) order.
@@ -76,10 +80,6 @@ struct Row {
     blk: u32,
     left: u32,
     right: u32,
-}
-
-fn word_at(i: u32) -> u32 {
-    return pixels[i >> 2u][i & 3u];
 }
 
 // Bits 0..3: which of the four bytes of `p` lie in lo..=lo + span (mod 256), `lo4` and `span4` being lo and
@@ -112,17 +112,16 @@ fn load_row(lane: u32, y: i32) -> Row {
     if y < 0 || u32(y) >= params.buf_h || lane >= params.lanes_x {
         return r;
     }
-    let w0 = u32(y) * params.stride + lane * 8u;
-    let a = pixels[w0 >> 2u];
-    let b = pixels[(w0 >> 2u) + 1u];
-    let c0 = classify_word(a.x);
-    let c1 = classify_word(a.y);
-    let c2 = classify_word(a.z);
-    let c3 = classify_word(a.w);
-    let c4 = classify_word(b.x);
-    let c5 = classify_word(b.y);
-    let c6 = classify_word(b.z);
-    let c7 = classify_word(b.w);
+    let at = params.first_byte + u32(y) * params.row_bytes + lane * 32u;
+    let p = run_at(at);
+    let c0 = classify_word(p[0]);
+    let c1 = classify_word(p[1]);
+    let c2 = classify_word(p[2]);
+    let c3 = classify_word(p[3]);
+    let c4 = classify_word(p[4]);
+    let c5 = classify_word(p[5]);
+    let c6 = classify_word(p[6]);
+    let c7 = classify_word(p[7]);
     let lo = (c0 & 0xfu) | ((c1 & 0xfu) << 4u) | ((c2 & 0xfu) << 8u) | ((c3 & 0xfu) << 12u)
         | ((c4 & 0xfu) << 16u) | ((c5 & 0xfu) << 20u) | ((c6 & 0xfu) << 24u) | ((c7 & 0xfu) << 28u);
     let hi = (c0 >> 4u) | ((c1 >> 4u) << 4u) | ((c2 >> 4u) << 8u) | ((c3 >> 4u) << 12u)
@@ -137,11 +136,12 @@ fn load_row(lane: u32, y: i32) -> Row {
         r.free &= m;
         r.blk &= m;
     }
+    // The pixels just left and right of the run: the blocking bit of pixel 0 of a lone byte.
     if lane > 0u {
-        r.left = (classify_word(word_at(w0 - 1u)) >> 7u) & 1u;
+        r.left = (classify_word(byte_at(at - 1u)) >> 4u) & 1u;
     }
     if x0 + 32u < params.buf_w {
-        r.right = (classify_word(word_at(w0 + 8u)) >> 4u) & 1u;
+        r.right = (classify_word(byte_at(at + 32u)) >> 4u) & 1u;
     }
     return r;
 }

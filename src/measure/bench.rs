@@ -9,7 +9,7 @@ use std::time::{Duration, Instant};
 
 use crate::backend::baselines::{self, BaselineParams, ExactParams};
 use crate::backend::fast::FastCpuBackend;
-use crate::backend::gpu::{GpuBackend, GpuOptions};
+use crate::backend::gpu::{DeviceMap, GpuBackend, GpuOptions};
 use crate::backend::reference::{classify::classify, ogm_corners::ogm_corners, ReferenceBackend};
 use crate::backend::rules::{RuleSet, RuleTable};
 use crate::backend::{Backend, DetectorKind, Keypoint};
@@ -85,8 +85,9 @@ pub struct BenchRecord {
     /// keypoint selection); on a GPU `kernel_resident` (timestamp queries around the kernels alone, the
     /// map's band already on the device), `upload` (the bands through the staging ring as the backend
     /// uploads them, alone), `upload_ref` (the same bands copied from staging buffers filled
-    /// beforehand) and `transfer_floor` (the same bands copied by the device from host memory: the
-    /// bus alone, where the device can copy from host buffers).
+    /// beforehand), `transfer_floor` (the same bands copied by the device from host memory: the
+    /// bus alone, where the device can copy from host buffers) and, for the OGM detector, `device_map`
+    /// (the map already in a device buffer, detected where it lies to keypoints on the host).
     pub stage: &'static str,
     pub median_ms: f64,
     pub mpx_per_s: f64,
@@ -250,6 +251,55 @@ fn transfer_stages(
         );
     }
     Ok(out)
+}
+
+/// The OGM detector on `image` held in a device buffer ([`GpuBackend::detect_device_map`]): the map is
+/// put there before the clock, rows `width` bytes apart; each timed run detects to keypoints on the host.
+/// Returns the median ms and the most write passes and dispatches a timed run took, or `None` (said on
+/// standard error) where the device has no buffer that large. Its keypoints must be `want`.
+fn device_map_stage(
+    g: &mut GpuBackend,
+    image: &MapImage,
+    tables: (&ClassTable, &RuleTable),
+    repeat: u32,
+    want: &[Keypoint],
+    cmd: &str,
+) -> Result<Option<(f64, usize, usize)>> {
+    let buffer = match g.device_map_buffer(image) {
+        Ok(b) => b,
+        Err(Error::Unavailable(why)) => {
+            crate::say!("ogm-corners: {cmd}: {why}; no device_map row");
+            return Ok(None);
+        }
+        Err(e) => return Err(e),
+    };
+    let map = DeviceMap {
+        buffer: &buffer,
+        offset: 0,
+        width: image.width(),
+        height: image.height(),
+        bytes_per_row: u64::from(image.width()),
+    };
+    let mut launches = Vec::new();
+    let (got, ms, _) = timed(repeat, || {
+        let kps = g.detect_device_map(&map, tables.0, tables.1, false)?;
+        let s = g.stats();
+        launches.push((s.write_passes, s.dispatches));
+        Ok(kps)
+    })?;
+    if got != want {
+        return Err(Error::Internal(format!(
+            "the device map's keypoints differ from the map's in memory: {}",
+            first_difference(&got, want)
+        )));
+    }
+    // The timed runs' (the warm-up's is first).
+    let most = |f: fn(&(usize, usize)) -> usize| launches.iter().skip(1).map(f).max();
+    Ok(Some((
+        ms,
+        most(|l| l.0).unwrap_or(0),
+        most(|l| l.1).unwrap_or(0),
+    )))
 }
 
 /// Runs `f` once to warm up (first-use costs stay out of the median), then `repeat` timed times. Returns
@@ -682,6 +732,15 @@ impl Runner {
                     r.keypoints = kps.len();
                     r
                 }));
+                if kind == DetectorKind::Ogm {
+                    let tables = (&classes, &rules);
+                    let staged = device_map_stage(g, image, tables, repeat, &kps, self.cmd)?;
+                    if let Some((ms, passes, dispatches)) = staged {
+                        let mut r = record("device_map", ms, None, kps.len());
+                        (r.write_passes, r.dispatches) = (Some(passes), Some(dispatches));
+                        records.push(r);
+                    }
+                }
                 kps
             }
         };
@@ -729,8 +788,10 @@ impl Runner {
             ));
             lines.push(
                 "# gpu stages: kernel_resident = timestamp queries around the kernels alone; upload = the \
-                 bands through the staging ring; upload_ref = the same bands from staging filled beforehand \
-                 (the transfer floor); x ref = end_to_end / upload_ref"
+                 bands through the staging ring; upload_ref = the same bands from staging filled beforehand; \
+                 transfer_floor = the bands copied by the device from host memory; x ref, x floor = \
+                 end_to_end over those; device_map = the map already in a device buffer, detected to \
+                 keypoints on the host"
                     .to_string(),
             );
         }

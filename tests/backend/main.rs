@@ -8,6 +8,7 @@ mod common;
 mod fast_baselines;
 mod fast_ogm;
 mod gpu_conformance;
+mod gpu_device_map;
 mod opencv;
 mod rules;
 mod shaders;

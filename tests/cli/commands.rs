@@ -572,10 +572,16 @@ fn bench_sizes_and_maps_in_one_run_and_the_gpu_rows() {
             .iter()
             .filter(|r| r["backend"] == "gpu")
             .all(|r| r["peak_rss_mb"].is_null() && r["gb_per_s"].as_f64().unwrap() > 0.0));
+        // The OGM detector on the map already in a device buffer, alone of the detectors.
+        let resident: Vec<_> = recs.iter().filter(|r| r["stage"] == "device_map").collect();
+        assert_eq!(resident.len(), 1, "{resident:?}");
+        assert!(resident[0]["detector"] == "ogm" && resident[0]["backend"] == "gpu");
         // One write pass a map (its list fits the buffer the warm-up grew), and what it dispatched: the
-        // OGM detector's 64 x 64 map is one tile of four kernels.
+        // OGM detector's 64 x 64 map is one tile of four kernels, in memory or on the device.
         for r in recs.iter().filter(|r| {
-            r["backend"] == "gpu" && (r["stage"] == "end_to_end" || r["stage"] == "kernel_resident")
+            r["backend"] == "gpu"
+                && ["end_to_end", "kernel_resident", "device_map"]
+                    .contains(&r["stage"].as_str().unwrap())
         }) {
             assert_eq!(r["write_passes"], 1, "{r}");
             let d = r["dispatches"].as_u64().unwrap();

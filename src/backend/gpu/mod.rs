@@ -10,8 +10,10 @@ mod adapter;
 mod baselines;
 mod buffers;
 mod coarsen;
+mod device_map;
 mod merge_score;
 mod ogm;
+mod ogm_call;
 mod profile;
 mod scan;
 mod select;
@@ -21,6 +23,7 @@ use adapter::{choose, looked_for, report};
 pub use adapter::{list_adapters, AdapterReport};
 use baselines::{BParams, BASELINE_BYTES_PER_PX, BASELINE_HALO};
 use buffers::{Ring, Slot};
+pub use device_map::DeviceMap;
 use ogm::{OgmBuffers, OgmPipelines};
 
 use std::sync::{Arc, Mutex};
@@ -49,9 +52,7 @@ pub fn shader_source(kernel: &str, native_int64: bool) -> Option<String> {
         "merge_score" => {
             return Some(include_str!("../../../shaders/merge_score.wgsl").to_string())
         }
-        "ogm_corners" => {
-            return Some(include_str!("../../../shaders/ogm_corners.wgsl").to_string())
-        }
+        "ogm_corners" => return Some(ogm_shader_source(false)),
         "scan" => return Some(include_str!("../../../shaders/scan.wgsl").to_string()),
         "select_maxima" => {
             return Some(include_str!("../../../shaders/select_maxima.wgsl").to_string())
@@ -72,6 +73,21 @@ pub fn shader_source(kernel: &str, native_int64: bool) -> Option<String> {
         "{}\n{int64}\n{body}",
         include_str!("../../../shaders/lib/baseline_common.wgsl")
     ))
+}
+
+/// The OGM detector's WGSL as the GPU receives it: the kernel with the library that reads its pixels
+/// prepended, the aligned form (two 16-byte loads a run of 32 pixels) or, with `any_alignment`, the form
+/// that reads a map at any byte offset and row pitch.
+pub fn ogm_shader_source(any_alignment: bool) -> String {
+    let fetch = if any_alignment {
+        include_str!("../../../shaders/lib/ogm_fetch_bytes.wgsl")
+    } else {
+        include_str!("../../../shaders/lib/ogm_fetch_runs.wgsl")
+    };
+    format!(
+        "{fetch}\n{}",
+        include_str!("../../../shaders/ogm_corners.wgsl")
+    )
 }
 
 /// Options of the GPU backend. The defaults suit real use; tests shrink them to force tiling and the
@@ -148,6 +164,8 @@ pub struct GpuBackend {
     timestamps: Option<(wgpu::QuerySet, wgpu::Buffer, wgpu::Buffer)>,
     max_binding: u64,
     max_groups: u32,
+    /// Alignment of a storage binding's offset, bytes.
+    storage_align: u64,
     error: Arc<Mutex<Option<String>>>,
     stats: GpuStats,
     /// Host copy of a padded band for the coarsening and scoring kernels.
@@ -191,31 +209,60 @@ impl GpuBackend {
 
     fn from_adapter(adapter: &wgpu::Adapter, options: GpuOptions) -> Result<Self> {
         let report = report(adapter);
-        let limits = adapter.limits();
-        let mut features = wgpu::Features::empty();
-        if report.timestamp_query {
-            features |= wgpu::Features::TIMESTAMP_QUERY;
-        }
-        let native_int64 = report.shader_int64 && !options.emulate_int64;
-        if native_int64 {
-            features |= wgpu::Features::SHADER_INT64;
-        }
-        // Buffers in host memory that the GPU copies from: bench's transfer floor (profile.rs) alone
-        // makes them; detection never does.
-        let host_copies = adapter
-            .features()
-            .contains(wgpu::Features::MAPPABLE_PRIMARY_BUFFERS);
-        if host_copies {
-            features |= wgpu::Features::MAPPABLE_PRIMARY_BUFFERS;
-        }
+        // Timestamps, 64-bit integers where the adapter has them, and buffers in host memory that the
+        // GPU copies from (bench's transfer floor, profile.rs, alone makes them; detection never does).
+        let features = adapter.features()
+            & (wgpu::Features::TIMESTAMP_QUERY
+                | wgpu::Features::SHADER_INT64
+                | wgpu::Features::MAPPABLE_PRIMARY_BUFFERS);
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("ogm-corners"),
             required_features: features,
-            required_limits: limits.clone(),
+            required_limits: adapter.limits(),
             memory_hints: wgpu::MemoryHints::Performance,
             ..Default::default()
         }))
         .map_err(|e| Error::Unavailable(format!("cannot open {}: {e}", report.name)))?;
+        Self::with_device(report, device, queue, options)
+    }
+
+    /// A backend on a device the caller opened (a mapping pipeline's own), so that maps it keeps in its
+    /// buffers can be detected where they are ([`GpuBackend::detect_device_map`]). `adapter` is the one
+    /// the device came from. The backend uses what the device was opened with: its limits bound the
+    /// tiles, and timestamps, 64-bit integers and host-memory copies are used where its features include
+    /// them. It installs the device's uncaptured-error handler (replacing one set before), so that a
+    /// device error fails the backend's call instead of panicking.
+    pub fn from_device(
+        adapter: &wgpu::Adapter,
+        device: wgpu::Device,
+        queue: wgpu::Queue,
+        options: GpuOptions,
+    ) -> Result<Self> {
+        Self::with_device(report(adapter), device, queue, options)
+    }
+
+    /// The device the backend runs on, for making buffers it can read ([`DeviceMap`]).
+    pub fn device(&self) -> &wgpu::Device {
+        &self.device
+    }
+
+    /// The device's queue, for writing maps into buffers on it.
+    pub fn queue(&self) -> &wgpu::Queue {
+        &self.queue
+    }
+
+    fn with_device(
+        mut report: AdapterReport,
+        device: wgpu::Device,
+        queue: wgpu::Queue,
+        options: GpuOptions,
+    ) -> Result<Self> {
+        let limits = device.limits();
+        let features = device.features();
+        report.timestamp_query = features.contains(wgpu::Features::TIMESTAMP_QUERY);
+        report.shader_int64 = features.contains(wgpu::Features::SHADER_INT64);
+        let native_int64 = report.shader_int64 && !options.emulate_int64;
+        let host_copies = features.contains(wgpu::Features::MAPPABLE_PRIMARY_BUFFERS);
         // wgpu's default handler panics; keep the error and report it from the call instead.
         let error = Arc::new(Mutex::new(None::<String>));
         let slot = error.clone();
@@ -269,6 +316,7 @@ impl GpuBackend {
                 .max_storage_buffer_binding_size
                 .min(limits.max_buffer_size),
             max_groups: limits.max_compute_workgroups_per_dimension,
+            storage_align: u64::from(limits.min_storage_buffer_offset_alignment).max(16),
             ogm: OgmPipelines::new(&device),
             ogm_bufs: OgmBuffers::new(&device, options.initial_workgroup_scratch),
             ring: Ring::new(2),
@@ -288,6 +336,11 @@ impl GpuBackend {
         };
         backend.check()?;
         Ok(backend)
+    }
+
+    /// Alignment of a storage binding's offset on this device, bytes.
+    fn storage_align(&self) -> u64 {
+        self.storage_align
     }
 
     /// The adapter in use.
@@ -546,7 +599,13 @@ impl Backend for GpuBackend {
         unknown_as_occupied: bool,
     ) -> Result<Vec<Keypoint>> {
         self.start_call()?;
-        let out = self.ogm_detect(rows, core, classes, rules, unknown_as_occupied)?;
+        let out = self.ogm_detect(
+            device_map::Source::Host(rows),
+            core,
+            classes,
+            rules,
+            unknown_as_occupied,
+        )?;
         self.check()?;
         Ok(out)
     }

@@ -1,5 +1,5 @@
-//! What `bench` measures on the GPU beside end-to-end detection: the upload as the OGM path does it, and
-//! the transfer floor it is compared with.
+//! What `bench` measures on the GPU beside end-to-end detection: the upload as the OGM path does it, the
+//! transfer floor it is compared with, and a map put in a device buffer for the device-map stage.
 
 use super::ogm::PARAMS_BYTES;
 use super::*;
@@ -57,6 +57,43 @@ impl GpuBackend {
         }
         let usage = wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_SRC;
         self.copy_bands_time(image, usage, "transfer floor host buffer")
+    }
+
+    /// `image` in a new buffer on the device, rows `width` bytes apart from byte 0 (as a mapping
+    /// pipeline would keep its grid), written in pieces of at most 64 MiB and waited for; an error where
+    /// the device has no buffer that large.
+    pub fn device_map_buffer(&mut self, image: &MapImage) -> Result<wgpu::Buffer> {
+        self.check()?;
+        let px = image.pixels();
+        let size = (px.len() as u64).max(4).next_multiple_of(4);
+        if size > self.device.limits().max_buffer_size {
+            return Err(Error::Unavailable(format!(
+                "{} has no buffer of {size} bytes",
+                self.adapter.name
+            )));
+        }
+        let buffer = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("device map"),
+            size,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        const PIECE: usize = 64 << 20;
+        for (i, piece) in px.chunks(PIECE).enumerate() {
+            let at = (i * PIECE) as u64;
+            if piece.len().is_multiple_of(4) {
+                self.queue.write_buffer(&buffer, at, piece);
+            } else {
+                // The last piece, padded to whole words.
+                let mut padded = piece.to_vec();
+                padded.resize(piece.len().next_multiple_of(4), 0);
+                self.queue.write_buffer(&buffer, at, &padded);
+            }
+            self.queue.submit([]);
+        }
+        buffers::wait_idle(&self.device)?;
+        self.check()?;
+        Ok(buffer)
     }
 
     /// Whether the device copies from buffers in host memory (`MAPPABLE_PRIMARY_BUFFERS`), which

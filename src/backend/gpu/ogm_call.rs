@@ -1,0 +1,465 @@
+//! One OGM detection call on the device: the tiles of each slab planned within the binding and tile
+//! budgets, each tile's pixels placed (staged from the host, or bound where a device map lies), its
+//! kernels, scan and scatter recorded in one submission, the passes over the list's windows, and the
+//! keypoints read back. The kernels' parameters, pipelines and buffers are in `ogm.rs`.
+
+use super::device_map::Source;
+use super::ogm::{
+    OgmParams, KEYPOINT_BYTES, LANES, MAX_SCRATCH, MAX_TIMED_TILES, PARAMS_BYTES, RUN, SLAB_ROWS,
+    STRIP,
+};
+use super::scan::{ScanPlan, PARAM_ALIGN};
+use super::*;
+use crate::backend::fast::bitplanes::{ogm_sets, ValueSet};
+
+/// A value set as the kernel's interval parameters, lo and span in every byte; `false` when only the
+/// table states it (the empty set included).
+fn interval(set: &ValueSet) -> (bool, u32, u32) {
+    match set {
+        ValueSet::Interval { lo, span } => (
+            true,
+            u32::from(*lo) * 0x0101_0101,
+            u32::from(*span) * 0x0101_0101,
+        ),
+        ValueSet::Empty | ValueSet::Table(_) => (false, 0, 0),
+    }
+}
+
+/// What stays the same over a call: the classification, the rules and the output window.
+struct Call {
+    free: (bool, u32, u32),
+    blk: (bool, u32, u32),
+    min_bits: u32,
+}
+
+/// The head of a tile's parameter buffer: the detector's block, then one block per scan level.
+fn params_head(p: &OgmParams, scan: &ScanPlan, max_groups: u32) -> Vec<u8> {
+    let mut head = vec![0u8; PARAMS_BYTES as usize];
+    head[..std::mem::size_of::<OgmParams>()].copy_from_slice(bytemuck::bytes_of(p));
+    for (k, sp) in scan.params(max_groups).iter().enumerate() {
+        let at = (k + 1) * PARAM_ALIGN as usize;
+        head[at..at + 16].copy_from_slice(bytemuck::bytes_of(sp));
+    }
+    head
+}
+
+impl GpuBackend {
+    /// The OGM tiles of rows `y0..y1` of a `w` x `h` map staged from the host: bands within the device's
+    /// binding limit and the tile budget, each small enough for its dispatch and its scratch.
+    pub(super) fn ogm_plan(&self, w: u32, h: u32, y0: u32, y1: u32) -> Result<Vec<tiles::Tile>> {
+        let budget = self.max_binding.min(self.options.max_tile_bytes.max(1));
+        self.ogm_plan_within(w, h, y0, y1, budget, self.options.tile.unwrap_or((w, h)))
+    }
+
+    /// The OGM tiles of rows `y0..y1` of `src`: a host map's as [`Self::ogm_plan`]; a device map's in
+    /// full-width bands, each bound where it lies within the binding limit.
+    fn ogm_plan_for(&self, src: Source, y0: u32, y1: u32) -> Result<Vec<tiles::Tile>> {
+        let (w, h) = src.size();
+        let Source::Device(map) = src else {
+            return self.ogm_plan(w, h, y0, y1);
+        };
+        // A band of r buffer rows binds at most r rows of the map plus the offset's alignment slack;
+        // the tile budget counts rows padded to whole runs.
+        let bindable = self.max_binding.min(u64::from(u32::MAX) - 64);
+        let rows = bindable.saturating_sub(self.storage_align() + 16) / map.bytes_per_row.max(1);
+        let padded_row = u64::from((w + 2).div_ceil(RUN) * RUN);
+        let forced = (w, self.options.tile.map_or(h, |t| t.1));
+        let plan = self.ogm_plan_within(w, h, y0, y1, rows * padded_row, forced)?;
+        if plan.iter().any(|t| t.core[2] - t.core[0] < w) {
+            return Err(Error::Unavailable(format!(
+                "rows of {} bytes are too wide for {}'s storage binding limit ({} bytes)",
+                map.bytes_per_row, self.adapter.name, self.max_binding
+            )));
+        }
+        Ok(plan)
+    }
+
+    /// The tiles of rows `y0..y1` whose padded uploads take at most `budget` bytes, cores capped at
+    /// `forced`.
+    fn ogm_plan_within(
+        &self,
+        w: u32,
+        h: u32,
+        y0: u32,
+        y1: u32,
+        budget: u64,
+        forced: (u32, u32),
+    ) -> Result<Vec<tiles::Tile>> {
+        // Byte positions within a band are 32-bit in the kernel.
+        let budget = budget.min(u64::from(u32::MAX) - 64);
+        let too_small = || {
+            Error::Unavailable(format!(
+                "{}'s buffer limit ({} bytes) is too small for any tile",
+                self.adapter.name, budget
+            ))
+        };
+        let max_rows = self.max_groups.saturating_mul(STRIP);
+        let (tw, th) =
+            tiles::tile_size(w, y1 - y0, budget, Some((forced.0, forced.1.min(max_rows))))
+                .ok_or_else(too_small)?;
+        // Workgroup columns cover the tile's buffer, its halo columns included.
+        let groups_x = tw.saturating_add(2).min(w).div_ceil(RUN * LANES);
+        if groups_x > self.max_groups {
+            return Err(too_small());
+        }
+        // Scratch: two regions of `scratch` keypoints per workgroup, each within one binding.
+        let groups_x = u64::from(groups_x);
+        let per_strip = groups_x * u64::from(self.ogm_bufs.scratch) * KEYPOINT_BYTES;
+        let strips = (self.max_binding / per_strip.max(1)).min(u64::from(self.max_groups));
+        let th = th.min((strips * u64::from(STRIP)).min(u64::from(u32::MAX)) as u32);
+        if th == 0 {
+            return Err(too_small());
+        }
+        Ok(tiles::plan_rows(w, h, y0, y1, tw, th, 1))
+    }
+
+    /// Rows of one slab of a map `w` pixels wide: at most [`SLAB_ROWS`] (the keypoint's row field) and
+    /// fewer than 2^32 pixels (list positions are 32-bit).
+    pub(super) fn ogm_slab(&self, w: u32) -> u32 {
+        self.options
+            .slab_rows
+            .clamp(1, SLAB_ROWS)
+            .min((u32::MAX / w.max(1)).max(1))
+    }
+
+    /// Puts tile `t`'s parameters and pixels where its kernels read them: a host tile's parameter blocks
+    /// and rows (padded to whole 32-pixel runs) staged into the ring and copied by `encoder`; a device
+    /// map's parameters written to the queue, its pixels left where they are. Sets where `p` finds the
+    /// pixels; returns the detect kernel's pipeline and bind group, and the staging buffer's index.
+    fn place_pixels(
+        &mut self,
+        encoder: &mut wgpu::CommandEncoder,
+        src: Source,
+        t: &tiles::Tile,
+        slot: usize,
+        p: &mut OgmParams,
+        scan: &ScanPlan,
+    ) -> Result<(wgpu::ComputePipeline, wgpu::BindGroup, Option<usize>)> {
+        match src {
+            Source::Host(image) => {
+                (p.row_bytes, p.first_byte) = (t.ogm_pitch(), 0);
+                let head = params_head(p, scan, self.max_groups);
+                let (ring_i, staging, bytes) = self.ring.stage_band(
+                    &self.device,
+                    image,
+                    t,
+                    t.ogm_pitch() as usize,
+                    &head,
+                    PARAMS_BYTES as usize,
+                )?;
+                let b = &mut self.ogm_bufs;
+                let pixels = b.pixels[slot]
+                    .get(&self.device, bytes, self.max_binding)
+                    .clone();
+                encoder.copy_buffer_to_buffer(&staging, 0, &b.params[slot], 0, PARAMS_BYTES);
+                encoder.copy_buffer_to_buffer(&staging, PARAMS_BYTES, &pixels, 0, bytes);
+                let sb = b.binds(&self.device, &self.ogm, slot);
+                Ok((self.ogm.detect.clone(), sb.detect, Some(ring_i)))
+            }
+            Source::Device(map) => {
+                let win = map.window(t, self.storage_align());
+                (p.row_bytes, p.first_byte) = (map.bytes_per_row as u32, win.first_byte);
+                let head = params_head(p, scan, self.max_groups);
+                self.queue
+                    .write_buffer(&self.ogm_bufs.params[slot], 0, &head);
+                let pipeline = if win.runs {
+                    self.ogm.detect.clone()
+                } else {
+                    self.detect_any_pipeline()
+                };
+                let bind = self.device_map_bind(&pipeline, slot, map.buffer, &win);
+                Ok((pipeline, bind, None))
+            }
+        }
+    }
+
+    /// Records tile `t`'s pixels (staged or bound where they lie), kernels, scan and scatter into a new
+    /// encoder; returns the encoder and the staging buffer's index, if it used one.
+    fn encode_tile(
+        &mut self,
+        src: Source,
+        t: &tiles::Tile,
+        slot: usize,
+        mut p: OgmParams,
+        timing: Option<(&wgpu::QuerySet, u32)>,
+    ) -> Result<(wgpu::CommandEncoder, Option<usize>)> {
+        let core_rows = t.core[3] - t.core[1];
+        let n_counts = u64::from(core_rows) * u64::from(p.groups_x);
+        let scan = ScanPlan::new(n_counts + 1).ok_or_else(|| {
+            Error::Internal(format!("tile of {n_counts} counts is too large to scan"))
+        })?;
+        let strips = core_rows.div_ceil(STRIP);
+        let cap = self.max_binding;
+        let b = &mut self.ogm_bufs;
+        let counts = b.counts.get(&self.device, scan.entries * 4, cap).clone();
+        let scratch_bytes =
+            u64::from(p.groups_x) * u64::from(strips) * u64::from(p.scratch) * KEYPOINT_BYTES;
+        b.found.get(&self.device, scratch_bytes, cap);
+        b.ordered.get(&self.device, scratch_bytes, cap);
+        let mut encoder = self.device.create_command_encoder(&Default::default());
+        let (detect, detect_bind, ring_i) =
+            self.place_pixels(&mut encoder, src, t, slot, &mut p, &scan)?;
+        let sb = self.ogm_bufs.binds(&self.device, &self.ogm, slot);
+        // The entry after the counts is the scan's total once scanned; it must start at zero.
+        encoder.clear_buffer(&counts, n_counts * 4, Some(4));
+        {
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("ogm tile"),
+                timestamp_writes: timing.map(|(query_set, i)| wgpu::ComputePassTimestampWrites {
+                    query_set,
+                    beginning_of_pass_write_index: Some(2 * i),
+                    end_of_pass_write_index: Some(2 * i + 1),
+                }),
+            });
+            pass.set_pipeline(&detect);
+            pass.set_bind_group(0, &detect_bind, &[]);
+            pass.dispatch_workgroups(p.groups_x, strips, 1);
+            self.stats.dispatches += 3 + scan.encode(
+                &mut pass,
+                &self.ogm.scan_blocks,
+                &self.ogm.scan_add,
+                &sb.scan,
+                self.max_groups,
+            );
+            pass.set_pipeline(&self.ogm.scatter);
+            pass.set_bind_group(0, &sb.scatter, &[]);
+            pass.dispatch_workgroups(p.groups_x, strips, 1);
+            pass.set_pipeline(&self.ogm.finish);
+            pass.set_bind_group(0, &sb.finish, &[]);
+            pass.dispatch_workgroups(1, 1, 1);
+        }
+        if let Some(i) = ring_i {
+            self.ring.recycle(i, &encoder);
+        }
+        Ok((encoder, ring_i))
+    }
+
+    /// One pass over the tiles of a slab (rows `y0..y1`), writing list positions `window` into the
+    /// keypoint buffer; returns the slab's total and the largest workgroup count that overflowed its
+    /// scratch (0 when none did).
+    fn ogm_pass(
+        &mut self,
+        src: Source,
+        plan: &[tiles::Tile],
+        slab_y0: u32,
+        call: &Call,
+        window: (u32, u32),
+    ) -> Result<(u32, u32)> {
+        let timed = self.timestamps.is_some() && plan.len() <= MAX_TIMED_TILES;
+        if !timed {
+            // A partial sum would read as a kernel time; report none.
+            self.stats.kernel_time = None;
+        }
+        let queries = timed.then(|| {
+            self.device.create_query_set(&wgpu::QuerySetDescriptor {
+                label: Some("ogm tile timestamps"),
+                ty: wgpu::QueryType::Timestamp,
+                count: 2 * plan.len() as u32,
+            })
+        });
+        let window_len = u64::from(window.1 - window.0);
+        self.ogm_bufs
+            .keypoints
+            .get(&self.device, window_len * KEYPOINT_BYTES, self.max_binding);
+        let mut first = self.device.create_command_encoder(&Default::default());
+        first.clear_buffer(&self.ogm_bufs.status, 0, None);
+        self.queue.submit([first.finish()]);
+        for (i, t) in plan.iter().enumerate() {
+            let lanes_x = t.buf_w().div_ceil(RUN);
+            let groups_x = lanes_x.div_ceil(LANES);
+            let p = OgmParams {
+                buf_w: t.buf_w(),
+                buf_h: t.buf_h(),
+                row_bytes: 0, // set where the pixels are placed
+                lanes_x,
+                groups_x,
+                core_x0: t.core[0] - t.buf[0],
+                core_y0: t.core[1] - t.buf[1],
+                core_x1: t.core[2] - t.buf[0],
+                core_y1: t.core[3] - t.buf[1],
+                x_base: t.buf[0],
+                y_base: t.buf[1].wrapping_sub(slab_y0),
+                interval: u32::from(call.free.0 && call.blk.0),
+                free_lo: call.free.1,
+                free_span: call.free.2,
+                blk_lo: call.blk.1,
+                blk_span: call.blk.2,
+                min_bits: call.min_bits,
+                scratch: self.ogm_bufs.scratch,
+                out_start: window.0,
+                out_end: window.1,
+                n_counts: (t.core[3] - t.core[1]) * groups_x,
+                first_byte: 0,
+                _pad: [0; 2],
+            };
+            let slot = i % 2;
+            let (encoder, ring_i) =
+                self.encode_tile(src, t, slot, p, queries.as_ref().map(|q| (q, i as u32)))?;
+            let index = self.queue.submit([encoder.finish()]);
+            if let Some(ring_i) = ring_i {
+                self.ring.submitted(ring_i, index);
+            }
+        }
+        let mut last = self.device.create_command_encoder(&Default::default());
+        last.copy_buffer_to_buffer(&self.ogm_bufs.status, 0, &self.ogm_bufs.status_read, 0, 16);
+        let resolve = queries.as_ref().map(|q| {
+            let size = 16 * plan.len() as u64;
+            let resolve = self.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("timestamp resolve"),
+                size,
+                usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            });
+            let read = self.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("timestamp readback"),
+                size,
+                usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            });
+            last.resolve_query_set(q, 0..2 * plan.len() as u32, &resolve, 0);
+            last.copy_buffer_to_buffer(&resolve, 0, &read, 0, size);
+            (read, size)
+        });
+        self.queue.submit([last.finish()]);
+        let status = buffers::map_read(&self.device, &self.ogm_bufs.status_read, 16)?;
+        self.check()?;
+        if let Some((read, size)) = resolve {
+            let ts = buffers::map_read(&self.device, &read, size)?;
+            let ticks: &[u64] = bytemuck::cast_slice(&ts);
+            let total: u64 = ticks
+                .chunks_exact(2)
+                .map(|t| t[1].saturating_sub(t[0]))
+                .sum();
+            let ns = total as f64 * f64::from(self.queue.get_timestamp_period());
+            if let Some(prev) = self.stats.kernel_time {
+                self.stats.kernel_time = Some(prev + Duration::from_nanos(ns as u64));
+            }
+        }
+        let word =
+            |i: usize| u32::from_le_bytes(status[4 * i..4 * i + 4].try_into().expect("4 bytes"));
+        Ok((word(0), word(1)))
+    }
+
+    /// Every keypoint of rows `core` of the map rows `image` (which hold a row above and below the core
+    /// where the map has them), in (y, x) order: slab by slab, each slab's tiles in passes over a window
+    /// of the list (one pass unless the list outgrows the keypoint buffer), rerun with more scratch when a
+    /// workgroup overflowed its own.
+    pub(super) fn ogm_detect(
+        &mut self,
+        src: Source,
+        core: (usize, usize),
+        classes: &ClassTable,
+        rules: &RuleTable,
+        unknown_as_occupied: bool,
+    ) -> Result<Vec<Keypoint>> {
+        let (w, _) = src.size();
+        let Some(min_bits) = rules.min_accepted_bits() else {
+            return Ok(Vec::new());
+        };
+        let (core0, core1) = (core.0 as u32, core.1 as u32);
+        if w == 0 || core1 <= core0 {
+            return Ok(Vec::new());
+        }
+        let (free_set, blk_set) = ogm_sets(classes, unknown_as_occupied);
+        // The table the kernel falls back to: bit 0 free, bit 1 blocking.
+        let mut tables = [0u32; 512];
+        for v in 0..=255u8 {
+            tables[v as usize] =
+                u32::from(free_set.contains(v)) | (u32::from(blk_set.contains(v)) << 1);
+        }
+        for (c, &r) in rules.as_bytes().iter().enumerate() {
+            tables[256 + c] = u32::from(r);
+        }
+        self.queue
+            .write_buffer(&self.ogm_bufs.tables, 0, bytemuck::cast_slice(&tables));
+        let call = Call {
+            free: interval(&free_set),
+            blk: interval(&blk_set),
+            min_bits,
+        };
+        let per_pass = (self.max_binding / KEYPOINT_BYTES)
+            .min(
+                self.options
+                    .max_keypoints_per_pass
+                    .map_or(u64::MAX, u64::from),
+            )
+            .clamp(1, u64::from(u32::MAX)) as u32;
+        let mut out = Vec::new();
+        let mut side_by_side = false;
+        let slab = self.ogm_slab(w);
+        for slab_y0 in (core0..core1).step_by(slab as usize) {
+            let slab_y1 = slab_y0.saturating_add(slab).min(core1);
+            let mut start = 0u32;
+            loop {
+                let plan = self.ogm_plan_for(src, slab_y0, slab_y1)?;
+                self.stats.tiles = self.stats.tiles.max(plan.len());
+                side_by_side |= plan.iter().any(|t| t.core[2] - t.core[0] < w);
+                let have = (self.ogm_bufs.keypoints.size / KEYPOINT_BYTES) as u32;
+                let want = have
+                    .max(self.options.initial_keypoint_capacity)
+                    .clamp(1, per_pass);
+                let window = (start, start.saturating_add(want));
+                let (total, overflow) = self.ogm_pass(src, &plan, slab_y0, &call, window)?;
+                self.stats.write_passes += 1;
+                if overflow > self.ogm_bufs.scratch {
+                    // A workgroup found more than its scratch holds: rerun with room for it.
+                    self.ogm_bufs.scratch = overflow.next_power_of_two().min(MAX_SCRATCH);
+                    self.stats.scratch_reruns += 1;
+                    continue;
+                }
+                let got = total.min(window.1) - start.min(total);
+                if got > 0 {
+                    out.extend(self.read_keypoints(got, slab_y0, rules)?);
+                }
+                if total <= window.1 {
+                    break;
+                }
+                // The list outgrew the buffer: grow it to the whole list (within the pass limit), so the
+                // next call on a map like this one writes it in one pass, and write the next window.
+                start = window.1;
+                self.ogm_bufs.keypoints.get(
+                    &self.device,
+                    u64::from(total.min(per_pass)) * KEYPOINT_BYTES,
+                    u64::from(per_pass) * KEYPOINT_BYTES,
+                );
+            }
+        }
+        self.stats.keypoint_capacity = self.ogm_bufs.keypoints.size / KEYPOINT_BYTES;
+        if side_by_side {
+            // Tiles side by side interleave rows; restore (y, x) order.
+            out.sort_unstable();
+        }
+        Ok(out)
+    }
+
+    /// The first `n` entries of the keypoint buffer, decoded.
+    fn read_keypoints(&mut self, n: u32, slab_y0: u32, rules: &RuleTable) -> Result<Vec<Keypoint>> {
+        let size = u64::from(n) * KEYPOINT_BYTES;
+        let read = self
+            .ogm_bufs
+            .readback
+            .get(&self.device, size, u64::MAX)
+            .clone();
+        let mut encoder = self.device.create_command_encoder(&Default::default());
+        encoder.copy_buffer_to_buffer(
+            self.ogm_bufs.keypoints.get(&self.device, size, u64::MAX),
+            0,
+            &read,
+            0,
+            size,
+        );
+        self.queue.submit([encoder.finish()]);
+        let raw = buffers::map_read(&self.device, &read, size)?;
+        self.check()?;
+        let table = rules.as_bytes();
+        Ok(raw[..size as usize]
+            .chunks_exact(8)
+            .map(|c| {
+                let x = u32::from_le_bytes(c[0..4].try_into().expect("4 bytes"));
+                let v = u32::from_le_bytes(c[4..8].try_into().expect("4 bytes"));
+                let code = (v & 0xff) as u8;
+                Keypoint::ogm(x, slab_y0 + (v >> 8), table[code as usize], code)
+            })
+            .collect())
+    }
+}
