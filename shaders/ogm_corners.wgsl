@@ -7,10 +7,13 @@
 //
 // `detect`: an invocation owns 32 pixels of a row (eight words, two 16-byte loads) and walks down a strip of
 // STRIP rows, keeping the free and blocking bit-planes of three rows in registers, so every byte is read
-// once (plus two halo rows per strip). Classification is the interval compare the host derives from the
-// ClassTable (ValueSet), or the 256-entry table when a state's values are not an interval. The eight
-// neighbour planes are shifts of the blocking planes; the pixel just left and right of the 32 are loaded
-// directly (no subgroup size is assumed). A bit-sliced count skips every pixel with fewer blocking
+// once (plus two halo rows per strip); the row two below is loaded before the row below is classified, so a
+// row's loads are in flight while the invocation works. Classification compares four bytes at a time in
+// the form the host derives from the ClassTable (ValueSet) and fixes when it builds the pipeline
+// (override constants): a one-sided compare for a state whose values reach 0 or 255 (as the ROS
+// thresholds' do), the general interval compare otherwise, or the 256-entry table when a state's values are
+// not an interval. The eight neighbour planes are shifts of the blocking planes; the pixels just left and
+// right of the 32 are loaded directly and classified alone (no subgroup size is assumed). A bit-sliced count skips every pixel with fewer blocking
 // neighbours than the smallest accepted code; the few survivors are looked up in the rule table, derived
 // once in Rust and copied to workgroup memory. A workgroup's keypoints go to its scratch region in (y, x)
 // order, and it writes its count per row.
@@ -19,6 +22,13 @@
 // deterministic, sized exactly, and a workgroup whose keypoints overflow its scratch is reported (status[1])
 // for a rerun with more room rather than truncated.
 // `finish`: adds the tile's total to the running count (status[0]), which the next tile starts from.
+
+// How the kernel classifies, fixed per pipeline by the host (src/backend/gpu/ogm.rs, DetectForm): TABLE
+// looks every value up in the class table; otherwise each state's form is 0 (lo..=lo + span, mod 256),
+// 1 (at least lo) or 2 (below lo), with lo and span in the parameters.
+override TABLE: bool = false;
+override FREE_FORM: u32 = 0u;
+override BLK_FORM: u32 = 0u;
 
 const LANES: u32 = 64u;
 const STRIP: u32 = 16u;
@@ -36,10 +46,10 @@ struct Params {
     core_y1: u32,
     x_base: u32,     // added to buffer x (map x of buffer column 0)
     y_base: u32,     // added to buffer y (row of buffer row 0, counted from the slab's first row)
-    interval: u32,   // 1: free and blocking are value intervals; 0: look values up in the class table
-    free_lo: u32,    // the free interval's first value, in every byte
-    free_span: u32,  // its length minus one, in every byte
-    blk_lo: u32,     // the same for the blocking interval
+    _pad0: u32,
+    free_lo: u32,    // the free state's lo (see FREE_FORM), in every byte
+    free_span: u32,  // its span, in every byte
+    blk_lo: u32,     // the same for the blocking state
     blk_span: u32,
     min_bits: u32,   // fewest set bits of an accepted code
     scratch: u32,    // keypoints a workgroup's scratch region holds
@@ -82,66 +92,133 @@ struct Row {
     right: u32,
 }
 
-// Bits 0..3: which of the four bytes of `p` lie in lo..=lo + span (mod 256), `lo4` and `span4` being lo and
-// span in every byte. Bytewise subtraction, then a bytewise unsigned compare, no carries across bytes
-// (Hacker's Delight 2-18); checked against the plain compare for every lo, span and value.
+const H: u32 = 0x80808080u;
+
+// Bits 7, 15, 23, 31: which of the four bytes of `p` lie in lo..=lo + span (mod 256), `lo4` and `span4`
+// being lo and span in every byte. Bytewise subtraction, then a bytewise unsigned compare, no carries across
+// bytes (Hacker's Delight 2-18); checked against the plain compare for every lo, span and value.
 fn in_interval(p: u32, lo4: u32, span4: u32) -> u32 {
-    let h = 0x80808080u;
-    let d = ((p | h) - (lo4 & ~h)) ^ ((p ^ ~lo4) & h);
-    let t = (span4 | h) - (d & ~h);
-    let m = (((span4 & ~d) | (~(span4 ^ d) & t)) & h) >> 7u;
-    return (m | (m >> 7u) | (m >> 14u) | (m >> 21u)) & 0xfu;
+    let d = ((p | H) - (lo4 & ~H)) ^ ((p ^ ~lo4) & H);
+    let t = (span4 | H) - (d & ~H);
+    return ((span4 & ~d) | (~(span4 ^ d) & t)) & H;
 }
 
-// Free bits (0..3) and blocking bits (4..7) of the four pixels of word `p`, pixel k at bit k.
-fn classify_word(p: u32) -> u32 {
-    if params.interval != 0u {
-        return in_interval(p, params.free_lo, params.free_span)
-            | (in_interval(p, params.blk_lo, params.blk_span) << 4u);
-    }
-    var out = 0u;
-    for (var k = 0u; k < 4u; k++) {
-        let c = wg_class[(p >> (8u * k)) & 0xffu];
-        out |= ((c & 1u) << k) | (((c >> 1u) & 1u) << (k + 4u));
-    }
-    return out;
+// Bits 7, 15, 23, 31: which of the four bytes of `p` are at least the byte of `y4` (y in every byte): the
+// low seven bits compared by a subtraction that cannot borrow across bytes, the top bit decided apart.
+// Checked against the plain compare for every y and value.
+fn bytes_at_least(p: u32, y4: u32) -> u32 {
+    let d = (p | H) - (y4 & ~H);
+    return ((p & ~y4) | (~(p ^ y4) & d)) & H;
 }
 
-fn load_row(lane: u32, y: i32) -> Row {
-    var r = Row(0u, 0u, 0u, 0u);
+// The bytes of `p` in a state of form `form` (see FREE_FORM), as bits 7, 15, 23, 31.
+fn in_state(p: u32, form: u32, lo4: u32, span4: u32) -> u32 {
+    if form == 1u {
+        return bytes_at_least(p, lo4);
+    }
+    if form == 2u {
+        return bytes_at_least(p, lo4) ^ H;
+    }
+    return in_interval(p, lo4, span4);
+}
+
+// Bits 7, 15, 23, 31 of `m` gathered to bits 0..3 by one multiply (the partial products never overlap).
+fn pack4(m: u32) -> u32 {
+    return (m * 0x00204081u) >> 28u;
+}
+
+// Word k of a run (pixels 4k..4k + 3) added to the run's free (x) and blocking (y) planes.
+fn add_word(acc: vec2<u32>, p: u32, k: u32) -> vec2<u32> {
+    if TABLE {
+        var f = 0u;
+        var b = 0u;
+        for (var i = 0u; i < 4u; i++) {
+            let c = wg_class[(p >> (8u * i)) & 0xffu];
+            f |= (c & 1u) << i;
+            b |= ((c >> 1u) & 1u) << i;
+        }
+        return acc | vec2<u32>(f << (4u * k), b << (4u * k));
+    }
+    let f = pack4(in_state(p, FREE_FORM, params.free_lo, params.free_span));
+    let b = pack4(in_state(p, BLK_FORM, params.blk_lo, params.blk_span));
+    return acc | vec2<u32>(f << (4u * k), b << (4u * k));
+}
+
+// Whether the pixel of value `v` (one byte) is blocking.
+fn blocking(v: u32) -> u32 {
+    if TABLE {
+        return (wg_class[v] >> 1u) & 1u;
+    }
+    let lo = params.blk_lo & 0xffu;
+    if BLK_FORM == 1u {
+        return u32(v >= lo);
+    }
+    if BLK_FORM == 2u {
+        return u32(v < lo);
+    }
+    return u32(((v - lo) & 0xffu) <= (params.blk_span & 0xffu));
+}
+
+// A row's run as loaded, before classification: its eight words, the bytes just left and right of it, and
+// which of those exist (bit 0: the run, 1: left, 2: right).
+struct Raw {
+    p: array<u32, 8>,
+    left: u32,
+    right: u32,
+    has: u32,
+}
+
+fn fetch(lane: u32, y: i32) -> Raw {
+    var r: Raw;
     if y < 0 || u32(y) >= params.buf_h || lane >= params.lanes_x {
         return r;
     }
     let at = params.first_byte + u32(y) * params.row_bytes + lane * 32u;
-    let p = run_at(at);
-    let c0 = classify_word(p[0]);
-    let c1 = classify_word(p[1]);
-    let c2 = classify_word(p[2]);
-    let c3 = classify_word(p[3]);
-    let c4 = classify_word(p[4]);
-    let c5 = classify_word(p[5]);
-    let c6 = classify_word(p[6]);
-    let c7 = classify_word(p[7]);
-    let lo = (c0 & 0xfu) | ((c1 & 0xfu) << 4u) | ((c2 & 0xfu) << 8u) | ((c3 & 0xfu) << 12u)
-        | ((c4 & 0xfu) << 16u) | ((c5 & 0xfu) << 20u) | ((c6 & 0xfu) << 24u) | ((c7 & 0xfu) << 28u);
-    let hi = (c0 >> 4u) | ((c1 >> 4u) << 4u) | ((c2 >> 4u) << 8u) | ((c3 >> 4u) << 12u)
-        | ((c4 >> 4u) << 16u) | ((c5 >> 4u) << 20u) | ((c6 >> 4u) << 24u) | ((c7 >> 4u) << 28u);
-    r.free = lo;
-    r.blk = hi;
-    // Padding past the row's end is neither free nor blocking.
-    let x0 = lane * 32u;
-    let valid = params.buf_w - x0;
-    if valid < 32u {
-        let m = (1u << valid) - 1u;
-        r.free &= m;
-        r.blk &= m;
-    }
-    // The pixels just left and right of the run: the blocking bit of pixel 0 of a lone byte.
+    r.p = run_at(at);
+    r.has = 1u;
     if lane > 0u {
-        r.left = (classify_word(byte_at(at - 1u)) >> 4u) & 1u;
+        r.left = byte_at(at - 1u);
+        r.has |= 2u;
     }
-    if x0 + 32u < params.buf_w {
-        r.right = (classify_word(byte_at(at + 32u)) >> 4u) & 1u;
+    if lane * 32u + 32u < params.buf_w {
+        r.right = byte_at(at + 32u);
+        r.has |= 4u;
+    }
+    return r;
+}
+
+// The planes of a loaded run: free and blocking bits, and the blocking bits of the pixels just left and
+// right of it (0 outside the buffer: outside the tile's buffer is outside the map).
+fn classify(raw: Raw) -> Row {
+    var r = Row(0u, 0u, 0u, 0u);
+    if raw.has == 0u {
+        return r;
+    }
+    var acc = vec2<u32>(0u);
+    acc = add_word(acc, raw.p[0], 0u);
+    acc = add_word(acc, raw.p[1], 1u);
+    acc = add_word(acc, raw.p[2], 2u);
+    acc = add_word(acc, raw.p[3], 3u);
+    acc = add_word(acc, raw.p[4], 4u);
+    acc = add_word(acc, raw.p[5], 5u);
+    acc = add_word(acc, raw.p[6], 6u);
+    acc = add_word(acc, raw.p[7], 7u);
+    r.free = acc.x;
+    r.blk = acc.y;
+    // Padding past the row's end is neither free nor blocking (the run's lane is its bits' owner).
+    if (raw.has & 4u) == 0u {
+        let valid = params.buf_w - (params.buf_w - 1u) / 32u * 32u;
+        if valid < 32u {
+            let m = (1u << valid) - 1u;
+            r.free &= m;
+            r.blk &= m;
+        }
+    }
+    if (raw.has & 2u) != 0u {
+        r.left = blocking(raw.left);
+    }
+    if (raw.has & 4u) != 0u {
+        r.right = blocking(raw.right);
     }
     return r;
 }
@@ -247,14 +324,20 @@ fn detect(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index)
     }
     let base = group_index(wg) * params.scratch;
     let y0 = params.core_y0 + wg.y * STRIP;
-    var up = load_row(lane, i32(y0) - 1);
-    var mid = load_row(lane, i32(y0));
+    var up = classify(fetch(lane, i32(y0) - 1));
+    var mid = classify(fetch(lane, i32(y0)));
+    var ahead = fetch(lane, i32(y0) + 1);
     for (var r = 0u; r < STRIP; r++) {
         let y = y0 + r;
         if y >= params.core_y1 {
             break;
         }
-        let down = load_row(lane, i32(y) + 1);
+        // The row two below, loaded while this one is worked on (the last row of the strip needs none).
+        var next: Raw;
+        if r + 1u < STRIP {
+            next = fetch(lane, i32(y) + 2);
+        }
+        let down = classify(ahead);
         let n = neighbours(up, mid, down);
         let near = n.q | n.b | n.p | n.a | n.q2 | n.b2 | n.p2 | n.a2;
         var cand = 0u;
@@ -291,6 +374,7 @@ fn detect(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index)
         }
         up = mid;
         mid = down;
+        ahead = next;
     }
 
     workgroupBarrier();

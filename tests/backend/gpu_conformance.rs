@@ -7,11 +7,11 @@ use ogm_corners::backend::gpu::{GpuBackend, GpuOptions};
 use ogm_corners::backend::reference::ReferenceBackend;
 use ogm_corners::map::synthetic::{office_map, Rng};
 use ogm_corners::{
-    Backend, Baseline, BaselineParams, CellState, ClassTable, MapImage, OccupancyMap, RuleSet,
-    RuleTable, Thresholds,
+    Backend, Baseline, BaselineParams, ClassTable, MapImage, OccupancyMap, RuleSet, RuleTable,
+    Thresholds,
 };
 
-const VARIANTS: [(RuleSet, bool); 4] = [
+pub(crate) const VARIANTS: [(RuleSet, bool); 4] = [
     (RuleSet::Paper, false),
     (RuleSet::Paper, true),
     (RuleSet::PaperMod2, false),
@@ -19,7 +19,12 @@ const VARIANTS: [(RuleSet, bool); 4] = [
 ];
 
 /// Asserts CPU and GPU agree on `img` for every rule reading and unknown option; returns the CPU count.
-fn assert_same(gpu: &mut GpuBackend, img: &MapImage, thresholds: &Thresholds, what: &str) -> usize {
+pub(crate) fn assert_same(
+    gpu: &mut GpuBackend,
+    img: &MapImage,
+    thresholds: &Thresholds,
+    what: &str,
+) -> usize {
     let classes = ClassTable::new(thresholds);
     let mut n = 0;
     for (set, uao) in VARIANTS {
@@ -82,66 +87,6 @@ fn random_maps_of_many_sizes() {
         for seed in 0..3 {
             let img = common::random_map(w, h, (i * 10 + seed) as u64);
             assert_same(&mut gpu, &img, &Thresholds::default(), "random map");
-        }
-    }
-}
-
-#[test]
-fn odd_thresholds_and_negate() {
-    let Some(mut gpu) = common::gpu_backend(GpuOptions::default()) else {
-        return;
-    };
-    let mut rng = Rng::new(11);
-    let px = (0..300 * 200).map(|_| rng.range(0, 256) as u8).collect();
-    let img = MapImage::new(300, 200, px).unwrap();
-    for t in [
-        Thresholds::default(),
-        Thresholds {
-            negate: true,
-            ..Thresholds::default()
-        },
-        Thresholds {
-            negate: false,
-            occupied_thresh: 0.5,
-            free_thresh: 0.5,
-        },
-    ] {
-        assert_same(&mut gpu, &img, &t, "grey map");
-    }
-}
-
-#[test]
-fn class_tables_that_are_not_intervals() {
-    // The kernel classifies by interval compares when each state's values are an interval (the ROS
-    // thresholds always give that) and falls back to the table otherwise: exercise the fallback, and the
-    // empty sets.
-    let Some(mut gpu) = common::gpu_backend(GpuOptions::default()) else {
-        return;
-    };
-    let img = common::random_map(300, 77, 5);
-    let mut rng = Rng::new(3);
-    let states = [CellState::Free, CellState::Unknown, CellState::Occupied];
-    let scattered: [CellState; 256] = std::array::from_fn(|_| states[rng.range(0, 3) as usize]);
-    let grey = grey_map(190, 130, 9);
-    for table in [
-        scattered,
-        [CellState::Unknown; 256],
-        [CellState::Free; 256],
-        std::array::from_fn(|v| {
-            if v % 2 == 0 {
-                CellState::Free
-            } else {
-                CellState::Occupied
-            }
-        }),
-    ] {
-        let classes = ClassTable::from_states(table);
-        for map in [&img, &grey] {
-            for (set, uao) in VARIANTS {
-                let rules = RuleTable::new(set);
-                let want = ReferenceBackend.detect(map, &classes, &rules, uao).unwrap();
-                assert_eq!(gpu.detect(map, &classes, &rules, uao).unwrap(), want);
-            }
         }
     }
 }
@@ -437,7 +382,7 @@ fn assert_same_scores(gpu: &mut GpuBackend, img: &MapImage, what: &str) {
     }
 }
 
-fn grey_map(w: u32, h: u32, seed: u64) -> MapImage {
+pub(crate) fn grey_map(w: u32, h: u32, seed: u64) -> MapImage {
     let mut rng = Rng::new(seed);
     MapImage::new(w, h, (0..w * h).map(|_| rng.range(0, 256) as u8).collect()).unwrap()
 }

@@ -7,6 +7,7 @@
 mod common;
 mod fast_baselines;
 mod fast_ogm;
+mod gpu_classify;
 mod gpu_conformance;
 mod gpu_device_map;
 mod opencv;

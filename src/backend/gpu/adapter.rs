@@ -25,6 +25,9 @@ pub struct AdapterReport {
     pub shader_int64: bool,
     /// Smallest and largest subgroup the adapter may run (the kernels assume neither).
     pub subgroup_sizes: (u32, u32),
+    /// Whether shaders can use subgroup operations (`Features::SUBGROUP`): the OGM kernel then takes
+    /// the pixels beside its run from its neighbours' registers.
+    pub subgroups: bool,
 }
 
 pub(super) fn report(a: &wgpu::Adapter) -> AdapterReport {
@@ -44,6 +47,7 @@ pub(super) fn report(a: &wgpu::Adapter) -> AdapterReport {
         timestamp_query: features.contains(wgpu::Features::TIMESTAMP_QUERY),
         shader_int64: features.contains(wgpu::Features::SHADER_INT64),
         subgroup_sizes: (info.subgroup_min_size, info.subgroup_max_size),
+        subgroups: features.contains(wgpu::Features::SUBGROUP),
     }
 }
 

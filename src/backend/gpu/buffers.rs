@@ -200,11 +200,10 @@ impl Ring {
     }
 }
 
-/// A bind group of group 0 of `pipeline` binding whole buffers (a uniform's buffer may be longer than its
-/// struct: the OGM and selection parameters are followed by the scan's levels).
-pub(super) fn bind_group(
+/// A bind group of `layout` binding whole buffers.
+pub(super) fn bind_group_with(
     device: &wgpu::Device,
-    pipeline: &wgpu::ComputePipeline,
+    layout: &wgpu::BindGroupLayout,
     entries: &[(u32, &wgpu::Buffer)],
 ) -> wgpu::BindGroup {
     let entries: Vec<wgpu::BindGroupEntry> = entries
@@ -216,9 +215,19 @@ pub(super) fn bind_group(
         .collect();
     device.create_bind_group(&wgpu::BindGroupDescriptor {
         label: None,
-        layout: &pipeline.get_bind_group_layout(0),
+        layout,
         entries: &entries,
     })
+}
+
+/// A bind group of group 0 of `pipeline` binding whole buffers (a uniform's buffer may be longer than its
+/// struct: the OGM and selection parameters are followed by the scan's levels).
+pub(super) fn bind_group(
+    device: &wgpu::Device,
+    pipeline: &wgpu::ComputePipeline,
+    entries: &[(u32, &wgpu::Buffer)],
+) -> wgpu::BindGroup {
+    bind_group_with(device, &pipeline.get_bind_group_layout(0), entries)
 }
 
 /// Waits as `wait` says for the device's work, driving map callbacks.

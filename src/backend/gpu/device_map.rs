@@ -165,35 +165,9 @@ impl GpuBackend {
         Ok(out)
     }
 
-    /// The detect pipeline that reads any offset and pitch, built on first use.
-    pub(super) fn detect_any_pipeline(&mut self) -> wgpu::ComputePipeline {
-        if let Some(p) = &self.ogm.detect_any {
-            return p.clone();
-        }
-        let module = self
-            .device
-            .create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some("ogm_corners.wgsl (any alignment)"),
-                source: wgpu::ShaderSource::Wgsl(ogm_shader_source(true).into()),
-            });
-        let p = self
-            .device
-            .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                label: Some("detect (any alignment)"),
-                layout: None,
-                module: &module,
-                entry_point: Some("detect"),
-                compilation_options: Default::default(),
-                cache: None,
-            });
-        self.ogm.detect_any = Some(p.clone());
-        p
-    }
-
     /// The detect kernel's bind group for a band of a device map bound at `win`.
     pub(super) fn device_map_bind(
         &mut self,
-        pipeline: &wgpu::ComputePipeline,
         slot: usize,
         buffer: &wgpu::Buffer,
         win: &Window,
@@ -204,7 +178,7 @@ impl GpuBackend {
         let ordered = b.ordered.get(&self.device, 16, u64::MAX).clone();
         self.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("ogm device map"),
-            layout: &pipeline.get_bind_group_layout(0),
+            layout: &self.ogm.detect_group,
             entries: &[
                 whole(0, &b.params[slot]),
                 whole(1, &b.tables),

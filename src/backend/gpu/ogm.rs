@@ -39,7 +39,7 @@ pub(super) struct OgmParams {
     pub(super) core_y1: u32,
     pub(super) x_base: u32,
     pub(super) y_base: u32,
-    pub(super) interval: u32,
+    pub(super) _pad0: u32,
     pub(super) free_lo: u32,
     pub(super) free_span: u32,
     pub(super) blk_lo: u32,
@@ -53,28 +53,59 @@ pub(super) struct OgmParams {
     pub(super) _pad: [u32; 2],
 }
 
-/// The OGM pipelines, built once per device.
+/// How the detect kernel classifies a call's values, fixed when its pipeline is built (the override
+/// constants of ogm_corners.wgsl): every value through the class table, or each state in its form (0: the
+/// general interval, 1: at least lo, 2: below lo).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub(super) struct DetectForm {
+    pub table: bool,
+    pub free: u32,
+    pub blk: u32,
+}
+
+/// The OGM pipelines: `scatter`, `finish` and the scan built once per device; `detect` per form and
+/// pixel reader on first use, all on one layout, so one bind group serves every variant.
 pub(super) struct OgmPipelines {
-    /// Reads rows that start 16-byte aligned (shaders/lib/ogm_fetch_runs.wgsl).
-    pub detect: wgpu::ComputePipeline,
-    /// Reads a map at any offset and pitch (shaders/lib/ogm_fetch_bytes.wgsl); built on first use.
-    pub detect_any: Option<wgpu::ComputePipeline>,
+    /// The kernel with each pixel reader: 16-byte runs (shaders/lib/ogm_fetch_runs.wgsl) and any
+    /// offset and pitch (ogm_fetch_bytes.wgsl, made on first use).
+    modules: [Option<wgpu::ShaderModule>; 2],
+    detect_layout: wgpu::PipelineLayout,
+    /// The detect kernel's bind group layout.
+    pub detect_group: wgpu::BindGroupLayout,
+    detect: std::collections::HashMap<(bool, DetectForm), wgpu::ComputePipeline>,
     pub scatter: wgpu::ComputePipeline,
     pub finish: wgpu::ComputePipeline,
     pub scan_blocks: wgpu::ComputePipeline,
     pub scan_add: wgpu::ComputePipeline,
 }
 
+fn module(device: &wgpu::Device, any_alignment: bool) -> wgpu::ShaderModule {
+    device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some("ogm_corners.wgsl"),
+        source: wgpu::ShaderSource::Wgsl(super::ogm_shader_source(any_alignment).into()),
+    })
+}
+
+fn layout_entry(binding: u32, ty: wgpu::BufferBindingType) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::COMPUTE,
+        ty: wgpu::BindingType::Buffer {
+            ty,
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
+        count: None,
+    }
+}
+
 impl OgmPipelines {
     pub fn new(device: &wgpu::Device) -> Self {
-        let module = |label, src: &str| {
-            device.create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some(label),
-                source: wgpu::ShaderSource::Wgsl(src.into()),
-            })
-        };
-        let corners = module("ogm_corners.wgsl", &super::ogm_shader_source(false));
-        let scan = module("scan.wgsl", include_str!("../../../shaders/scan.wgsl"));
+        let corners = module(device, false);
+        let scan = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("scan.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(include_str!("../../../shaders/scan.wgsl").into()),
+        });
         let pipeline =
             |m: &wgpu::ShaderModule, entry: &str, layout: Option<&wgpu::PipelineLayout>| {
                 device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
@@ -86,37 +117,80 @@ impl OgmPipelines {
                     cache: None,
                 })
             };
+        let uniform = wgpu::BufferBindingType::Uniform;
+        let read = wgpu::BufferBindingType::Storage { read_only: true };
+        let write = wgpu::BufferBindingType::Storage { read_only: false };
         // The scan's two entry points share one layout, so one bind group per level serves both.
-        let entry = |binding, ty| wgpu::BindGroupLayoutEntry {
-            binding,
-            visibility: wgpu::ShaderStages::COMPUTE,
-            ty: wgpu::BindingType::Buffer {
-                ty,
-                has_dynamic_offset: false,
-                min_binding_size: None,
-            },
-            count: None,
-        };
         let scan_group = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("scan"),
-            entries: &[
-                entry(0, wgpu::BufferBindingType::Uniform),
-                entry(1, wgpu::BufferBindingType::Storage { read_only: false }),
-            ],
+            entries: &[layout_entry(0, uniform), layout_entry(1, write)],
         });
         let scan_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("scan"),
             bind_group_layouts: &[Some(&scan_group)],
             immediate_size: 0,
         });
+        let detect_group = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("ogm detect"),
+            entries: &[
+                layout_entry(0, uniform),
+                layout_entry(1, read),
+                layout_entry(2, read),
+                layout_entry(3, write),
+                layout_entry(4, write),
+                layout_entry(5, write),
+                layout_entry(6, write),
+            ],
+        });
+        let detect_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("ogm detect"),
+            bind_group_layouts: &[Some(&detect_group)],
+            immediate_size: 0,
+        });
         OgmPipelines {
-            detect: pipeline(&corners, "detect", None),
-            detect_any: None,
             scatter: pipeline(&corners, "scatter", None),
             finish: pipeline(&corners, "finish", None),
             scan_blocks: pipeline(&scan, "scan_blocks", Some(&scan_layout)),
             scan_add: pipeline(&scan, "scan_add", Some(&scan_layout)),
+            modules: [Some(corners), None],
+            detect_layout,
+            detect_group,
+            detect: Default::default(),
         }
+    }
+
+    /// The detect pipeline classifying in `form`, reading 16-byte runs or, with `any_alignment`, any
+    /// offset and pitch; built on first use.
+    pub fn detect(
+        &mut self,
+        device: &wgpu::Device,
+        any_alignment: bool,
+        form: DetectForm,
+    ) -> wgpu::ComputePipeline {
+        if let Some(p) = self.detect.get(&(any_alignment, form)) {
+            return p.clone();
+        }
+        let m = self.modules[usize::from(any_alignment)]
+            .get_or_insert_with(|| module(device, any_alignment));
+        let constants = [
+            ("TABLE", f64::from(u8::from(form.table))),
+            ("FREE_FORM", f64::from(form.free)),
+            ("BLK_FORM", f64::from(form.blk)),
+        ];
+        let p = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some("detect"),
+            layout: Some(&self.detect_layout),
+            module: m,
+            entry_point: Some("detect"),
+            compilation_options: wgpu::PipelineCompilationOptions {
+                constants: &constants,
+                // The kernel writes every workgroup variable before it reads it.
+                zero_initialize_workgroup_memory: false,
+            },
+            cache: None,
+        });
+        self.detect.insert((any_alignment, form), p.clone());
+        p
     }
 }
 
@@ -208,9 +282,9 @@ impl OgmBuffers {
                 let ordered = self.ordered.get(device, 16, u64::MAX).clone();
                 let keypoints = self.keypoints.get(device, 16, u64::MAX).clone();
                 SlotBinds {
-                    detect: buffers::bind_group(
+                    detect: buffers::bind_group_with(
                         device,
-                        &p.detect,
+                        &p.detect_group,
                         &[
                             (0, params),
                             (1, &self.tables),
@@ -244,45 +318,5 @@ impl OgmBuffers {
             self.binds = Some((key, built));
         }
         self.binds.as_ref().expect("bind groups were just built").1[slot].clone()
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    /// The kernel's `in_interval`, line for line.
-    fn in_interval(p: u32, lo4: u32, span4: u32) -> u32 {
-        const H: u32 = 0x8080_8080;
-        let d = ((p | H).wrapping_sub(lo4 & !H)) ^ ((p ^ !lo4) & H);
-        let t = (span4 | H).wrapping_sub(d & !H);
-        let m = (((span4 & !d) | (!(span4 ^ d) & t)) & H) >> 7;
-        (m | (m >> 7) | (m >> 14) | (m >> 21)) & 0xf
-    }
-
-    #[test]
-    fn the_bytewise_interval_compare_is_exact() {
-        // Every lo, span and value, at a varying byte of a word whose other bytes vary too.
-        let mut x = 12345u64;
-        for lo in 0..256u32 {
-            for span in 0..256u32 {
-                for v in 0..256u32 {
-                    x ^= x << 13;
-                    x ^= x >> 7;
-                    x ^= x << 17;
-                    let k = (x % 4) as u32;
-                    let p = ((x >> 8) as u32 & !(0xff << (8 * k))) | (v << (8 * k));
-                    let want: u32 = (0..4)
-                        .map(|i| {
-                            let b = (p >> (8 * i)) & 0xff;
-                            u32::from(b.wrapping_sub(lo) & 0xff <= span) << i
-                        })
-                        .sum();
-                    assert_eq!(
-                        in_interval(p, lo * 0x0101_0101, span * 0x0101_0101),
-                        want,
-                        "lo {lo} span {span} word {p:#x}"
-                    );
-                }
-            }
-        }
     }
 }

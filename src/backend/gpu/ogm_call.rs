@@ -5,31 +5,67 @@
 
 use super::device_map::Source;
 use super::ogm::{
-    OgmParams, KEYPOINT_BYTES, LANES, MAX_SCRATCH, MAX_TIMED_TILES, PARAMS_BYTES, RUN, SLAB_ROWS,
-    STRIP,
+    DetectForm, OgmParams, KEYPOINT_BYTES, LANES, MAX_SCRATCH, MAX_TIMED_TILES, PARAMS_BYTES, RUN,
+    SLAB_ROWS, STRIP,
 };
 use super::scan::{ScanPlan, PARAM_ALIGN};
 use super::*;
 use crate::backend::fast::bitplanes::{ogm_sets, ValueSet};
 
-/// A value set as the kernel's interval parameters, lo and span in every byte; `false` when only the
-/// table states it (the empty set included).
-fn interval(set: &ValueSet) -> (bool, u32, u32) {
-    match set {
-        ValueSet::Interval { lo, span } => (
-            true,
-            u32::from(*lo) * 0x0101_0101,
-            u32::from(*span) * 0x0101_0101,
-        ),
-        ValueSet::Empty | ValueSet::Table(_) => (false, 0, 0),
+/// A value set's form in the kernel (see [`DetectForm`]) with its lo and span in every byte: at least lo
+/// where the set reaches 255 (as the ROS thresholds' free set does), below lo where it starts at 0 (their
+/// blocking set), else the general interval; `None` where only the table states it (the empty set too).
+fn state_form(set: &ValueSet) -> Option<(u32, u32, u32)> {
+    let every = |v: u32| v * 0x0101_0101;
+    match *set {
+        ValueSet::Interval { lo, span } => {
+            let (lo, span) = (u32::from(lo), u32::from(span));
+            Some(if lo + span == 255 {
+                (1, every(lo), 0)
+            } else if lo == 0 {
+                (2, every(span + 1), 0)
+            } else {
+                (0, every(lo), every(span))
+            })
+        }
+        ValueSet::Empty | ValueSet::Table(_) => None,
     }
 }
 
-/// What stays the same over a call: the classification, the rules and the output window.
+/// What stays the same over a call: the classification (its form and each state's lo and span) and the
+/// rules.
 struct Call {
-    free: (bool, u32, u32),
-    blk: (bool, u32, u32),
+    form: DetectForm,
+    free: (u32, u32),
+    blk: (u32, u32),
     min_bits: u32,
+}
+
+impl Call {
+    fn new(free: &ValueSet, blk: &ValueSet, min_bits: u32) -> Self {
+        match (state_form(free), state_form(blk)) {
+            (Some(f), Some(b)) => Call {
+                form: DetectForm {
+                    table: false,
+                    free: f.0,
+                    blk: b.0,
+                },
+                free: (f.1, f.2),
+                blk: (b.1, b.2),
+                min_bits,
+            },
+            _ => Call {
+                form: DetectForm {
+                    table: true,
+                    free: 0,
+                    blk: 0,
+                },
+                free: (0, 0),
+                blk: (0, 0),
+                min_bits,
+            },
+        }
+    }
 }
 
 /// The head of a tile's parameter buffer: the detector's block, then one block per scan level.
@@ -122,29 +158,39 @@ impl GpuBackend {
             .min((u32::MAX / w.max(1)).max(1))
     }
 
-    /// Puts tile `t`'s parameters and pixels where its kernels read them: a host tile's parameter blocks
-    /// and rows (padded to whole 32-pixel runs) staged into the ring and copied by `encoder`; a device
-    /// map's parameters written to the queue, its pixels left where they are. Sets where `p` finds the
-    /// pixels; returns the detect kernel's pipeline and bind group, and the staging buffer's index.
+    /// Where tile `t`'s kernel finds its pixels in its binding: bytes from a row to the next, and the
+    /// byte of its first pixel.
+    fn pixel_layout(&self, src: Source, t: &tiles::Tile) -> (u32, u32) {
+        match src {
+            Source::Host(_) => (t.ogm_pitch(), 0),
+            Source::Device(map) => (
+                map.bytes_per_row as u32,
+                map.window(t, self.storage_align()).first_byte,
+            ),
+        }
+    }
+
+    /// Puts tile `t`'s parameter blocks `head` and its pixels where its kernels read them: a host tile's
+    /// parameters and rows (padded to whole 32-pixel runs) staged into the ring and copied by `encoder`; a
+    /// device map's parameters written to the queue, its pixels left where they are. Returns the detect
+    /// kernel's pipeline (classifying in `form`) and bind group, and the staging buffer's index.
     fn place_pixels(
         &mut self,
         encoder: &mut wgpu::CommandEncoder,
         src: Source,
         t: &tiles::Tile,
         slot: usize,
-        p: &mut OgmParams,
-        scan: &ScanPlan,
+        head: &[u8],
+        form: DetectForm,
     ) -> Result<(wgpu::ComputePipeline, wgpu::BindGroup, Option<usize>)> {
         match src {
             Source::Host(image) => {
-                (p.row_bytes, p.first_byte) = (t.ogm_pitch(), 0);
-                let head = params_head(p, scan, self.max_groups);
                 let (ring_i, staging, bytes) = self.ring.stage_band(
                     &self.device,
                     image,
                     t,
                     t.ogm_pitch() as usize,
-                    &head,
+                    head,
                     PARAMS_BYTES as usize,
                 )?;
                 let b = &mut self.ogm_bufs;
@@ -154,20 +200,15 @@ impl GpuBackend {
                 encoder.copy_buffer_to_buffer(&staging, 0, &b.params[slot], 0, PARAMS_BYTES);
                 encoder.copy_buffer_to_buffer(&staging, PARAMS_BYTES, &pixels, 0, bytes);
                 let sb = b.binds(&self.device, &self.ogm, slot);
-                Ok((self.ogm.detect.clone(), sb.detect, Some(ring_i)))
+                let pipeline = self.ogm.detect(&self.device, false, form);
+                Ok((pipeline, sb.detect, Some(ring_i)))
             }
             Source::Device(map) => {
                 let win = map.window(t, self.storage_align());
-                (p.row_bytes, p.first_byte) = (map.bytes_per_row as u32, win.first_byte);
-                let head = params_head(p, scan, self.max_groups);
                 self.queue
-                    .write_buffer(&self.ogm_bufs.params[slot], 0, &head);
-                let pipeline = if win.runs {
-                    self.ogm.detect.clone()
-                } else {
-                    self.detect_any_pipeline()
-                };
-                let bind = self.device_map_bind(&pipeline, slot, map.buffer, &win);
+                    .write_buffer(&self.ogm_bufs.params[slot], 0, head);
+                let pipeline = self.ogm.detect(&self.device, !win.runs, form);
+                let bind = self.device_map_bind(slot, map.buffer, &win);
                 Ok((pipeline, bind, None))
             }
         }
@@ -181,6 +222,7 @@ impl GpuBackend {
         t: &tiles::Tile,
         slot: usize,
         mut p: OgmParams,
+        form: DetectForm,
         timing: Option<(&wgpu::QuerySet, u32)>,
     ) -> Result<(wgpu::CommandEncoder, Option<usize>)> {
         let core_rows = t.core[3] - t.core[1];
@@ -196,9 +238,11 @@ impl GpuBackend {
             u64::from(p.groups_x) * u64::from(strips) * u64::from(p.scratch) * KEYPOINT_BYTES;
         b.found.get(&self.device, scratch_bytes, cap);
         b.ordered.get(&self.device, scratch_bytes, cap);
+        (p.row_bytes, p.first_byte) = self.pixel_layout(src, t);
+        let head = params_head(&p, &scan, self.max_groups);
         let mut encoder = self.device.create_command_encoder(&Default::default());
         let (detect, detect_bind, ring_i) =
-            self.place_pixels(&mut encoder, src, t, slot, &mut p, &scan)?;
+            self.place_pixels(&mut encoder, src, t, slot, &head, form)?;
         let sb = self.ogm_bufs.binds(&self.device, &self.ogm, slot);
         // The entry after the counts is the scan's total once scanned; it must start at zero.
         encoder.clear_buffer(&counts, n_counts * 4, Some(4));
@@ -279,11 +323,11 @@ impl GpuBackend {
                 core_y1: t.core[3] - t.buf[1],
                 x_base: t.buf[0],
                 y_base: t.buf[1].wrapping_sub(slab_y0),
-                interval: u32::from(call.free.0 && call.blk.0),
-                free_lo: call.free.1,
-                free_span: call.free.2,
-                blk_lo: call.blk.1,
-                blk_span: call.blk.2,
+                _pad0: 0,
+                free_lo: call.free.0,
+                free_span: call.free.1,
+                blk_lo: call.blk.0,
+                blk_span: call.blk.1,
                 min_bits: call.min_bits,
                 scratch: self.ogm_bufs.scratch,
                 out_start: window.0,
@@ -293,8 +337,14 @@ impl GpuBackend {
                 _pad: [0; 2],
             };
             let slot = i % 2;
-            let (encoder, ring_i) =
-                self.encode_tile(src, t, slot, p, queries.as_ref().map(|q| (q, i as u32)))?;
+            let (encoder, ring_i) = self.encode_tile(
+                src,
+                t,
+                slot,
+                p,
+                call.form,
+                queries.as_ref().map(|q| (q, i as u32)),
+            )?;
             let index = self.queue.submit([encoder.finish()]);
             if let Some(ring_i) = ring_i {
                 self.ring.submitted(ring_i, index);
@@ -372,11 +422,7 @@ impl GpuBackend {
         }
         self.queue
             .write_buffer(&self.ogm_bufs.tables, 0, bytemuck::cast_slice(&tables));
-        let call = Call {
-            free: interval(&free_set),
-            blk: interval(&blk_set),
-            min_bits,
-        };
+        let call = Call::new(&free_set, &blk_set, min_bits);
         let per_pass = (self.max_binding / KEYPOINT_BYTES)
             .min(
                 self.options
@@ -461,5 +507,77 @@ impl GpuBackend {
                 Keypoint::ogm(x, slab_y0 + (v >> 8), table[code as usize], code)
             })
             .collect())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::state_form;
+    use crate::backend::fast::bitplanes::ValueSet;
+
+    const H: u32 = 0x8080_8080;
+
+    /// The kernel's `in_interval`, `bytes_at_least`, `in_state` and `pack4`, line for line.
+    fn in_interval(p: u32, lo4: u32, span4: u32) -> u32 {
+        let d = ((p | H).wrapping_sub(lo4 & !H)) ^ ((p ^ !lo4) & H);
+        let t = (span4 | H).wrapping_sub(d & !H);
+        ((span4 & !d) | (!(span4 ^ d) & t)) & H
+    }
+
+    fn bytes_at_least(p: u32, y4: u32) -> u32 {
+        let d = (p | H).wrapping_sub(y4 & !H);
+        ((p & !y4) | (!(p ^ y4) & d)) & H
+    }
+
+    fn in_state(p: u32, form: u32, lo4: u32, span4: u32) -> u32 {
+        match form {
+            1 => bytes_at_least(p, lo4),
+            2 => bytes_at_least(p, lo4) ^ H,
+            _ => in_interval(p, lo4, span4),
+        }
+    }
+
+    fn pack4(m: u32) -> u32 {
+        m.wrapping_mul(0x0020_4081) >> 28
+    }
+
+    #[test]
+    fn every_interval_is_classified_exactly_in_the_form_the_host_picks() {
+        // Every lo and span (wrapping intervals included), every value at a varying byte of a word
+        // whose other bytes vary too; the forms the host picks for them (one-sided where the interval
+        // reaches 0 or 255, as the ROS thresholds' do) and the general form for each.
+        let mut x = 12345u64;
+        let mut forms = [0usize; 3];
+        for lo in 0..=255u8 {
+            for span in 0..=255u8 {
+                let set = ValueSet::Interval { lo, span };
+                let (form, lo4, span4) = state_form(&set).expect("an interval has a form");
+                forms[form as usize] += 1;
+                let general = (
+                    0,
+                    u32::from(lo) * 0x0101_0101,
+                    u32::from(span) * 0x0101_0101,
+                );
+                for v in 0..256u32 {
+                    x ^= x << 13;
+                    x ^= x >> 7;
+                    x ^= x << 17;
+                    let k = (x % 4) as u32;
+                    let p = ((x >> 8) as u32 & !(0xff << (8 * k))) | (v << (8 * k));
+                    let want: u32 = (0..4)
+                        .map(|i| u32::from(set.contains(((p >> (8 * i)) & 0xff) as u8)) << i)
+                        .sum();
+                    for (f, l, s) in [(form, lo4, span4), general] {
+                        assert_eq!(
+                            pack4(in_state(p, f, l, s)),
+                            want,
+                            "lo {lo} span {span} form {f} word {p:#x}"
+                        );
+                    }
+                }
+            }
+        }
+        // 256 intervals reach 255, 255 more start at 0 (the whole range counted once).
+        assert_eq!(forms, [65536 - 511, 256, 255]);
     }
 }
