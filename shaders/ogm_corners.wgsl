@@ -6,7 +6,8 @@
 // shaders/lib/ogm_fetch_bytes.wgsl (any offset and row pitch: maps in a caller's device buffer).
 //
 // `detect`: an invocation owns 32 pixels of a row (eight words, two 16-byte loads) and walks down a strip of
-// STRIP rows, keeping the free and blocking bit-planes of three rows in registers, so every byte is read
+// `params.strip` rows (at most MAX_STRIP; the host takes fewer where a small map would leave the device
+// short of workgroups), keeping the free and blocking bit-planes of three rows in registers, so every byte is read
 // once (plus two halo rows per strip); the row two below is loaded before the row below is classified, so a
 // row's loads are in flight while the invocation works. Classification compares four bytes at a time in
 // the form the host derives from the ClassTable (ValueSet) and fixes when it builds the pipeline
@@ -31,8 +32,8 @@ override FREE_FORM: u32 = 0u;
 override BLK_FORM: u32 = 0u;
 
 const LANES: u32 = 64u;
-const STRIP: u32 = 16u;
-const SLOTS: u32 = 1024u; // LANES * STRIP
+const MAX_STRIP: u32 = 16u;
+const SLOTS: u32 = 1024u; // LANES * MAX_STRIP
 
 struct Params {
     buf_w: u32,      // pixels per buffer row
@@ -46,7 +47,7 @@ struct Params {
     core_y1: u32,
     x_base: u32,     // added to buffer x (map x of buffer column 0)
     y_base: u32,     // added to buffer y (row of buffer row 0, counted from the slab's first row)
-    _pad0: u32,
+    strip: u32,      // rows an invocation walks down, 1..=MAX_STRIP
     free_lo: u32,    // the free state's lo (see FREE_FORM), in every byte
     free_span: u32,  // its span, in every byte
     blk_lo: u32,     // the same for the blocking state
@@ -305,7 +306,7 @@ fn detect(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index)
     if li == 0u {
         atomicStore(&wg_fill, 0u);
     }
-    for (var r = 0u; r < STRIP; r++) {
+    for (var r = 0u; r < MAX_STRIP; r++) {
         blocks[r * LANES + li] = 0u;
     }
     workgroupBarrier();
@@ -323,18 +324,18 @@ fn detect(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index)
         }
     }
     let base = group_index(wg) * params.scratch;
-    let y0 = params.core_y0 + wg.y * STRIP;
+    let y0 = params.core_y0 + wg.y * params.strip;
     var up = classify(fetch(lane, i32(y0) - 1));
     var mid = classify(fetch(lane, i32(y0)));
     var ahead = fetch(lane, i32(y0) + 1);
-    for (var r = 0u; r < STRIP; r++) {
+    for (var r = 0u; r < params.strip; r++) {
         let y = y0 + r;
         if y >= params.core_y1 {
             break;
         }
         // The row two below, loaded while this one is worked on (the last row of the strip needs none).
         var next: Raw;
-        if r + 1u < STRIP {
+        if r + 1u < params.strip {
             next = fetch(lane, i32(y) + 2);
         }
         let down = classify(ahead);
@@ -384,9 +385,9 @@ fn detect(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index)
     let total = workgroupUniformLoad(&wg_total);
     var rows = 0u;
     if y0 < params.core_y1 {
-        rows = min(STRIP, params.core_y1 - y0);
+        rows = min(params.strip, params.core_y1 - y0);
     }
-    let row0 = wg.y * STRIP; // first core row of the strip, counted from core_y0
+    let row0 = wg.y * params.strip; // first core row of the strip, counted from core_y0
     if total == 0u {
         if li < rows {
             counts[(row0 + li) * params.groups_x + wg.x] = 0u;
@@ -420,7 +421,7 @@ fn detect(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index)
     if li < rows {
         let first = offsets[li * LANES];
         var next = total;
-        if li + 1u < STRIP {
+        if li + 1u < MAX_STRIP {
             next = offsets[(li + 1u) * LANES];
         }
         counts[(row0 + li) * params.groups_x + wg.x] = next - first;
@@ -444,12 +445,12 @@ fn detect(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index)
 
 @compute @workgroup_size(64)
 fn scatter(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) li: u32) {
-    let y0 = params.core_y0 + wg.y * STRIP;
+    let y0 = params.core_y0 + wg.y * params.strip;
     if y0 >= params.core_y1 {
         return;
     }
-    let rows = min(STRIP, params.core_y1 - y0);
-    let row0 = wg.y * STRIP;
+    let rows = min(params.strip, params.core_y1 - y0);
+    let row0 = wg.y * params.strip;
     let before = atomicLoad(&status[0]);
     let base = group_index(wg) * params.scratch;
     var local = 0u;

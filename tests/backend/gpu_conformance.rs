@@ -289,6 +289,44 @@ fn a_map_is_written_in_one_pass_once_the_buffer_has_grown() {
 }
 
 #[test]
+fn every_strip_height_matches_the_reference() {
+    // Invocations walk strips of 1 to 16 rows (fewer on small maps on a large GPU): odd heights, a
+    // strip past the tile's last row, tiles and slabs.
+    let classes = ClassTable::default();
+    let rules = RuleTable::new(RuleSet::PaperMod2);
+    let maps = [
+        common::random_map(301, 199, 1),
+        common::random_map(70, 33, 2),
+        common::random_map(2100, 45, 3),
+    ];
+    for strip in 1..=16 {
+        for tile in [None, Some((64, 37))] {
+            let Some(mut gpu) = common::gpu_backend(GpuOptions {
+                strip_rows: Some(strip),
+                tile,
+                slab_rows: 150,
+                ..GpuOptions::default()
+            }) else {
+                return;
+            };
+            for img in &maps {
+                let want = ReferenceBackend
+                    .detect(img, &classes, &rules, true)
+                    .unwrap();
+                let got = gpu.detect(img, &classes, &rules, true).unwrap();
+                assert_eq!(
+                    got,
+                    want,
+                    "strip {strip}, tile {tile:?}, {}x{}",
+                    img.width(),
+                    img.height()
+                );
+            }
+        }
+    }
+}
+
+#[test]
 fn the_backend_is_reused_across_maps() {
     let Some(mut gpu) = common::gpu_backend(GpuOptions::default()) else {
         return;

@@ -105,6 +105,9 @@ pub struct GpuOptions {
     pub initial_workgroup_scratch: u32,
     /// Rows of one OGM slab (at most 2^24, the keypoint's row field); tests shrink it to run the slab path.
     pub slab_rows: u32,
+    /// Rows each OGM invocation walks down (1 to 16); `None` lets the backend choose: 16, the fewest halo
+    /// rows read twice, unless a small map would then leave a GPU short of workgroups.
+    pub strip_rows: Option<u32>,
     /// Use the exact 64-bit emulation even where the adapter has SHADER_INT64 (to test it).
     pub emulate_int64: bool,
     /// Upload budget of one band, bytes: a large map streams through the GPU in bands of about this size,
@@ -122,6 +125,7 @@ impl Default for GpuOptions {
             max_keypoints_per_pass: None,
             initial_workgroup_scratch: 512,
             slab_rows: 1 << 24,
+            strip_rows: None,
             emulate_int64: false,
             max_tile_bytes: 64 << 20,
         }

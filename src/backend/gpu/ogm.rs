@@ -9,8 +9,12 @@ use super::*;
 
 /// Invocations of a `detect` workgroup side by side, each owning 32 pixels of a row.
 pub(super) const LANES: u32 = 64;
-/// Rows a `detect` invocation walks down.
+/// Rows a `detect` invocation walks down at most (its strip; fewer where a small map would leave the device
+/// short of workgroups).
 pub(super) const STRIP: u32 = 16;
+/// Workgroups a map's dispatch should have for a large GPU to be full: 524,288 invocations, about twice
+/// what the largest (132 multiprocessors of 2,048 threads) hold at once. Not yet tuned on a real GPU.
+pub(super) const ENOUGH_GROUPS: u64 = 8192;
 /// Pixels of one invocation's run.
 pub(super) const RUN: u32 = tiles::ROW_ALIGN;
 /// The most keypoints a workgroup can find (every pixel of its strip).
@@ -39,7 +43,7 @@ pub(super) struct OgmParams {
     pub(super) core_y1: u32,
     pub(super) x_base: u32,
     pub(super) y_base: u32,
-    pub(super) _pad0: u32,
+    pub(super) strip: u32,
     pub(super) free_lo: u32,
     pub(super) free_span: u32,
     pub(super) blk_lo: u32,

@@ -5,8 +5,8 @@
 
 use super::device_map::Source;
 use super::ogm::{
-    DetectForm, OgmParams, KEYPOINT_BYTES, LANES, MAX_SCRATCH, MAX_TIMED_TILES, PARAMS_BYTES, RUN,
-    SLAB_ROWS, STRIP,
+    DetectForm, OgmParams, ENOUGH_GROUPS, KEYPOINT_BYTES, LANES, MAX_SCRATCH, MAX_TIMED_TILES,
+    PARAMS_BYTES, RUN, SLAB_ROWS, STRIP,
 };
 use super::scan::{ScanPlan, PARAM_ALIGN};
 use super::*;
@@ -30,6 +30,20 @@ fn state_form(set: &ValueSet) -> Option<(u32, u32, u32)> {
         }
         ValueSet::Empty | ValueSet::Table(_) => None,
     }
+}
+
+/// Rows a detect invocation walks down in a tile of `core_rows` rows and `groups_x` workgroup columns:
+/// [`STRIP`], the fewest halo rows read twice, where that gives [`ENOUGH_GROUPS`] workgroups; else 8 or 4
+/// (rows read per row of the map: 18/16, 10/8, 6/4), within `max_groups` strips and `max_scratch`
+/// workgroups' scratch regions.
+fn strip_rows(groups_x: u32, core_rows: u32, max_groups: u32, max_scratch: u64) -> u32 {
+    let groups = |s: u32| u64::from(groups_x) * u64::from(core_rows.div_ceil(s));
+    let fits = |s: u32| core_rows.div_ceil(s) <= max_groups && groups(s) <= max_scratch;
+    let mut s = STRIP;
+    while s > 4 && groups(s) < ENOUGH_GROUPS && fits(s / 2) {
+        s /= 2;
+    }
+    s
 }
 
 /// What stays the same over a call: the classification (its form and each state's lo and span) and the
@@ -149,6 +163,24 @@ impl GpuBackend {
         Ok(tiles::plan_rows(w, h, y0, y1, tw, th, 1))
     }
 
+    /// Rows a detect invocation walks down in a tile of `core_rows` rows and `groups_x` workgroup
+    /// columns ([`strip_rows`]); a software adapter, whose few threads are full anyway, keeps [`STRIP`].
+    fn strip_rows(&self, groups_x: u32, core_rows: u32) -> u32 {
+        if let Some(s) = self.options.strip_rows {
+            return s.clamp(1, STRIP);
+        }
+        if self.adapter.device_type == "Cpu" {
+            return STRIP;
+        }
+        let per_group = u64::from(self.ogm_bufs.scratch) * KEYPOINT_BYTES;
+        strip_rows(
+            groups_x,
+            core_rows,
+            self.max_groups,
+            self.max_binding / per_group.max(1),
+        )
+    }
+
     /// Rows of one slab of a map `w` pixels wide: at most [`SLAB_ROWS`] (the keypoint's row field) and
     /// fewer than 2^32 pixels (list positions are 32-bit).
     pub(super) fn ogm_slab(&self, w: u32) -> u32 {
@@ -230,7 +262,7 @@ impl GpuBackend {
         let scan = ScanPlan::new(n_counts + 1).ok_or_else(|| {
             Error::Internal(format!("tile of {n_counts} counts is too large to scan"))
         })?;
-        let strips = core_rows.div_ceil(STRIP);
+        let strips = core_rows.div_ceil(p.strip);
         let cap = self.max_binding;
         let b = &mut self.ogm_bufs;
         let counts = b.counts.get(&self.device, scan.entries * 4, cap).clone();
@@ -323,7 +355,7 @@ impl GpuBackend {
                 core_y1: t.core[3] - t.buf[1],
                 x_base: t.buf[0],
                 y_base: t.buf[1].wrapping_sub(slab_y0),
-                _pad0: 0,
+                strip: self.strip_rows(groups_x, t.core[3] - t.core[1]),
                 free_lo: call.free.0,
                 free_span: call.free.1,
                 blk_lo: call.blk.0,
@@ -512,7 +544,7 @@ impl GpuBackend {
 
 #[cfg(test)]
 mod tests {
-    use super::state_form;
+    use super::{state_form, strip_rows};
     use crate::backend::fast::bitplanes::ValueSet;
 
     const H: u32 = 0x8080_8080;
@@ -539,6 +571,21 @@ mod tests {
 
     fn pack4(m: u32) -> u32 {
         m.wrapping_mul(0x0020_4081) >> 28
+    }
+
+    #[test]
+    fn small_maps_take_shorter_strips_to_fill_the_device() {
+        // 4096^2: 2 workgroup columns; 256 strips of 16 would be 512 workgroups, so strips of 4.
+        assert_eq!(strip_rows(2, 4096, 65535, u64::MAX), 4);
+        // 16384^2: 8 columns of 1024 strips of 16 are enough.
+        assert_eq!(strip_rows(8, 16384, 65535, u64::MAX), 16);
+        assert_eq!(strip_rows(2, 65536, 65535, u64::MAX), 16);
+        // 8192^2: 4 columns, 512 strips of 16 (2048 workgroups), 1024 of 8, 2048 of 4.
+        assert_eq!(strip_rows(4, 8192, 65535, u64::MAX), 4);
+        // Within the dispatch limit and the scratch regions there is room for.
+        assert_eq!(strip_rows(2, 4096, 300, u64::MAX), 16);
+        assert_eq!(strip_rows(2, 4096, 65535, 1100), 8);
+        assert_eq!(strip_rows(1, 10, 65535, u64::MAX), 4);
     }
 
     #[test]
