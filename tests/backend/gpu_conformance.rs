@@ -289,6 +289,36 @@ fn a_map_is_written_in_one_pass_once_the_buffer_has_grown() {
 }
 
 #[test]
+fn staged_bands_are_read_in_place_or_copied_with_the_same_keypoints() {
+    // Where the device lets kernels read mappable buffers (lavapipe does), the kernel reads each staged
+    // band in its staging buffer; copy_bands forces the copy into device memory that other devices take.
+    let classes = ClassTable::default();
+    let rules = RuleTable::new(RuleSet::Paper);
+    let img = common::random_map(777, 301, 4);
+    let want = ReferenceBackend
+        .detect(&img, &classes, &rules, false)
+        .unwrap();
+    for copy_bands in [false, true] {
+        let Some(mut gpu) = common::gpu_backend(GpuOptions {
+            copy_bands,
+            tile: Some((300, 64)),
+            ..GpuOptions::default()
+        }) else {
+            return;
+        };
+        assert_eq!(gpu.detect(&img, &classes, &rules, false).unwrap(), want);
+        let s = gpu.stats();
+        assert!(s.tiles > 4, "{s:?}");
+        let copied = copy_bands || !gpu.reads_staging();
+        assert_eq!(s.pixel_copies, if copied { s.tiles } else { 0 }, "{s:?}");
+        if std::env::var("CI").is_ok_and(|v| v == "true") && !copy_bands {
+            // Lavapipe, the CI's adapter, has MAPPABLE_PRIMARY_BUFFERS: the in-place path must run there.
+            assert!(gpu.reads_staging(), "{}", gpu.adapter().name);
+        }
+    }
+}
+
+#[test]
 fn every_strip_height_matches_the_reference() {
     // Invocations walk strips of 1 to 16 rows (fewer on small maps on a large GPU): odd heights, a
     // strip past the tile's last row, tiles and slabs.

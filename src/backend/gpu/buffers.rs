@@ -71,6 +71,7 @@ struct Staging {
 pub(super) struct Ring {
     bufs: Vec<Option<Staging>>,
     next: usize,
+    usage: wgpu::BufferUsages,
 }
 
 /// What one row of a staged band is: `len` bytes from `src` written at `dst`, zeros up to `dst + pitch`.
@@ -83,10 +84,17 @@ struct RowCopy {
 }
 
 impl Ring {
-    pub fn new(len: usize) -> Self {
+    /// A ring of `len` buffers; with `bindable`, kernels may read them in place (the device has
+    /// `MAPPABLE_PRIMARY_BUFFERS`).
+    pub fn new(len: usize, bindable: bool) -> Self {
+        let mut usage = wgpu::BufferUsages::MAP_WRITE | wgpu::BufferUsages::COPY_SRC;
+        if bindable {
+            usage |= wgpu::BufferUsages::STORAGE;
+        }
         Ring {
             bufs: (0..len.max(1)).map(|_| None).collect(),
             next: 0,
+            usage,
         }
     }
 
@@ -143,7 +151,7 @@ impl Ring {
                 buffer: device.create_buffer(&wgpu::BufferDescriptor {
                     label: Some("staging"),
                     size,
-                    usage: wgpu::BufferUsages::MAP_WRITE | wgpu::BufferUsages::COPY_SRC,
+                    usage: self.usage,
                     mapped_at_creation: true,
                 }),
                 state: Arc::new(AtomicU8::new(MAPPED)),

@@ -24,13 +24,6 @@ pub struct DeviceMap<'a> {
     pub bytes_per_row: u64,
 }
 
-fn whole(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
-    wgpu::BindGroupEntry {
-        binding,
-        resource: buffer.as_entire_binding(),
-    }
-}
-
 /// Where a call's pixels come from: the host's rows, staged band by band and copied to the device, or a
 /// map already in a device buffer, which the kernels read where it is.
 #[derive(Clone, Copy)]
@@ -163,38 +156,5 @@ impl GpuBackend {
         )?;
         self.check()?;
         Ok(out)
-    }
-
-    /// The detect kernel's bind group for a band of a device map bound at `win`.
-    pub(super) fn device_map_bind(
-        &mut self,
-        slot: usize,
-        buffer: &wgpu::Buffer,
-        win: &Window,
-    ) -> wgpu::BindGroup {
-        let b = &mut self.ogm_bufs;
-        let counts = b.counts.get(&self.device, 16, u64::MAX).clone();
-        let found = b.found.get(&self.device, 16, u64::MAX).clone();
-        let ordered = b.ordered.get(&self.device, 16, u64::MAX).clone();
-        self.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("ogm device map"),
-            layout: &self.ogm.detect_group,
-            entries: &[
-                whole(0, &b.params[slot]),
-                whole(1, &b.tables),
-                wgpu::BindGroupEntry {
-                    binding: 2,
-                    resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
-                        buffer,
-                        offset: win.offset,
-                        size: wgpu::BufferSize::new(win.size),
-                    }),
-                },
-                whole(3, &counts),
-                whole(4, &found),
-                whole(5, &ordered),
-                whole(6, &b.status),
-            ],
-        })
     }
 }

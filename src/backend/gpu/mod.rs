@@ -108,6 +108,9 @@ pub struct GpuOptions {
     /// Rows each OGM invocation walks down (1 to 16); `None` lets the backend choose: 16, the fewest halo
     /// rows read twice, unless a small map would then leave a GPU short of workgroups.
     pub strip_rows: Option<u32>,
+    /// Copy each staged band of a map into a device buffer before the OGM kernel reads it, even where the
+    /// kernel could read the staging buffer itself (to test the copying path).
+    pub copy_bands: bool,
     /// Use the exact 64-bit emulation even where the adapter has SHADER_INT64 (to test it).
     pub emulate_int64: bool,
     /// Upload budget of one band, bytes: a large map streams through the GPU in bands of about this size,
@@ -126,6 +129,7 @@ impl Default for GpuOptions {
             initial_workgroup_scratch: 512,
             slab_rows: 1 << 24,
             strip_rows: None,
+            copy_bands: false,
             emulate_int64: false,
             max_tile_bytes: 64 << 20,
         }
@@ -146,6 +150,9 @@ pub struct GpuStats {
     /// Compute dispatches the call recorded (every kernel and every level of the prefix scans, over all
     /// its tiles and passes): with `write_passes`, what one map costs in GPU launches.
     pub dispatches: usize,
+    /// Bands of a map in host memory copied from staging into a device buffer before the OGM kernel read
+    /// them: none where the kernel reads the staging buffers themselves.
+    pub pixel_copies: usize,
     /// Keypoint buffer capacity after the call, in keypoints.
     pub keypoint_capacity: u64,
     /// Kernel time measured on the GPU (timestamp queries), when the adapter supports it.
@@ -323,7 +330,7 @@ impl GpuBackend {
             storage_align: u64::from(limits.min_storage_buffer_offset_alignment).max(16),
             ogm: OgmPipelines::new(&device),
             ogm_bufs: OgmBuffers::new(&device, options.initial_workgroup_scratch),
-            ring: Ring::new(2),
+            ring: Ring::new(2, host_copies),
             adapter: report,
             device,
             queue,
@@ -345,6 +352,13 @@ impl GpuBackend {
     /// Alignment of a storage binding's offset on this device, bytes.
     fn storage_align(&self) -> u64 {
         self.storage_align
+    }
+
+    /// Whether the OGM kernel reads a staged band in its staging buffer, with no copy into device
+    /// memory: where buffers the host maps may also be bound to kernels (`MAPPABLE_PRIMARY_BUFFERS`).
+    /// With a resizable BAR the staging buffer is device memory already.
+    pub fn reads_staging(&self) -> bool {
+        self.host_copies && !self.options.copy_bands
     }
 
     /// The adapter in use.

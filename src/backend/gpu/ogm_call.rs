@@ -194,6 +194,9 @@ impl GpuBackend {
     /// byte of its first pixel.
     fn pixel_layout(&self, src: Source, t: &tiles::Tile) -> (u32, u32) {
         match src {
+            Source::Host(_) if self.reads_staging() => {
+                (t.ogm_pitch(), (PARAMS_BYTES % self.storage_align) as u32)
+            }
             Source::Host(_) => (t.ogm_pitch(), 0),
             Source::Device(map) => (
                 map.bytes_per_row as u32,
@@ -203,8 +206,10 @@ impl GpuBackend {
     }
 
     /// Puts tile `t`'s parameter blocks `head` and its pixels where its kernels read them: a host tile's
-    /// parameters and rows (padded to whole 32-pixel runs) staged into the ring and copied by `encoder`; a
-    /// device map's parameters written to the queue, its pixels left where they are. Returns the detect
+    /// parameters and rows (padded to whole 32-pixel runs) staged into the ring, the parameters copied by
+    /// `encoder` and the rows read by the kernel in the staging buffer itself where the device allows
+    /// ([`GpuBackend::reads_staging`]), else copied too; a device map's parameters written to the queue,
+    /// its pixels left where they are. Returns the detect
     /// kernel's pipeline (classifying in `form`) and bind group, and the staging buffer's index.
     fn place_pixels(
         &mut self,
@@ -225,14 +230,22 @@ impl GpuBackend {
                     head,
                     PARAMS_BYTES as usize,
                 )?;
+                let pipeline = self.ogm.detect(&self.device, false, form);
+                let params = &self.ogm_bufs.params[slot];
+                encoder.copy_buffer_to_buffer(&staging, 0, params, 0, PARAMS_BYTES);
+                if self.reads_staging() {
+                    let offset = PARAMS_BYTES / self.storage_align * self.storage_align;
+                    let size = PARAMS_BYTES - offset + bytes;
+                    let bind = self.bind_pixels_at(slot, &staging, offset, size);
+                    return Ok((pipeline, bind, Some(ring_i)));
+                }
                 let b = &mut self.ogm_bufs;
                 let pixels = b.pixels[slot]
                     .get(&self.device, bytes, self.max_binding)
                     .clone();
-                encoder.copy_buffer_to_buffer(&staging, 0, &b.params[slot], 0, PARAMS_BYTES);
                 encoder.copy_buffer_to_buffer(&staging, PARAMS_BYTES, &pixels, 0, bytes);
+                self.stats.pixel_copies += 1;
                 let sb = b.binds(&self.device, &self.ogm, slot);
-                let pipeline = self.ogm.detect(&self.device, false, form);
                 Ok((pipeline, sb.detect, Some(ring_i)))
             }
             Source::Device(map) => {
@@ -240,10 +253,56 @@ impl GpuBackend {
                 self.queue
                     .write_buffer(&self.ogm_bufs.params[slot], 0, head);
                 let pipeline = self.ogm.detect(&self.device, !win.runs, form);
-                let bind = self.device_map_bind(slot, map.buffer, &win);
+                let bind = self.bind_pixels_at(slot, map.buffer, win.offset, win.size);
                 Ok((pipeline, bind, None))
             }
         }
+    }
+
+    /// The detect kernel's bind group for slot `slot` with its pixels bound at bytes `offset..offset +
+    /// size` of `buffer` (a staging buffer, or a caller's map).
+    fn bind_pixels_at(
+        &mut self,
+        slot: usize,
+        buffer: &wgpu::Buffer,
+        offset: u64,
+        size: u64,
+    ) -> wgpu::BindGroup {
+        fn whole(binding: u32, buffer: &wgpu::Buffer) -> (u32, wgpu::BufferBinding<'_>) {
+            (binding, buffer.as_entire_buffer_binding())
+        }
+        let b = &mut self.ogm_bufs;
+        let counts = b.counts.get(&self.device, 16, u64::MAX).clone();
+        let found = b.found.get(&self.device, 16, u64::MAX).clone();
+        let ordered = b.ordered.get(&self.device, 16, u64::MAX).clone();
+        let entries = [
+            whole(0, &b.params[slot]),
+            whole(1, &b.tables),
+            (
+                2,
+                wgpu::BufferBinding {
+                    buffer,
+                    offset,
+                    size: wgpu::BufferSize::new(size),
+                },
+            ),
+            whole(3, &counts),
+            whole(4, &found),
+            whole(5, &ordered),
+            whole(6, &b.status),
+        ];
+        let entries: Vec<wgpu::BindGroupEntry> = entries
+            .into_iter()
+            .map(|(binding, b)| wgpu::BindGroupEntry {
+                binding,
+                resource: wgpu::BindingResource::Buffer(b),
+            })
+            .collect();
+        self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("ogm pixels in place"),
+            layout: &self.ogm.detect_group,
+            entries: &entries,
+        })
     }
 
     /// Records tile `t`'s pixels (staged or bound where they lie), kernels, scan and scatter into a new

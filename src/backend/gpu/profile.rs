@@ -6,7 +6,9 @@ use super::*;
 
 impl GpuBackend {
     /// The time to upload `image` alone, band by band as [`Backend::detect`] does (through the staging
-    /// ring, one submission per band), and wait for it; the first slab only, on maps taller than one.
+    /// ring, one submission per band; copied on into device memory only where the kernel cannot read the
+    /// staging buffer, [`GpuBackend::reads_staging`]), and wait for it; the first slab only, on maps
+    /// taller than one.
     pub fn upload_time(&mut self, image: &MapImage) -> Result<Duration> {
         self.check()?;
         let (w, h) = (image.width(), image.height());
@@ -21,11 +23,13 @@ impl GpuBackend {
                 &[],
                 PARAMS_BYTES as usize,
             )?;
-            let pixels = self.ogm_bufs.pixels[i % 2]
-                .get(&self.device, bytes, self.max_binding)
-                .clone();
             let mut encoder = self.device.create_command_encoder(&Default::default());
-            encoder.copy_buffer_to_buffer(&staging, PARAMS_BYTES, &pixels, 0, bytes);
+            if !self.reads_staging() {
+                let pixels = self.ogm_bufs.pixels[i % 2]
+                    .get(&self.device, bytes, self.max_binding)
+                    .clone();
+                encoder.copy_buffer_to_buffer(&staging, PARAMS_BYTES, &pixels, 0, bytes);
+            }
             self.ring.recycle(ring_i, &encoder);
             let index = self.queue.submit([encoder.finish()]);
             self.ring.submitted(ring_i, index);
