@@ -8,9 +8,9 @@ use std::time::Instant;
 use serde_json::json;
 
 use ogm_corners::map::{merged_yaml_text, write_merged_pgm_to, yaml_text, GeoRef};
-use ogm_corners::measure::synthetic::{explore, Exploration};
+use ogm_corners::measure::synthetic::{explore, Exploration, SyntheticCrop};
 use ogm_corners::merge::footprint;
-use ogm_corners::merge::many::{merge_maps, GlobalOptions};
+use ogm_corners::merge::many::{merge_maps, GlobalOptions, ManyMerge};
 use ogm_corners::merge::Rigid;
 use ogm_corners::support::files;
 use ogm_corners::support::memory::Budget;
@@ -35,6 +35,68 @@ pub(super) fn run(a: &DemoArgs, budget: &Budget) -> Result<()> {
     let (w, h) = a.size;
     let dir = &a.output;
     super::check_stdout()?;
+    check_size(w, h, budget)?;
+    files::create_dir(dir)?;
+    let mut lines = Vec::new();
+    let total = Instant::now();
+    let building = make_building(a, &mut lines)?;
+    let (robots, names, maps) = explore_building(a, &building, &mut lines)?;
+    let corners = find_corners(a, &maps, &mut lines)?;
+    budget.check(
+        format_args!("merging {} robots' maps", maps.len()),
+        footprint::many_bytes(&maps)?,
+    )?;
+    let t = Instant::now();
+    let mut backend = super::backend_on(a.opts.backend)?;
+    let many = merge_maps(
+        maps,
+        &names,
+        &GlobalOptions::default(),
+        backend.as_mut(),
+        &|_, _| {},
+    )?;
+    let placed: usize = many
+        .run
+        .placement
+        .groups
+        .iter()
+        .map(Vec::len)
+        .max()
+        .unwrap_or(0);
+    lines.push(format!(
+        "4. merged with no initial poses: {placed} of {} maps placed in one map: {}",
+        many.maps.len(),
+        ms(t)
+    ));
+    let report = placements_against_truth(&many, &robots, &names, &mut lines);
+    let t = Instant::now();
+    let wrote = write_outputs(dir, &many, &names, &corners, report, budget)?;
+    lines.push(format!("5. outputs written: {}", ms(t)));
+    lines.push(format!("all in {}", ms(total)));
+    write_stdout(|out| {
+        for l in &lines {
+            writeln!(out, "{l}")?;
+        }
+        for p in &wrote {
+            writeln!(
+                out,
+                "wrote {}",
+                ogm_corners::support::error::one_line(&p.display().to_string())
+            )?;
+        }
+        Ok(())
+    })?;
+    if many.groups() == 0 {
+        return Err(Error::Declined(
+            "the robots' maps could not be placed together with confidence".to_string(),
+        ));
+    }
+    Ok(())
+}
+
+/// Refuses a building too small for robots to overlap in, over 2^32 pixels, or whose exploration the
+/// memory budget cannot hold.
+fn check_size(w: u32, h: u32, budget: &Budget) -> Result<()> {
     // The office is made at half the size and doubled, so that its rooms are as large in pixels as a
     // real 5 cm map's (at its own scale a window of it is a dense grid of small alike rooms).
     if w < MIN_SIDE.0 || h < MIN_SIDE.1 {
@@ -56,11 +118,12 @@ pub(super) fn run(a: &DemoArgs, budget: &Budget) -> Result<()> {
     budget.check(
         format_args!("demo --size {w}x{h}"),
         u64::from(w) * u64::from(h) * BYTES_PER_PIXEL,
-    )?;
-    files::create_dir(dir)?;
-    let mut lines = Vec::new();
-    let total = Instant::now();
+    )
+}
 
+/// Step 1: the synthetic office, made at half the size and doubled.
+fn make_building(a: &DemoArgs, lines: &mut Vec<String>) -> Result<OccupancyMap> {
+    let (w, h) = a.size;
     let t = Instant::now();
     let half = synthetic::office_map(w / 2, h / 2, a.seed)?;
     let (bw, bh) = (half.width() * 2, half.height() * 2);
@@ -77,12 +140,21 @@ pub(super) fn run(a: &DemoArgs, budget: &Budget) -> Result<()> {
         ms(t)
     ));
 
+    Ok(building)
+}
+
+/// Step 2: the robots explore the building, each map in its own frame; their names and maps.
+fn explore_building(
+    a: &DemoArgs,
+    building: &OccupancyMap,
+    lines: &mut Vec<String>,
+) -> Result<(Vec<SyntheticCrop>, Vec<String>, Vec<OccupancyMap>)> {
     let t = Instant::now();
     let how = Exploration {
         robots: a.robots as usize,
         ..Exploration::default()
     };
-    let robots = explore(&building, &how, a.seed).ok_or_else(|| {
+    let robots = explore(building, &how, a.seed).ok_or_else(|| {
         Error::invalid(
             "the robots found no room to drive in, or a robot's map would be over 16384 px a side: \
              try another --seed or a smaller --size",
@@ -107,10 +179,19 @@ pub(super) fn run(a: &DemoArgs, budget: &Budget) -> Result<()> {
         ms(t)
     ));
 
+    Ok((robots, names, maps))
+}
+
+/// Step 3: each robot's map's corners.
+fn find_corners(
+    a: &DemoArgs,
+    maps: &[OccupancyMap],
+    lines: &mut Vec<String>,
+) -> Result<Vec<Vec<ogm_corners::Keypoint>>> {
     let t = Instant::now();
     let mut detector = a.opts.detector()?;
     let mut corners = Vec::with_capacity(maps.len());
-    for m in &maps {
+    for m in maps {
         corners.push(detector.detect(m)?.keypoints);
     }
     let counts: Vec<String> = corners.iter().map(|c| c.len().to_string()).collect();
@@ -122,34 +203,17 @@ pub(super) fn run(a: &DemoArgs, budget: &Budget) -> Result<()> {
         ms(t)
     ));
 
-    budget.check(
-        format_args!("merging {} robots' maps", maps.len()),
-        footprint::many_bytes(&maps)?,
-    )?;
-    let t = Instant::now();
-    let mut backend = super::backend_on(a.opts.backend)?;
-    let many = merge_maps(
-        maps,
-        &names,
-        &GlobalOptions::default(),
-        backend.as_mut(),
-        &|_, _| {},
-    )?;
-    let maps = &many.maps;
-    let placed: usize = many
-        .run
-        .placement
-        .groups
-        .iter()
-        .map(Vec::len)
-        .max()
-        .unwrap_or(0);
-    lines.push(format!(
-        "4. merged with no initial poses: {placed} of {} maps placed in one map: {}",
-        maps.len(),
-        ms(t)
-    ));
-    // Each robot's placement against the truth, in the frame of its group's first map.
+    Ok(corners)
+}
+
+/// Each robot's placement against the truth, in the frame of its group's first map: a line for each
+/// placed one (and for each not placed), and its entry for poses.json.
+fn placements_against_truth(
+    many: &ManyMerge,
+    robots: &[SyntheticCrop],
+    names: &[String],
+    lines: &mut Vec<String>,
+) -> Vec<serde_json::Value> {
     let mut report = Vec::new();
     for (k, name) in names.iter().enumerate() {
         let group = many
@@ -185,11 +249,22 @@ pub(super) fn run(a: &DemoArgs, budget: &Budget) -> Result<()> {
         report.push(entry);
     }
 
-    // Every output staged, then renamed into place together.
-    let t = Instant::now();
+    report
+}
+
+/// Step 5: every output staged, then renamed into place together; the files written.
+fn write_outputs(
+    dir: &std::path::Path,
+    many: &ManyMerge,
+    names: &[String],
+    corners: &[Vec<ogm_corners::Keypoint>],
+    report: Vec<serde_json::Value>,
+    budget: &Budget,
+) -> Result<Vec<std::path::PathBuf>> {
+    let maps = &many.maps;
     let mut staged = files::Staged::default();
     let mut wrote = Vec::new();
-    for (m, name) in maps.iter().zip(&names) {
+    for (m, name) in maps.iter().zip(names) {
         let pgm = dir.join(format!("{name}.pgm"));
         let yaml = dir.join(format!("{name}.yaml"));
         staged.write(&pgm, |out| m.image.write_pgm_to(out))?;
@@ -201,7 +276,7 @@ pub(super) fn run(a: &DemoArgs, budget: &Budget) -> Result<()> {
     staged.write(&csv, |out| {
         writeln!(out, "robot,x,y,merged_x,merged_y")?;
         for (k, c) in corners.iter().enumerate() {
-            let to_merged = placement_on_canvas(&many, k);
+            let to_merged = placement_on_canvas(many, k);
             for p in c {
                 write!(out, "{},{},{}", names[k], p.x, p.y)?;
                 match to_merged {
@@ -231,7 +306,7 @@ pub(super) fn run(a: &DemoArgs, budget: &Budget) -> Result<()> {
         let text = merged_yaml_text(&pgm, &merged, &names[many.run.placement.groups[g][0]]);
         staged.write(&yaml, |out| out.write_all(text.as_bytes()))?;
         wrote.push(yaml);
-        let picture = picture(&many, g, &corners)?;
+        let picture = picture(many, g, corners)?;
         let png = dir.join("demo.png");
         staged.write(&png, |out| files::encode_png(out, &picture))?;
         wrote.push(png);
@@ -253,27 +328,7 @@ pub(super) fn run(a: &DemoArgs, budget: &Budget) -> Result<()> {
             ogm_corners::support::error::one_line(&p.display().to_string())
         );
     }
-    lines.push(format!("5. outputs written: {}", ms(t)));
-    lines.push(format!("all in {}", ms(total)));
-    write_stdout(|out| {
-        for l in &lines {
-            writeln!(out, "{l}")?;
-        }
-        for p in &wrote {
-            writeln!(
-                out,
-                "wrote {}",
-                ogm_corners::support::error::one_line(&p.display().to_string())
-            )?;
-        }
-        Ok(())
-    })?;
-    if many.groups() == 0 {
-        return Err(Error::Declined(
-            "the robots' maps could not be placed together with confidence".to_string(),
-        ));
-    }
-    Ok(())
+    Ok(wrote)
 }
 
 /// The demo's outputs in `dir` that a run of `robots` robots (`merged`: the merge written) did not write:

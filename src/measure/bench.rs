@@ -302,6 +302,32 @@ fn device_map_stage(
     )))
 }
 
+/// The `kernel_resident` record of the kernel times `kernel` (the warm-up's first; the median is of
+/// the timed runs), against the device's peak bandwidth `peak_gbs`; `None` where there are no times (said,
+/// with `why_none`), and for the robust detector, which dispatches dozens of kernels between host stages
+/// while the stats time only the last: no row rather than a wrong one.
+fn kernel_record(
+    kind: DetectorKind,
+    kernel: &[f64],
+    make: &dyn Fn(&'static str, f64) -> BenchRecord,
+    peak_gbs: Option<f64>,
+    why_none: &dyn Fn() -> String,
+    cmd: &str,
+) -> Option<BenchRecord> {
+    if kind == DetectorKind::OgmRobust {
+        return None;
+    }
+    if kernel.len() < 2 {
+        crate::say!("ogm-corners: {cmd}: {}; no kernel_resident row", why_none());
+        return None;
+    }
+    let mut r = make("kernel_resident", median(kernel[1..].to_vec()));
+    r.peak_percent = peak_gbs
+        .zip(r.gb_per_s)
+        .map(|(peak, got)| 100.0 * got / peak);
+    Some(r)
+}
+
 /// Runs `f` once to warm up (first-use costs stay out of the median), then `repeat` timed times. Returns
 /// the warm-up's result, the median time in ms, and the memory over all the runs.
 fn timed<T>(repeat: u32, mut f: impl FnMut() -> Result<T>) -> Result<(T, f64, Option<Memory>)> {
@@ -701,24 +727,15 @@ impl Runner {
                 };
                 records.push(gpu_record("end_to_end", ms));
                 let e2e = records.len() - 1;
-                // The warm-up's kernel time is the first entry; the median uses the timed runs only.
-                // The robust detector dispatches dozens of kernels between host stages, and the stats
-                // time only the last dispatch: no kernel_resident row, rather than a wrong one.
-                let kernel_row = kind != DetectorKind::OgmRobust;
-                if kernel_row && kernel.len() > 1 {
-                    let mut r = gpu_record("kernel_resident", median(kernel[1..].to_vec()));
-                    r.peak_percent = self
-                        .peak_gbs
-                        .zip(r.gb_per_s)
-                        .map(|(peak, got)| 100.0 * got / peak);
-                    records.push(r);
-                } else if kernel_row {
-                    crate::say!(
-                        "ogm-corners: {}: {} has no timestamp queries; no kernel_resident row",
-                        self.cmd,
-                        g.adapter().name
-                    );
-                }
+                let why_none = || format!("{} has no timestamp queries", g.adapter().name);
+                records.extend(kernel_record(
+                    kind,
+                    &kernel,
+                    &gpu_record,
+                    self.peak_gbs,
+                    &why_none,
+                    self.cmd,
+                ));
                 let (r, e2e) = (&record, &mut records[e2e]);
                 let stages = transfer_stages(
                     g,
