@@ -7,9 +7,10 @@ use std::path::{Path, PathBuf};
 use ogm_corners::map::{merged_yaml_text, save_names, write_merged_pgm_to};
 use ogm_corners::merge::footprint;
 use ogm_corners::merge::many::previous::Previous;
-use ogm_corners::merge::many::{merge_maps_cached, page, poses, Cache, GlobalOptions};
+use ogm_corners::merge::many::{merge_maps_cached, page, poses, Cache, GlobalOptions, ManyMerge};
 use ogm_corners::support::files;
 use ogm_corners::support::memory::Budget;
+use ogm_corners::support::report::Report;
 use ogm_corners::{Error, OccupancyMap, Result};
 
 use super::merge::MergeArgs;
@@ -47,43 +48,7 @@ fn previous(file: &Path, budget: &Budget) -> Result<Previous> {
 pub(super) fn run(a: MergeArgs, budget: &Budget) -> Result<()> {
     super::check_stdout()?;
     let previous = a.from.as_deref().map(|f| previous(f, budget)).transpose()?;
-    // The earlier merge's maps first, in its order (so its pairs are found the same way round), then
-    // the maps given that it does not list.
-    let mut args: Vec<PathBuf> = previous
-        .iter()
-        .flat_map(|p| p.maps.iter().map(PathBuf::from))
-        .collect();
-    if let Some(p) = &previous {
-        for m in &p.maps {
-            if !Path::new(m).exists() {
-                return Err(Error::invalid(format!(
-                    "--from {}: a map it lists, {m:?}, is not there (its paths are as given to that \
-                     merge: run this one from the same folder)",
-                    a.from.as_deref().unwrap_or(Path::new("")).display()
-                )));
-            }
-        }
-    }
-    let listed = args.len();
-    args.extend(a.maps.iter().cloned());
-    let (mut paths, mut inputs) = super::map_inputs(&args, budget, &|_, _| 0)?;
-    // A map given again that the earlier merge lists is taken once (a map given twice otherwise is
-    // placed with its first copy, as always).
-    if previous.is_some() {
-        let id = |p: &PathBuf| std::fs::canonicalize(p).unwrap_or_else(|_| p.clone());
-        let old: std::collections::HashSet<PathBuf> = paths[..listed].iter().map(id).collect();
-        let mut k = 0;
-        paths.retain(|p| {
-            k += 1;
-            k <= listed || !old.contains(&id(p))
-        });
-    }
-    if paths.len() < 2 {
-        return Err(Error::invalid(format!(
-            "merge needs at least two maps; found {}",
-            paths.len()
-        )));
-    }
+    let (paths, mut inputs) = map_paths(&a, previous.as_ref(), budget)?;
     // Every map is held at once: the images now; their preparations once their explored parts are known.
     let mut total: u64 = 0;
     for p in &paths {
@@ -91,37 +56,8 @@ pub(super) fn run(a: MergeArgs, budget: &Budget) -> Result<()> {
         total = total.saturating_add(u64::from(w) * u64::from(h));
     }
     budget.check(format_args!("{} maps", paths.len()), total)?;
-    let (yaml_out, pgm_out) = save_names(a.output.as_deref())?;
-    // Every file it may write, checked against the inputs before any work: at most one group per two maps.
-    for g in 0..paths.len() / 2 {
-        for (p, what) in [
-            (&yaml_out, "-o"),
-            (&pgm_out, "-o"),
-            (&a.overlay, "--overlay"),
-        ] {
-            if let Some(p) = p {
-                inputs.claim_output(&group_path(p, g), what)?;
-            }
-        }
-    }
-    for (p, what) in [(&a.poses, "--poses"), (&a.init_poses, "--init-poses")] {
-        if let Some(p) = p {
-            inputs.claim_output(p, what)?;
-        }
-    }
-    if let Some(dir) = &a.html {
-        inputs.claim_output(&dir.join(ogm_corners::support::report::INDEX), "--html")?;
-        for file in page::picture_files(paths.len()) {
-            inputs.claim_output(&dir.join(file), "--html")?;
-        }
-    }
-    // A missing output folder is found now, not after the work.
-    for p in [&yaml_out, &pgm_out, &a.overlay, &a.poses, &a.init_poses]
-        .into_iter()
-        .flatten()
-    {
-        files::check_writable(p)?;
-    }
+    let outputs = Outputs::named(&a)?;
+    outputs.claim(&a, paths.len(), &mut inputs)?;
     let html = a.html.as_deref().map(page::create).transpose()?;
     let names: Vec<String> = paths.iter().map(|p| p.display().to_string()).collect();
     let maps = paths
@@ -149,18 +85,7 @@ pub(super) fn run(a: MergeArgs, budget: &Budget) -> Result<()> {
     );
     let mut backend = super::backend_on(a.backend)?;
     let options = GlobalOptions::with_partners(a.partners as usize);
-    let mut cache = match previous {
-        Some(p) if !p.fits(&options) => {
-            ogm_corners::say!(
-                "ogm-corners: note: --from: its alignments were made by another version or with other \
-                 options ({}); every pair is aligned again",
-                p.options
-            );
-            Cache::new()
-        }
-        Some(p) => p.cache(&options),
-        None => Cache::new(),
-    };
+    let mut cache = cache_of(previous, &options);
     let many = merge_maps_cached(
         maps,
         &names,
@@ -172,29 +97,14 @@ pub(super) fn run(a: MergeArgs, budget: &Budget) -> Result<()> {
         },
         &mut cache,
     )?;
-    let used = cache.last_use();
     if a.from.is_some() {
-        if let Some((i, j, why)) = cache.refused().first() {
-            ogm_corners::say!(
-                "ogm-corners: note: --from: {} of its pairs' alignments do not hold on the maps and were \
-                 not taken up (the first, {} onto {}: {})",
-                used.pairs_refused,
-                ogm_corners::support::error::one_line(&names[*j]),
-                ogm_corners::support::error::one_line(&names[*i]),
-                why
-            );
-        }
-        ogm_corners::say!(
-            "ogm-corners: --from: {} pairs taken up, {} aligned",
-            used.pairs_reused,
-            used.pairs_aligned
-        );
+        say_reuse(&cache, &names);
     }
     bar.finish_and_clear();
     // Each group's merged map and picture are made one at a time, once the maps are placed: the
     // largest group's, beside what the set holds.
     let per_px =
-        u64::from(pgm_out.is_some()) + 6 * u64::from(a.overlay.is_some() || html.is_some());
+        u64::from(outputs.pgm.is_some()) + 6 * u64::from(a.overlay.is_some() || html.is_some());
     let largest = many
         .frames
         .iter()
@@ -205,16 +115,170 @@ pub(super) fn run(a: MergeArgs, budget: &Budget) -> Result<()> {
         format_args!("the merged maps and pictures (the largest {largest} pixels)"),
         held.saturating_add(largest.saturating_mul(per_px)),
     )?;
+    let mut doc = write_outputs(&a, &outputs, &many, html)?;
+    // The alignments are the --poses file's: a later `--from` reads them there.
+    doc.alignments.clear();
+    write_stdout(|out| match a.format {
+        super::TextOrJson::Json => {
+            serde_json::to_writer_pretty(&mut *out, &doc)?;
+            writeln!(out)
+        }
+        super::TextOrJson::Text => poses::write_text(out, &doc),
+    })?;
+    if many.groups() == 0 {
+        return Err(Error::Declined(
+            "no two maps could be placed together with confidence".to_string(),
+        ));
+    }
+    Ok(())
+}
+
+/// The maps to merge: the earlier merge's first, in its order (so its pairs are found the same way
+/// round), then the maps given that it does not list; and the input set no output may overwrite.
+fn map_paths(
+    a: &MergeArgs,
+    previous: Option<&Previous>,
+    budget: &Budget,
+) -> Result<(Vec<PathBuf>, files::Inputs)> {
+    let mut args: Vec<PathBuf> = previous
+        .iter()
+        .flat_map(|p| p.maps.iter().map(PathBuf::from))
+        .collect();
+    if let Some(p) = previous {
+        for m in &p.maps {
+            if !Path::new(m).exists() {
+                return Err(Error::invalid(format!(
+                    "--from {}: a map it lists, {m:?}, is not there (its paths are as given to that \
+                     merge: run this one from the same folder)",
+                    a.from.as_deref().unwrap_or(Path::new("")).display()
+                )));
+            }
+        }
+    }
+    let listed = args.len();
+    args.extend(a.maps.iter().cloned());
+    let (mut paths, inputs) = super::map_inputs(&args, budget, &|_, _| 0)?;
+    // A map given again that the earlier merge lists is taken once (a map given twice otherwise is
+    // placed with its first copy, as always).
+    if previous.is_some() {
+        let id = |p: &PathBuf| std::fs::canonicalize(p).unwrap_or_else(|_| p.clone());
+        let old: std::collections::HashSet<PathBuf> = paths[..listed].iter().map(id).collect();
+        let mut k = 0;
+        paths.retain(|p| {
+            k += 1;
+            k <= listed || !old.contains(&id(p))
+        });
+    }
+    if paths.len() < 2 {
+        return Err(Error::invalid(format!(
+            "merge needs at least two maps; found {}",
+            paths.len()
+        )));
+    }
+    Ok((paths, inputs))
+}
+
+/// The merged maps' files `-o` names (its yaml and image).
+struct Outputs {
+    yaml: Option<PathBuf>,
+    pgm: Option<PathBuf>,
+}
+
+impl Outputs {
+    fn named(a: &MergeArgs) -> Result<Self> {
+        let (yaml, pgm) = save_names(a.output.as_deref())?;
+        Ok(Outputs { yaml, pgm })
+    }
+
+    /// Every file the run may write, checked against the inputs before any work (at most one group
+    /// per two of `maps`), and every output folder for being there and writable.
+    fn claim(&self, a: &MergeArgs, maps: usize, inputs: &mut files::Inputs) -> Result<()> {
+        for g in 0..maps / 2 {
+            for (p, what) in [
+                (&self.yaml, "-o"),
+                (&self.pgm, "-o"),
+                (&a.overlay, "--overlay"),
+            ] {
+                if let Some(p) = p {
+                    inputs.claim_output(&group_path(p, g), what)?;
+                }
+            }
+        }
+        for (p, what) in [(&a.poses, "--poses"), (&a.init_poses, "--init-poses")] {
+            if let Some(p) = p {
+                inputs.claim_output(p, what)?;
+            }
+        }
+        if let Some(dir) = &a.html {
+            inputs.claim_output(&dir.join(ogm_corners::support::report::INDEX), "--html")?;
+            for file in page::picture_files(maps) {
+                inputs.claim_output(&dir.join(file), "--html")?;
+            }
+        }
+        // A missing output folder is found now, not after the work.
+        for p in [&self.yaml, &self.pgm, &a.overlay, &a.poses, &a.init_poses]
+            .into_iter()
+            .flatten()
+        {
+            files::check_writable(p)?;
+        }
+        Ok(())
+    }
+}
+
+/// The alignments an earlier merge recorded, where they were made as these options make them.
+fn cache_of(previous: Option<Previous>, options: &GlobalOptions) -> Cache {
+    match previous {
+        Some(p) if !p.fits(options) => {
+            ogm_corners::say!(
+                "ogm-corners: note: --from: its alignments were made by another version or with other \
+                 options ({}); every pair is aligned again",
+                p.options
+            );
+            Cache::new()
+        }
+        Some(p) => p.cache(options),
+        None => Cache::new(),
+    }
+}
+
+/// Says how much of `--from`'s alignments the merge took up, and why the first refused one was.
+fn say_reuse(cache: &Cache, names: &[String]) {
+    let used = cache.last_use();
+    if let Some((i, j, why)) = cache.refused().first() {
+        ogm_corners::say!(
+            "ogm-corners: note: --from: {} of its pairs' alignments do not hold on the maps and were \
+             not taken up (the first, {} onto {}: {})",
+            used.pairs_refused,
+            ogm_corners::support::error::one_line(&names[*j]),
+            ogm_corners::support::error::one_line(&names[*i]),
+            why
+        );
+    }
+    ogm_corners::say!(
+        "ogm-corners: --from: {} pairs taken up, {} aligned",
+        used.pairs_reused,
+        used.pairs_aligned
+    );
+}
+
+/// Every output staged, then all renamed into place together (a failure leaves none of them): each
+/// group's merged map and picture, the poses, the init poses and the report; the poses document.
+fn write_outputs(
+    a: &MergeArgs,
+    outputs: &Outputs,
+    many: &ManyMerge,
+    html: Option<Report>,
+) -> Result<poses::Poses> {
     let mut doc = many.report.clone();
-    // Every output staged, then all renamed into place together: a failure leaves none of them.
     let mut staged = files::Staged::default();
     for g in 0..many.groups() {
-        if let Some(pgm) = &pgm_out {
+        if let Some(pgm) = &outputs.pgm {
             let pgm = group_path(pgm, g);
             let merged = many.merged(g)?;
             staged.write(&pgm, |out| write_merged_pgm_to(&merged, out))?;
             doc.groups[g].merged = Some(pgm.display().to_string());
-            if let Some(yaml) = &yaml_out {
+            if let Some(yaml) = &outputs.yaml {
                 let yaml = group_path(yaml, g);
                 let text = merged_yaml_text(&pgm, &merged, "the group's first map");
                 staged.write(&yaml, |out| out.write_all(text.as_bytes()))?;
@@ -246,7 +310,7 @@ pub(super) fn run(a: MergeArgs, budget: &Budget) -> Result<()> {
     }
     // The report is written before anything is committed (a failure in it leaves no output), and moved
     // into its folder after the rest.
-    let html = html.map(|h| page::write(h, &many)).transpose()?;
+    let html = html.map(|h| page::write(h, many)).transpose()?;
     staged.commit()?;
     if let Some(html) = html {
         let index = html.commit()?;
@@ -255,19 +319,5 @@ pub(super) fn run(a: MergeArgs, budget: &Budget) -> Result<()> {
             ogm_corners::support::error::one_line(&index.display().to_string())
         );
     }
-    // The alignments are the --poses file's: a later `--from` reads them there.
-    doc.alignments.clear();
-    write_stdout(|out| match a.format {
-        super::TextOrJson::Json => {
-            serde_json::to_writer_pretty(&mut *out, &doc)?;
-            writeln!(out)
-        }
-        super::TextOrJson::Text => poses::write_text(out, &doc),
-    })?;
-    if many.groups() == 0 {
-        return Err(Error::Declined(
-            "no two maps could be placed together with confidence".to_string(),
-        ));
-    }
-    Ok(())
+    Ok(doc)
 }
