@@ -44,36 +44,7 @@ pub fn detect_many(
     plan: &Plan,
 ) -> Result<()> {
     let names = output_names(maps);
-    let ext = match plan.format {
-        Format::Csv => "csv",
-        Format::Json => "json",
-    };
-    let outputs: Vec<(PathBuf, Option<PathBuf>)> = names
-        .iter()
-        .map(|n| {
-            (
-                plan.out_dir.join(format!("{n}.{ext}")),
-                plan.overlay_dir.map(|d| d.join(format!("{n}.png"))),
-            )
-        })
-        .collect();
-    let mut inputs = Inputs::new();
-    for p in maps {
-        inputs.add(p);
-        // A yaml's image too; the yaml is read again (bounded, small) when the map loads.
-        if let Some(img) = ogm_corners::map::yaml_image(p) {
-            inputs.add(&img);
-        }
-    }
-    for (file, png) in &outputs {
-        inputs.claim_output(file, "--output")?;
-        if let Some(png) = png {
-            inputs.claim_output(png, "--overlay")?;
-        }
-    }
-    for dir in std::iter::once(plan.out_dir).chain(plan.overlay_dir) {
-        files::create_dir(dir)?;
-    }
+    let outputs = claim_outputs(maps, &names, plan)?;
     let detector = &mut make_detector()?;
     let bar = ProgressBar::new(maps.len() as u64);
     bar.set_style(
@@ -165,7 +136,59 @@ pub fn detect_many(
     if failed == 0 {
         return Ok(());
     }
-    let n = maps.len();
+    Err(failure(
+        maps.len(),
+        bad_maps,
+        &unwritten,
+        other,
+        plan.out_dir,
+    ))
+}
+
+/// Each map's output file (and overlay), claimed against the inputs (the maps and their yamls' images)
+/// before the first map is read, their folders made.
+fn claim_outputs(
+    maps: &[PathBuf],
+    names: &[String],
+    plan: &Plan,
+) -> Result<Vec<(PathBuf, Option<PathBuf>)>> {
+    let ext = match plan.format {
+        Format::Csv => "csv",
+        Format::Json => "json",
+    };
+    let outputs: Vec<(PathBuf, Option<PathBuf>)> = names
+        .iter()
+        .map(|n| {
+            (
+                plan.out_dir.join(format!("{n}.{ext}")),
+                plan.overlay_dir.map(|d| d.join(format!("{n}.png"))),
+            )
+        })
+        .collect();
+    let mut inputs = Inputs::new();
+    for p in maps {
+        inputs.add(p);
+        // A yaml's image too; the yaml is read again (bounded, small) when the map loads.
+        if let Some(img) = ogm_corners::map::yaml_image(p) {
+            inputs.add(&img);
+        }
+    }
+    for (file, png) in &outputs {
+        inputs.claim_output(file, "--output")?;
+        if let Some(png) = png {
+            inputs.claim_output(png, "--overlay")?;
+        }
+    }
+    for dir in std::iter::once(plan.out_dir).chain(plan.overlay_dir) {
+        files::create_dir(dir)?;
+    }
+    Ok(outputs)
+}
+
+/// The batch's error when maps failed: `bad_maps` unreadable, `unwritten` outputs, `other` failures in
+/// the detector, of `n`.
+fn failure(n: usize, bad_maps: usize, unwritten: &[String], other: usize, out_dir: &Path) -> Error {
+    let failed = bad_maps + unwritten.len() + other;
     let mut parts = Vec::new();
     if bad_maps > 0 {
         parts.push(format!("{bad_maps} could not be read"));
@@ -185,11 +208,11 @@ pub fn detect_many(
     );
     // Bad maps alone are the input's fault (exit 2); outputs that could not be written are not (exit 1),
     // and "internal" is kept for failures in the detector itself.
-    Err(if failed == bad_maps {
+    if failed == bad_maps {
         Error::invalid(message)
     } else if other == 0 {
-        Error::output(plan.out_dir, message)
+        Error::output(out_dir, message)
     } else {
         Error::Internal(message)
-    })
+    }
 }

@@ -126,27 +126,7 @@ pub(super) fn run(a: MergeEvalArgs, budget: &Budget) -> Result<()> {
     if a.global {
         return run_global(&a, budget);
     }
-    if a.furnished && a.synthetic.as_ref().is_none_or(|g| g.is_empty()) {
-        return Err(Error::invalid(
-            "--furnished pairs given maps with their furnished copies: use it with --synthetic MAPS",
-        ));
-    }
-    if a.save_pairs.is_some() && a.synthetic.is_none() {
-        return Err(Error::invalid(
-            "--save-pairs writes synthetic pairs (--synthetic) or the synthetic set (--global without a pair file)",
-        ));
-    }
-    // The families checked before any folder is made (clap drops a requirement on --synthetic, which
-    // conflicts with the pair file, so it is checked here).
-    let chosen = match &a.synthetic {
-        Some(given) => Some(families(&a.family, given.is_empty())?),
-        None if !a.family.is_empty() => {
-            return Err(Error::invalid(
-                "--family chooses synthetic families: use it with --synthetic",
-            ))
-        }
-        None => None,
-    };
+    let chosen = chosen_families(&a)?;
     let mut page = match &a.html {
         Some(dir) => Some(PairsPage::create(dir)?),
         None => None,
@@ -192,27 +172,8 @@ pub(super) fn run(a: MergeEvalArgs, budget: &Budget) -> Result<()> {
             let (sources, furnished) = furnished_of(&a, sources)?;
             let overlaps = vec![0.5, 0.3];
             if let Some(dir) = &a.save_pairs {
-                std::fs::create_dir_all(dir)
-                    .map_err(|e| Error::input(dir, format!("cannot create the folder: {e}")))?;
-                // Every file it may write, checked against the inputs before the first pair.
-                inputs.claim_output(&dir.join("pairs.json"), "--save-pairs")?;
-                let labels = sources.iter().flat_map(|(name, _)| {
-                    overlaps.iter().flat_map(move |&o| {
-                        (0..a.per_map as usize).map(move |k| merging::synthetic_label(name, o, k))
-                    })
-                });
-                let furnished_labels = furnished.iter().flat_map(|(name, _)| {
-                    (0..a.per_map as usize).map(move |k| merging::furnished_label(name, k))
-                });
-                for label in labels.chain(furnished_labels) {
-                    let stem = merging::saved_stem(&label);
-                    for side in ["a", "b"] {
-                        inputs.claim_output(
-                            &dir.join(format!("{side}_{stem}.pgm")),
-                            "--save-pairs",
-                        )?;
-                    }
-                }
+                let per_map = a.per_map as usize;
+                claim_saved_pairs(dir, (&sources, &furnished), &overlaps, per_map, &mut inputs)?;
             }
             let (office, families) = chosen.unwrap_or_default();
             // Negatives only between the generator's offices: given maps may show one place twice.
@@ -231,27 +192,8 @@ pub(super) fn run(a: MergeEvalArgs, budget: &Budget) -> Result<()> {
             } else {
                 (Vec::new(), merging::MapCosts::default())
             };
-            // A given map too small to cut at these overlaps gives no pair: said, and an error when none
-            // of them gave one (a table of zeros would read as a result).
             if !given.is_empty() {
-                let uncut: Vec<&str> = sources
-                    .iter()
-                    .map(|(name, _)| name.as_str())
-                    .filter(|name| !rows.iter().any(|r| r.src.starts_with(&format!("{name}/"))))
-                    .collect();
-                if uncut.len() == sources.len() {
-                    return Err(Error::invalid(format!(
-                        "no synthetic pair could be cut from {}: too small (or too little of it known) \
-                         for two parts at 50% and 30% overlap",
-                        ogm_corners::support::error::one_line(&uncut.join(", "))
-                    )));
-                }
-                for name in uncut {
-                    ogm_corners::say!(
-                        "ogm-corners: note: {}: too small to cut synthetic pairs from; left out",
-                        ogm_corners::support::error::one_line(name)
-                    );
-                }
+                say_uncut(&sources, &rows)?;
             }
             if !families.is_empty() {
                 let first = rows.len();
@@ -379,6 +321,82 @@ fn cross_validate(a: &MergeEvalArgs, budget: &Budget) -> Result<()> {
 
 /// With `--furnished`: the given maps split into those cut on their own and the furnished copies
 /// (`NAME_furnished` beside `NAME`); an error when there is none. Without it, every map on its own.
+/// The synthetic families `--family` chooses, checked before any folder is made (clap drops a
+/// requirement on --synthetic, which conflicts with the pair file, so it is checked here), with the
+/// options that need `--synthetic`: whether the office pairs are cut, and the families.
+fn chosen_families(a: &MergeEvalArgs) -> Result<Option<(bool, Vec<merging::families::Family>)>> {
+    if a.furnished && a.synthetic.as_ref().is_none_or(|g| g.is_empty()) {
+        return Err(Error::invalid(
+            "--furnished pairs given maps with their furnished copies: use it with --synthetic MAPS",
+        ));
+    }
+    if a.save_pairs.is_some() && a.synthetic.is_none() {
+        return Err(Error::invalid(
+            "--save-pairs writes synthetic pairs (--synthetic) or the synthetic set (--global without a pair file)",
+        ));
+    }
+    match &a.synthetic {
+        Some(given) => Ok(Some(families(&a.family, given.is_empty())?)),
+        None if !a.family.is_empty() => Err(Error::invalid(
+            "--family chooses synthetic families: use it with --synthetic",
+        )),
+        None => Ok(None),
+    }
+}
+
+/// `--save-pairs DIR`: the folder made, and every file it may write claimed against the inputs before
+/// the first pair (each pair cut from `sources` at `overlaps`, and each of `furnished`, `per_map` times).
+fn claim_saved_pairs(
+    dir: &std::path::Path,
+    (sources, furnished): (&[merging::NamedMap], &[merging::NamedMap]),
+    overlaps: &[f64],
+    per_map: usize,
+    inputs: &mut ogm_corners::support::files::Inputs,
+) -> Result<()> {
+    std::fs::create_dir_all(dir)
+        .map_err(|e| Error::input(dir, format!("cannot create the folder: {e}")))?;
+    inputs.claim_output(&dir.join("pairs.json"), "--save-pairs")?;
+    let labels = sources.iter().flat_map(|(name, _)| {
+        overlaps
+            .iter()
+            .flat_map(move |&o| (0..per_map).map(move |k| merging::synthetic_label(name, o, k)))
+    });
+    let furnished_labels = furnished
+        .iter()
+        .flat_map(|(name, _)| (0..per_map).map(move |k| merging::furnished_label(name, k)));
+    for label in labels.chain(furnished_labels) {
+        let stem = merging::saved_stem(&label);
+        for side in ["a", "b"] {
+            inputs.claim_output(&dir.join(format!("{side}_{stem}.pgm")), "--save-pairs")?;
+        }
+    }
+    Ok(())
+}
+
+/// A given map too small to cut at these overlaps gives no pair: said, and an error when none of them
+/// gave one (a table of zeros would read as a result).
+fn say_uncut(sources: &[merging::NamedMap], rows: &[merging::PairRecord]) -> Result<()> {
+    let uncut: Vec<&str> = sources
+        .iter()
+        .map(|(name, _)| name.as_str())
+        .filter(|name| !rows.iter().any(|r| r.src.starts_with(&format!("{name}/"))))
+        .collect();
+    if uncut.len() == sources.len() {
+        return Err(Error::invalid(format!(
+            "no synthetic pair could be cut from {}: too small (or too little of it known) \
+             for two parts at 50% and 30% overlap",
+            ogm_corners::support::error::one_line(&uncut.join(", "))
+        )));
+    }
+    for name in uncut {
+        ogm_corners::say!(
+            "ogm-corners: note: {}: too small to cut synthetic pairs from; left out",
+            ogm_corners::support::error::one_line(name)
+        );
+    }
+    Ok(())
+}
+
 fn furnished_of(
     a: &MergeEvalArgs,
     sources: Vec<merging::NamedMap>,

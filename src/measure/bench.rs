@@ -302,6 +302,42 @@ fn device_map_stage(
     )))
 }
 
+/// A stage's record of detector `kind` on `engine` (`adapter`, the CPU model or the GPU) for map `m`,
+/// from its median ms, memory and keypoints.
+fn recorder(
+    m: &BenchMap,
+    kind: DetectorKind,
+    engine: Engine,
+    adapter: String,
+) -> impl Fn(&'static str, f64, Option<Memory>, usize) -> BenchRecord + '_ {
+    let (w, h) = (m.map.image.width(), m.map.image.height());
+    let mpx = f64::from(w) * f64::from(h) / 1e6;
+    move |stage, ms: f64, mem: Option<Memory>, n: usize| BenchRecord {
+        map: m.label.clone(),
+        source: m.source.as_ref().map(|p| p.display().to_string()),
+        image: m.image_path.as_ref().map(|p| p.display().to_string()),
+        detector: kind.name(),
+        backend: engine.name(),
+        adapter: adapter.clone(),
+        width: w,
+        height: h,
+        stage,
+        median_ms: ms,
+        mpx_per_s: mpx / (ms / 1e3),
+        gb_per_s: (engine == Engine::Gpu).then(|| mpx / 1e3 / (ms / 1e3)),
+        peak_percent: None,
+        vs_upload_ref: None,
+        vs_transfer_floor: None,
+        read_percent: None,
+        write_passes: None,
+        dispatches: None,
+        keypoints: n,
+        peak_rss_mb: mem.map(|m| m.peak_mb),
+        peak_rss_ratio: mem.map(|m| m.peak_mb * 1e6 / (f64::from(w) * f64::from(h))),
+        rss_before_mb: mem.map(|m| m.before_mb),
+    }
+}
+
 /// The `kernel_resident` record of the kernel times `kernel` (the warm-up's first; the median is of
 /// the timed runs), against the device's peak bandwidth `peak_gbs`; `None` where there are no times (said,
 /// with `why_none`), and for the robust detector, which dispatches dozens of kernels between host stages
@@ -638,8 +674,6 @@ impl Runner {
         engine: Engine,
     ) -> Result<(Vec<BenchRecord>, Vec<Keypoint>)> {
         let image = &m.map.image;
-        let (w, h) = (image.width(), image.height());
-        let mpx = f64::from(w) * f64::from(h) / 1e6;
         let classes = ClassTable::new(&m.map.thresholds);
         let rules = RuleTable::new(self.rule_set);
         let params = self.params;
@@ -663,104 +697,84 @@ impl Runner {
                 .as_ref()
                 .map_or_else(String::new, |g| g.label.clone()),
         };
-        let record = |stage, ms: f64, mem: Option<Memory>, n: usize| BenchRecord {
-            map: m.label.clone(),
-            source: m.source.as_ref().map(|p| p.display().to_string()),
-            image: m.image_path.as_ref().map(|p| p.display().to_string()),
-            detector: kind.name(),
-            backend: engine.name(),
-            adapter: adapter.clone(),
-            width: w,
-            height: h,
-            stage,
-            median_ms: ms,
-            mpx_per_s: mpx / (ms / 1e3),
-            gb_per_s: (engine == Engine::Gpu).then(|| mpx / 1e3 / (ms / 1e3)),
-            peak_percent: None,
-            vs_upload_ref: None,
-            vs_transfer_floor: None,
-            read_percent: None,
-            write_passes: None,
-            dispatches: None,
-            keypoints: n,
-            peak_rss_mb: mem.map(|m| m.peak_mb),
-            peak_rss_ratio: mem.map(|m| m.peak_mb * 1e6 / (f64::from(w) * f64::from(h))),
-            rss_before_mb: mem.map(|m| m.before_mb),
-        };
+        let record = recorder(m, kind, engine, adapter);
         let mut records = Vec::new();
-        let keypoints = match engine {
-            Engine::Cpu => {
-                let (kps, ms, mem) = timed(repeat, || end_to_end(&mut FastCpuBackend))?;
-                records.push(record("end_to_end", ms, mem, kps.len()));
-                kps
-            }
-            Engine::Reference => {
-                let (kps, ms, mem) = timed(repeat, || end_to_end(&mut ReferenceBackend))?;
-                records.push(record("end_to_end", ms, mem, kps.len()));
-                // The reference's "kernels" are the twins of the GPU kernels: the work before selection.
-                let (_, ms, mem) = timed(repeat, || {
-                    reference_kernels(kind, image, &classes, &rules, &exact)
-                })?;
-                records.push(record("kernel", ms, mem, kps.len()));
-                kps
-            }
-            Engine::Gpu => {
-                let g = self
-                    .gpu
-                    .as_mut()
-                    .ok_or_else(|| Error::Internal("GPU backend not open".into()))?;
-                let (mut kernel, mut launches) = (Vec::new(), Vec::new());
-                let (kps, ms, _) = timed(repeat, || {
-                    let kps = end_to_end(&mut *g)?;
-                    let s = g.stats();
-                    kernel.extend(s.kernel_time.map(|k| k.as_secs_f64() * 1e3));
-                    launches.push((s.write_passes, s.dispatches));
-                    Ok(kps)
-                })?;
-                // The timed runs' (the warm-up's is first): the warm-up may grow the buffers.
-                let most = |f: fn(&(usize, usize)) -> usize| launches.iter().skip(1).map(f).max();
-                let (passes, dispatches) = (most(|l| l.0), most(|l| l.1));
-                let gpu_record = |stage, ms| {
-                    let mut r = record(stage, ms, None, kps.len());
-                    (r.write_passes, r.dispatches) = (passes, dispatches);
-                    r
-                };
-                records.push(gpu_record("end_to_end", ms));
-                let e2e = records.len() - 1;
-                let why_none = || format!("{} has no timestamp queries", g.adapter().name);
-                records.extend(kernel_record(
-                    kind,
-                    &kernel,
-                    &gpu_record,
-                    self.peak_gbs,
-                    &why_none,
-                    self.cmd,
-                ));
-                let (r, e2e) = (&record, &mut records[e2e]);
-                let stages = transfer_stages(
-                    g,
-                    image,
-                    repeat,
-                    e2e,
-                    &|st, ms| r(st, ms, None, 0),
-                    self.cmd,
-                )?;
-                records.extend(stages.into_iter().map(|mut r| {
-                    r.keypoints = kps.len();
-                    r
-                }));
-                if kind == DetectorKind::Ogm {
-                    let tables = (&classes, &rules);
-                    let staged = device_map_stage(g, image, tables, repeat, &kps, self.cmd)?;
-                    if let Some((ms, passes, dispatches)) = staged {
-                        let mut r = record("device_map", ms, None, kps.len());
-                        (r.write_passes, r.dispatches) = (Some(passes), Some(dispatches));
-                        records.push(r);
-                    }
+        let keypoints =
+            match engine {
+                Engine::Cpu => {
+                    let (kps, ms, mem) = timed(repeat, || end_to_end(&mut FastCpuBackend))?;
+                    records.push(record("end_to_end", ms, mem, kps.len()));
+                    kps
                 }
-                kps
-            }
-        };
+                Engine::Reference => {
+                    let (kps, ms, mem) = timed(repeat, || end_to_end(&mut ReferenceBackend))?;
+                    records.push(record("end_to_end", ms, mem, kps.len()));
+                    // The reference's "kernels" are the twins of the GPU kernels: the work before selection.
+                    let (_, ms, mem) = timed(repeat, || {
+                        reference_kernels(kind, image, &classes, &rules, &exact)
+                    })?;
+                    records.push(record("kernel", ms, mem, kps.len()));
+                    kps
+                }
+                Engine::Gpu => {
+                    let g = self
+                        .gpu
+                        .as_mut()
+                        .ok_or_else(|| Error::Internal("GPU backend not open".into()))?;
+                    let (mut kernel, mut launches) = (Vec::new(), Vec::new());
+                    let (kps, ms, _) = timed(repeat, || {
+                        let kps = end_to_end(&mut *g)?;
+                        let s = g.stats();
+                        kernel.extend(s.kernel_time.map(|k| k.as_secs_f64() * 1e3));
+                        launches.push((s.write_passes, s.dispatches));
+                        Ok(kps)
+                    })?;
+                    // The timed runs' (the warm-up's is first): the warm-up may grow the buffers.
+                    let most =
+                        |f: fn(&(usize, usize)) -> usize| launches.iter().skip(1).map(f).max();
+                    let (passes, dispatches) = (most(|l| l.0), most(|l| l.1));
+                    let gpu_record = |stage, ms| {
+                        let mut r = record(stage, ms, None, kps.len());
+                        (r.write_passes, r.dispatches) = (passes, dispatches);
+                        r
+                    };
+                    records.push(gpu_record("end_to_end", ms));
+                    let e2e = records.len() - 1;
+                    let why_none = || format!("{} has no timestamp queries", g.adapter().name);
+                    records.extend(kernel_record(
+                        kind,
+                        &kernel,
+                        &gpu_record,
+                        self.peak_gbs,
+                        &why_none,
+                        self.cmd,
+                    ));
+                    let (r, e2e) = (&record, &mut records[e2e]);
+                    let stages = transfer_stages(
+                        g,
+                        image,
+                        repeat,
+                        e2e,
+                        &|st, ms| r(st, ms, None, 0),
+                        self.cmd,
+                    )?;
+                    records.extend(stages.into_iter().map(|mut r| {
+                        r.keypoints = kps.len();
+                        r
+                    }));
+                    let tables = (&classes, &rules);
+                    let resident = (kind == DetectorKind::Ogm)
+                        .then(|| device_map_stage(g, image, tables, repeat, &kps, self.cmd));
+                    records.extend(resident.transpose()?.flatten().map(
+                        |(ms, passes, dispatches)| {
+                            let mut r = record("device_map", ms, None, kps.len());
+                            (r.write_passes, r.dispatches) = (Some(passes), Some(dispatches));
+                            r
+                        },
+                    ));
+                    kps
+                }
+            };
         Ok((records, keypoints))
     }
 
