@@ -4,6 +4,7 @@
 //! file's tests with a filter: `cargo test --test cli -- batch::`.
 
 mod batch;
+mod bench;
 mod commands;
 #[path = "../common/mod.rs"]
 mod common;

@@ -149,15 +149,7 @@ pub fn synthetic_pair_from(
     let phi = unit(&mut rng) * std::f64::consts::PI;
     let (su, cu) = phi.sin_cos();
     let proj = |x: f64, y: f64| x * cu + y * su;
-    let (mut lo, mut hi) = (f64::MAX, f64::MIN);
-    for y in 0..h {
-        for x in 0..w {
-            if state(x, y) != CellState::Unknown {
-                let p = proj(x as f64, y as f64);
-                (lo, hi) = (lo.min(p), hi.max(p));
-            }
-        }
-    }
+    let (lo, hi) = known_extent(&state, (w, h), &proj);
     if hi - lo < MIN_EXTENT {
         return None;
     }
@@ -203,15 +195,7 @@ pub fn synthetic_pair_from(
     let theta = unit(&mut rng) * 360.0;
     let bend = shape.bend_deg_per_kpx.to_radians() / 1000.0;
     let centre = if bend != 0.0 {
-        let (mut sx, mut sy, mut n) = (0.0, 0.0, 0.0);
-        for y in 0..h {
-            for x in 0..w {
-                if in_a(x, y) && in_b(x, y) && state(x, y) != CellState::Unknown {
-                    (sx, sy, n) = (sx + x as f64, sy + y as f64, n + 1.0);
-                }
-            }
-        }
-        (sx / f64::max(n, 1.0), sy / f64::max(n, 1.0))
+        known_centre(&state, (w, h), &|x, y| in_a(x, y) && in_b(x, y))
     } else {
         (0.0, 0.0)
     };
@@ -250,60 +234,21 @@ pub fn synthetic_pair_from(
         let truth_points = check.iter().map(|&p| rigid.apply(p)).collect();
         (rigid, check, truth_points, SYNTHETIC_RMS_LIMIT_PX)
     } else {
-        // Checked where the maps overlap, as annotated real pairs are: B's known pixels whose source
-        // lies in A's part; the truth is the rigid fit to where they truly are, and the limit twice its
-        // residual, as the real pairs' success test has it.
-        let step = (side / 16).max(4);
-        let (mut from, mut to) = (Vec::new(), Vec::new());
-        for y in (step / 2..side).step_by(step) {
-            for x in (step / 2..side).step_by(step) {
-                if b_px[y * side + x] == UNKNOWN {
-                    continue;
-                }
-                let s = warp(to_source.apply((x as f64, y as f64)));
-                let (sx, sy) = (s.0.round(), s.1.round());
-                if sx < 0.0 || sy < 0.0 || sx >= w as f64 || sy >= h as f64 {
-                    continue;
-                }
-                if in_a(sx as usize, sy as usize)
-                    && state(sx as usize, sy as usize) != CellState::Unknown
-                {
-                    from.push((x as f64, y as f64));
-                    to.push((s.0 - ax0 as f64, s.1 - ay0 as f64));
-                }
-            }
-        }
-        if from.len() < 4 {
-            return None;
-        }
-        let fit = crate::merge::transform::fit_rigid(&from, &to);
-        let rms = (from
-            .iter()
-            .zip(&to)
-            .map(|(&p, q)| {
-                let r = fit.apply(p);
-                (r.0 - q.0).powi(2) + (r.1 - q.1).powi(2)
-            })
-            .sum::<f64>()
-            / from.len() as f64)
-            .sqrt();
-        (
-            fit.normalized(),
-            from,
-            to,
-            (2.0 * rms).max(SYNTHETIC_RMS_LIMIT_PX),
-        )
+        let b = (b_px.as_slice(), side);
+        bent_truth(
+            b,
+            &|p| warp(to_source.apply(p)),
+            &state,
+            (w, h),
+            &in_a,
+            (ax0, ay0),
+        )?
     };
     let alias_contradiction = (!shape.lattice.is_empty())
         .then(|| alias_contradiction(&state, (w, h), &in_a, &in_b, &shape.lattice));
-    let make = |w: usize, h: usize, px: Vec<u8>| {
-        MapImage::new(w as u32, h as u32, px)
-            .ok()
-            .map(OccupancyMap::from_image)
-    };
     Some(SyntheticPair {
-        a: make(aw, ah, a_px)?,
-        b: make(side, side, b_px)?,
+        a: map_of(aw, ah, a_px)?,
+        b: map_of(side, side, b_px)?,
         truth,
         check_points,
         true_points,
@@ -801,3 +746,106 @@ impl SyntheticPair {
 pub const SYNTHETIC_ROT_LIMIT_DEG: f64 = 1.0;
 /// RMS error over the check points a synthetic estimate may have, pixels.
 pub const SYNTHETIC_RMS_LIMIT_PX: f64 = 3.0;
+
+/// A `w` x `h` map of pixels `px`.
+fn map_of(w: usize, h: usize, px: Vec<u8>) -> Option<OccupancyMap> {
+    MapImage::new(w as u32, h as u32, px)
+        .ok()
+        .map(OccupancyMap::from_image)
+}
+
+/// The least and greatest of `proj` over the known pixels of a `w` x `h` map.
+fn known_extent(
+    state: &dyn Fn(usize, usize) -> CellState,
+    (w, h): (usize, usize),
+    proj: &dyn Fn(f64, f64) -> f64,
+) -> (f64, f64) {
+    let (mut lo, mut hi) = (f64::MAX, f64::MIN);
+    for y in 0..h {
+        for x in 0..w {
+            if state(x, y) != CellState::Unknown {
+                let p = proj(x as f64, y as f64);
+                (lo, hi) = (lo.min(p), hi.max(p));
+            }
+        }
+    }
+    (lo, hi)
+}
+
+/// The centre of the known pixels `keep` keeps.
+fn known_centre(
+    state: &dyn Fn(usize, usize) -> CellState,
+    (w, h): (usize, usize),
+    keep: &dyn Fn(usize, usize) -> bool,
+) -> (f64, f64) {
+    let (mut sx, mut sy, mut n) = (0.0, 0.0, 0.0);
+    for y in 0..h {
+        for x in 0..w {
+            if keep(x, y) && state(x, y) != CellState::Unknown {
+                (sx, sy, n) = (sx + x as f64, sy + y as f64, n + 1.0);
+            }
+        }
+    }
+    (sx / f64::max(n, 1.0), sy / f64::max(n, 1.0))
+}
+
+/// A pair's truth: the transform, the points it is checked at in B and where they truly lie in A, and
+/// the limit of the RMS error there, pixels.
+type Truth = (Rigid, Vec<(f64, f64)>, Vec<(f64, f64)>, f64);
+
+/// A bent pair's truth: the rigid fit from B's known pixels (`b_px`, `side` square) to where they truly
+/// lie in A (`source_of`, then less A's corner `a0`), over those whose source is known and in A's part;
+/// with those points and the limit (twice the fit's residual, as the real pairs' success test has it).
+/// `None` where fewer than four such pixels are found.
+fn bent_truth(
+    (b_px, side): (&[u8], usize),
+    source_of: &dyn Fn((f64, f64)) -> (f64, f64),
+    state: &dyn Fn(usize, usize) -> CellState,
+    (w, h): (usize, usize),
+    in_a: &dyn Fn(usize, usize) -> bool,
+    (ax0, ay0): (usize, usize),
+) -> Option<Truth> {
+    // Checked where the maps overlap, as annotated real pairs are: B's known pixels whose source
+    // lies in A's part; the truth is the rigid fit to where they truly are, and the limit twice its
+    // residual, as the real pairs' success test has it.
+    let step = (side / 16).max(4);
+    let (mut from, mut to) = (Vec::new(), Vec::new());
+    for y in (step / 2..side).step_by(step) {
+        for x in (step / 2..side).step_by(step) {
+            if b_px[y * side + x] == UNKNOWN {
+                continue;
+            }
+            let s = source_of((x as f64, y as f64));
+            let (sx, sy) = (s.0.round(), s.1.round());
+            if sx < 0.0 || sy < 0.0 || sx >= w as f64 || sy >= h as f64 {
+                continue;
+            }
+            if in_a(sx as usize, sy as usize)
+                && state(sx as usize, sy as usize) != CellState::Unknown
+            {
+                from.push((x as f64, y as f64));
+                to.push((s.0 - ax0 as f64, s.1 - ay0 as f64));
+            }
+        }
+    }
+    if from.len() < 4 {
+        return None;
+    }
+    let fit = crate::merge::transform::fit_rigid(&from, &to);
+    let rms = (from
+        .iter()
+        .zip(&to)
+        .map(|(&p, q)| {
+            let r = fit.apply(p);
+            (r.0 - q.0).powi(2) + (r.1 - q.1).powi(2)
+        })
+        .sum::<f64>()
+        / from.len() as f64)
+        .sqrt();
+    Some((
+        fit.normalized(),
+        from,
+        to,
+        (2.0 * rms).max(SYNTHETIC_RMS_LIMIT_PX),
+    ))
+}

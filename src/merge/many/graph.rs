@@ -231,6 +231,75 @@ pub fn place(
 ) -> Result<Placement> {
     let n = pairwise.n;
     let edges = &pairwise.edges;
+    let joined = join_groups(pairwise, maps, images, ev, options, backend)?;
+    let (groups, ambiguous, contradicted) =
+        (&joined.groups, &joined.ambiguous, &joined.contradicted);
+    let (kept, dropped) = kept_and_dropped(pairwise, groups, ev, level, options);
+    let mut sizes = vec![0usize; n];
+    for &g in &groups.of {
+        sizes[g] += 1;
+    }
+    let group_list: Vec<Vec<usize>> = (0..n)
+        .filter(|&g| sizes[g] >= 2 && groups.of[g] == g)
+        .map(|g| groups.members(g))
+        .collect();
+    let maps_out = (0..n)
+        .map(|m| {
+            let g = groups.of[m];
+            if sizes[g] >= 2 {
+                MapPlacement {
+                    group: Some(group_list.iter().position(|l| l[0] == g).unwrap_or(0)),
+                    pose: groups.pose[m],
+                    reason: None,
+                }
+            } else {
+                let reason = if contradicted[m] {
+                    "its placements by the other maps are contradicted densely (walls on free space), or \
+                     their mosaics fail the pair test"
+                } else if ambiguous[m] {
+                    "ambiguous: the other maps support two different placements of it alike"
+                } else if edges.iter().any(|e| (e.a == m || e.b == m) && e.accepted) {
+                    "its accepted pairwise merges are contradicted by cycles"
+                } else {
+                    "no confident alignment with any other map (no accepted pair, no confirming cycle)"
+                };
+                MapPlacement {
+                    group: None,
+                    pose: Rigid::IDENTITY,
+                    reason: Some(unalignable(pairwise, m).unwrap_or_else(|| reason.to_string())),
+                }
+            }
+        })
+        .collect();
+    Ok(Placement {
+        maps: maps_out,
+        groups: group_list,
+        kept,
+        dropped,
+        level: *level,
+    })
+}
+
+/// Groups joined one at a time, and the maps left ambiguous or contradicted on the way.
+struct Joined {
+    groups: Groups,
+    ambiguous: Vec<bool>,
+    contradicted: Vec<bool>,
+}
+
+/// Joins groups, starting from one a map, the best-supported placement first, while one passes the
+/// checks: the strongest usable cluster of votes between two groups, clear of its runner-up, that fits
+/// one canvas, is densely consistent and (unless a trusted edge stands behind it) whose mosaics agree.
+fn join_groups(
+    pairwise: &Pairwise,
+    maps: &[Prepared],
+    images: &[&OccupancyMap],
+    ev: &[EdgeEvidence],
+    options: &GlobalOptions,
+    backend: &mut dyn Backend,
+) -> Result<Joined> {
+    let n = pairwise.n;
+    let edges = &pairwise.edges;
     let mut groups = Groups {
         of: (0..n).collect(),
         pose: vec![Rigid::IDENTITY; n],
@@ -311,7 +380,23 @@ pub fn place(
             break;
         }
     }
-    // The edges the placement rests on: per pair within a group, the best-voting one that agrees.
+    Ok(Joined {
+        groups,
+        ambiguous,
+        contradicted,
+    })
+}
+
+/// The edges the placement rests on (per pair within a group, the best-voting one that agrees) and
+/// the accepted edges it does not use, each with why.
+fn kept_and_dropped(
+    pairwise: &Pairwise,
+    groups: &Groups,
+    ev: &[EdgeEvidence],
+    level: &Calibration,
+    options: &GlobalOptions,
+) -> (Vec<usize>, Vec<Dropped>) {
+    let edges = &pairwise.edges;
     let mut kept = Vec::new();
     let mut dropped = Vec::new();
     for (&(u, v), list) in &by_pair(pairwise) {
@@ -331,82 +416,55 @@ pub fn place(
             if !e.accepted {
                 continue;
             }
-            let reason = if same {
-                let x = e.toward(u);
-                let at = e.at_in(v);
-                if agree(&x, &implied, at, options) {
-                    continue;
-                }
-                let (p, q) = (x.apply(at), implied.apply(at));
-                let turn = (x.theta_deg - implied.theta_deg + 180.0).rem_euclid(360.0) - 180.0;
-                format!(
-                    "the placement through the other maps differs by {:.1} deg and {:.0} px where \
-                     the two overlap",
-                    turn.abs(),
-                    (p.0 - q.0).hypot(p.1 - q.1)
-                )
-            } else if let (true, Some(limit)) = (ev[i].excluded, level.limit) {
-                format!(
-                    "{:.0}% of its walls lie in the other map's free space (after a few px of local \
-                     shift), far above this set's pairs that cycles confirm (a median {:.0}%, at most \
-                     {:.0}% allowed)",
-                    100.0 * e.residual,
-                    100.0 * level.median,
-                    100.0 * limit
-                )
-            } else if ev[i].vote() == 0.0 {
-                "contradicted by cycles: other maps compose to another placement".to_string()
-            } else {
-                "not used: it would join two groups that other pairs place apart, or the maps \
-                 it puts together contradict each other densely"
-                    .to_string()
-            };
+            let x = e.toward(u);
+            if same && agree(&x, &implied, e.at_in(v), options) {
+                continue;
+            }
+            let reason = drop_reason(e, u, v, same, &implied, &ev[i], level);
             dropped.push(Dropped { edge: *e, reason });
         }
     }
-    let mut sizes = vec![0usize; n];
-    for &g in &groups.of {
-        sizes[g] += 1;
+    (kept, dropped)
+}
+
+/// Why accepted edge `e` between maps `u` and `v` (`same`: in one group, placed `implied` there) is not
+/// used, given its evidence `ev` and the set's `level`.
+fn drop_reason(
+    e: &Edge,
+    u: usize,
+    v: usize,
+    same: bool,
+    implied: &Rigid,
+    ev: &EdgeEvidence,
+    level: &Calibration,
+) -> String {
+    if same {
+        let x = e.toward(u);
+        let at = e.at_in(v);
+        let (p, q) = (x.apply(at), implied.apply(at));
+        let turn = (x.theta_deg - implied.theta_deg + 180.0).rem_euclid(360.0) - 180.0;
+        format!(
+            "the placement through the other maps differs by {:.1} deg and {:.0} px where \
+             the two overlap",
+            turn.abs(),
+            (p.0 - q.0).hypot(p.1 - q.1)
+        )
+    } else if let (true, Some(limit)) = (ev.excluded, level.limit) {
+        format!(
+            "{:.0}% of its walls lie in the other map's free space (after a few px of local \
+             shift), far above this set's pairs that cycles confirm (a median {:.0}%, at most \
+             {:.0}% allowed)",
+            100.0 * e.residual,
+            100.0 * level.median,
+            100.0 * limit
+        )
+    } else if ev.vote() == 0.0 {
+        "contradicted by cycles: other maps compose to another placement".to_string()
+    } else {
+        "not used: it would join two groups that other pairs place apart, or the maps \
+         it puts together contradict each other densely"
+            .to_string()
     }
-    let group_list: Vec<Vec<usize>> = (0..n)
-        .filter(|&g| sizes[g] >= 2 && groups.of[g] == g)
-        .map(|g| groups.members(g))
-        .collect();
-    let maps_out = (0..n)
-        .map(|m| {
-            let g = groups.of[m];
-            if sizes[g] >= 2 {
-                MapPlacement {
-                    group: Some(group_list.iter().position(|l| l[0] == g).unwrap_or(0)),
-                    pose: groups.pose[m],
-                    reason: None,
-                }
-            } else {
-                let reason = if contradicted[m] {
-                    "its placements by the other maps are contradicted densely (walls on free space), or \
-                     their mosaics fail the pair test"
-                } else if ambiguous[m] {
-                    "ambiguous: the other maps support two different placements of it alike"
-                } else if edges.iter().any(|e| (e.a == m || e.b == m) && e.accepted) {
-                    "its accepted pairwise merges are contradicted by cycles"
-                } else {
-                    "no confident alignment with any other map (no accepted pair, no confirming cycle)"
-                };
-                MapPlacement {
-                    group: None,
-                    pose: Rigid::IDENTITY,
-                    reason: Some(unalignable(pairwise, m).unwrap_or_else(|| reason.to_string())),
-                }
-            }
-        })
-        .collect();
-    Ok(Placement {
-        maps: maps_out,
-        groups: group_list,
-        kept,
-        dropped,
-        level: *level,
-    })
 }
 
 /// The edges with a vote between two groups, by the two groups (`g < h`), each list ascending.

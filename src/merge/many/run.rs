@@ -1,10 +1,11 @@
 //! Many maps placed, end to end ([`run`]): each distinct map prepared once, the pairs aligned (in rounds
 //! when screened), then placed.
 
+use super::graph::Placement;
 use super::pairs::pairwise_of;
 use super::place::{place, refuse_unfounded, vouched};
 use super::{cache, rounds, Engine, Local};
-use super::{Cache, CacheUse, GlobalOptions, PairRecord, Run, Timing};
+use super::{Cache, CacheUse, GlobalOptions, PairRecord, Pairwise, Run, Timing};
 use crate::merge::many::prescreen::Signature;
 use crate::merge::pair::align::Prepared;
 use crate::merge::transform::Rigid;
@@ -49,62 +50,25 @@ pub fn run_with(
 ) -> Result<Run> {
     use rayon::prelude::*;
     use std::time::Instant;
-    let duplicate_of: Vec<Option<usize>> = (0..maps.len())
-        .map(|i| {
-            (0..i).find(|&j| {
-                maps[j].image == maps[i].image && maps[j].thresholds == maps[i].thresholds
-            })
-        })
-        .collect();
-    let unique: Vec<usize> = (0..maps.len())
-        .filter(|&i| duplicate_of[i].is_none())
-        .collect();
+    let (duplicate_of, unique) = distinct(maps);
     let t = Instant::now();
     cache.start(options);
     let keys: Vec<cache::Key> = unique
         .par_iter()
         .map(|&i| cache::Key::of(&maps[i]))
         .collect();
-    let mut kept: Vec<Option<cache::Kept>> = keys.iter().map(|k| cache.take_map(k)).collect();
     let m = unique.len();
     let screen = options.prescreen.filter(|p| m > p.above);
-    let missing: Vec<usize> = (0..m).filter(|&k| kept[k].is_none()).collect();
-    let mut used = CacheUse {
-        maps_reused: m - missing.len(),
-        maps_prepared: missing.len(),
-        ..CacheUse::default()
-    };
-    let todo: Vec<(usize, &crate::map::OccupancyMap)> =
-        missing.iter().map(|&k| (k, &maps[unique[k]])).collect();
-    let made = engine.prepare(&todo, screen.is_some())?;
-    if made.len() != missing.len() {
-        return Err(crate::Error::invalid(format!(
-            "the engine prepared {} maps of {}",
-            made.len(),
-            missing.len()
-        )));
-    }
-    for (&k, p) in missing.iter().zip(made) {
-        kept[k] = Some(p);
-    }
-    // A map kept from a run that needed no signature gets one now that a screen needs it.
-    if screen.is_some() {
-        let stop = crate::support::stop::current();
-        kept.par_iter_mut()
-            .zip(unique.par_iter())
-            .try_for_each(|(kept, &i)| -> Result<()> {
-                if let Some((_, s @ None)) = kept {
-                    *s = Some(crate::support::stop::with(stop.clone(), || {
-                        Signature::of(&maps[i])
-                    })?);
-                }
-                Ok(())
-            })?;
-    }
-    let (prepared, signatures): (Vec<Prepared>, Vec<Option<Signature>>) = kept
-        .into_iter()
-        .map(|p| p.expect("every map prepared"))
-        .unzip();
+    let mut used = CacheUse::default();
+    let (prepared, signatures) = prepare_distinct(
+        maps,
+        &unique,
+        &keys,
+        cache,
+        engine,
+        screen.is_some(),
+        &mut used,
+    )?;
     let prepare = t.elapsed().as_secs_f64();
     crate::support::stop::check()?;
     let t = Instant::now();
@@ -150,8 +114,103 @@ pub fn run_with(
         .into_iter()
         .map(|(a, b, why)| (unique[a], unique[b], why))
         .collect();
-    // Back to the maps' own indices.
-    pairwise.n = maps.len();
+    to_maps(
+        &mut pairwise,
+        &mut placement,
+        &unique,
+        &duplicate_of,
+        &alignable,
+    );
+    Ok(Run {
+        pairwise,
+        records,
+        placement,
+        duplicate_of,
+        timing: Timing {
+            prepare,
+            align,
+            place,
+        },
+    })
+}
+
+/// Each map's earlier identical copy (the same pixels and thresholds), if any; and the maps with none.
+fn distinct(maps: &[crate::map::OccupancyMap]) -> (Vec<Option<usize>>, Vec<usize>) {
+    let duplicate_of: Vec<Option<usize>> = (0..maps.len())
+        .map(|i| {
+            (0..i).find(|&j| {
+                maps[j].image == maps[i].image && maps[j].thresholds == maps[i].thresholds
+            })
+        })
+        .collect();
+    let unique = (0..maps.len())
+        .filter(|&i| duplicate_of[i].is_none())
+        .collect();
+    (duplicate_of, unique)
+}
+
+/// The preparations of the distinct maps `unique` (and, where a screen needs them, their signatures):
+/// those `cache` kept under `keys`, the others made by `engine`; counted in `used`.
+fn prepare_distinct(
+    maps: &[crate::map::OccupancyMap],
+    unique: &[usize],
+    keys: &[cache::Key],
+    cache: &mut Cache,
+    engine: &mut dyn Engine,
+    screened: bool,
+    used: &mut CacheUse,
+) -> Result<(Vec<Prepared>, Vec<Option<Signature>>)> {
+    use rayon::prelude::*;
+    let mut kept: Vec<Option<cache::Kept>> = keys.iter().map(|k| cache.take_map(k)).collect();
+    let m = unique.len();
+    let missing: Vec<usize> = (0..m).filter(|&k| kept[k].is_none()).collect();
+    used.maps_reused = m - missing.len();
+    used.maps_prepared = missing.len();
+    let todo: Vec<(usize, &crate::map::OccupancyMap)> =
+        missing.iter().map(|&k| (k, &maps[unique[k]])).collect();
+    let made = engine.prepare(&todo, screened)?;
+    if made.len() != missing.len() {
+        return Err(crate::Error::invalid(format!(
+            "the engine prepared {} maps of {}",
+            made.len(),
+            missing.len()
+        )));
+    }
+    for (&k, p) in missing.iter().zip(made) {
+        kept[k] = Some(p);
+    }
+    // A map kept from a run that needed no signature gets one now that a screen needs it.
+    if screened {
+        let stop = crate::support::stop::current();
+        kept.par_iter_mut()
+            .zip(unique.par_iter())
+            .try_for_each(|(kept, &i)| -> Result<()> {
+                if let Some((_, s @ None)) = kept {
+                    *s = Some(crate::support::stop::with(stop.clone(), || {
+                        Signature::of(&maps[i])
+                    })?);
+                }
+                Ok(())
+            })?;
+    }
+    Ok(kept
+        .into_iter()
+        .map(|p| p.expect("every map prepared"))
+        .unzip())
+}
+
+/// The pairs and the placement back in the maps' own indices (of `n` maps: `unique` the distinct
+/// ones, `duplicate_of` each copy's first): every copy placed with its first copy, and copies that
+/// joined nothing a group of their own where the map has something to align (`alignable`).
+fn to_maps(
+    pairwise: &mut Pairwise,
+    placement: &mut Placement,
+    unique: &[usize],
+    duplicate_of: &[Option<usize>],
+    alignable: &[bool],
+) {
+    let n = duplicate_of.len();
+    pairwise.n = n;
     for e in &mut pairwise.edges {
         (e.a, e.b) = (unique[e.a], unique[e.b]);
     }
@@ -161,7 +220,7 @@ pub fn run_with(
     for d in &mut placement.dropped {
         (d.edge.a, d.edge.b) = (unique[d.edge.a], unique[d.edge.b]);
     }
-    let mut by_map = Vec::with_capacity(maps.len());
+    let mut by_map = Vec::with_capacity(n);
     for (i, dup) in duplicate_of.iter().enumerate() {
         let first = dup.unwrap_or(i);
         let k = unique
@@ -174,7 +233,7 @@ pub fn run_with(
         .iter()
         .map(|&first| {
             std::iter::once(first)
-                .chain((0..maps.len()).filter(|&i| duplicate_of[i] == Some(first)))
+                .chain((0..n).filter(|&i| duplicate_of[i] == Some(first)))
                 .collect()
         })
         .collect();
@@ -203,15 +262,4 @@ pub fn run_with(
             p.group = Some(g);
         }
     }
-    Ok(Run {
-        pairwise,
-        records,
-        placement,
-        duplicate_of,
-        timing: Timing {
-            prepare,
-            align,
-            place,
-        },
-    })
 }
