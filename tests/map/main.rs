@@ -6,6 +6,7 @@
 #[path = "../common/mod.rs"]
 mod common;
 mod decode;
+mod decode_refusals;
 mod loading;
 mod streaming;
 mod synthetic;
