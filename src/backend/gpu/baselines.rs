@@ -1,32 +1,35 @@
 //! The baselines' GPU passes over one tile: blur, structure tensor and score (Harris, Shi-Tomasi), or
 //! Trajkovic's two resolutions, each score exact in integers.
 
+use super::params::kernel_params;
 use super::*;
 
-/// The baseline kernels' parameters, laid out as `struct BParams` in `shaders/lib/baseline_common.wgsl`.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Default, bytemuck::Pod, bytemuck::Zeroable)]
-pub(super) struct BParams {
-    map_w: u32,
-    map_h: u32,
-    origin_x: u32,
-    origin_y: u32,
-    buf_w: u32,
-    buf_h: u32,
-    stride: u32,
-    core_x0: u32,
-    core_y0: u32,
-    core_w: u32,
-    core_h: u32,
-    k_side: u32,
-    k_centre: u32,
-    kn: u32,
-    kd: u32,
-    t1: u32,
-    t2: u32,
-    groups_x: u32,
-    n_items: u32,
-    _pad: u32,
+kernel_params! {
+    /// The baseline kernels' parameters, laid out as `struct BParams` in `shaders/lib/baseline_common.wgsl`.
+    #[repr(C)]
+    #[derive(Clone, Copy, Debug, Default, bytemuck::Pod, bytemuck::Zeroable)]
+    pub(super) struct BParams {
+        map_w: u32,
+        map_h: u32,
+        origin_x: u32,
+        origin_y: u32,
+        buf_w: u32,
+        buf_h: u32,
+        stride: u32,
+        core_x0: u32,
+        core_y0: u32,
+        core_w: u32,
+        core_h: u32,
+        k_side: u32,
+        k_centre: u32,
+        kn: u32,
+        kd: u32,
+        t1: u32,
+        t2: u32,
+        groups_x: u32,
+        n_items: u32,
+        _pad: u32,
+    }
 }
 
 /// One baseline pass: pipeline, uniform, input, output, and the dispatch's workgroups.

@@ -1,6 +1,7 @@
 //! The coarsening kernel's GPU passes (`shaders/coarsen.wgsl`): per scale, tiles of coarse cells, each
 //! with the rectangle of map pixels its samples reach uploaded beside it.
 
+use super::params::kernel_params;
 use super::*;
 use crate::backend::reference::coarsen::{CellRule, Mosaic, UNKNOWN};
 use crate::map::grid::{RotatedGrid, FRAC_BITS};
@@ -8,36 +9,38 @@ use crate::map::grid::{RotatedGrid, FRAC_BITS};
 /// Invocations per workgroup of the coarsening kernel.
 const COARSEN_GROUP: u32 = 64;
 
-/// The kernel's parameters, laid out as `struct Params` in `shaders/coarsen.wgsl`.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Default, bytemuck::Pod, bytemuck::Zeroable)]
-struct CParams {
-    cos: i32,
-    sin: i32,
-    ox: i32,
-    oy: i32,
-    map_w: u32,
-    map_h: u32,
-    band_x0: u32,
-    band_y0: u32,
-    band_w: u32,
-    band_h: u32,
-    band_stride: u32,
-    scale: u32,
-    cell_u0: u32,
-    cell_v0: u32,
-    tile_w: u32,
-    tile_h: u32,
-    out_stride: u32,
-    occ_min: u32,
-    free_min: u32,
-    groups_x: u32,
-    frac_bits: u32,
-    cx: i32,
-    cy: i32,
-    mosaic_w: u32,
-    mosaic_h: u32,
-    _pad: [u32; 3],
+kernel_params! {
+    /// The kernel's parameters, laid out as `struct Params` in `shaders/coarsen.wgsl`.
+    #[repr(C)]
+    #[derive(Clone, Copy, Debug, Default, bytemuck::Pod, bytemuck::Zeroable)]
+    pub(super) struct CParams {
+        cos: i32,
+        sin: i32,
+        ox: i32,
+        oy: i32,
+        map_w: u32,
+        map_h: u32,
+        band_x0: u32,
+        band_y0: u32,
+        band_w: u32,
+        band_h: u32,
+        band_stride: u32,
+        scale: u32,
+        cell_u0: u32,
+        cell_v0: u32,
+        tile_w: u32,
+        tile_h: u32,
+        out_stride: u32,
+        occ_min: u32,
+        free_min: u32,
+        groups_x: u32,
+        frac_bits: u32,
+        cx: i32,
+        cy: i32,
+        mosaic_w: u32,
+        mosaic_h: u32,
+        _pad: [u32; 3],
+    }
 }
 
 const _: () = assert!(

@@ -2,6 +2,7 @@
 //! rows within the tile budget, the points in chunks within it, the transforms in batches of at most one
 //! workgroup row each; every band's and chunk's dispatch adds into the batch's counters.
 
+use super::params::kernel_params;
 use super::*;
 use crate::backend::reference::merge_score::{
     check_score_input, FixedRigid, ScoreTarget, SCORE_FRAC_BITS,
@@ -17,18 +18,20 @@ const POINTS_PER_INVOCATION: u64 = 8;
 /// Bytes of one counts entry on the GPU: inside, near and deep as u32.
 const COUNT_BYTES: u64 = 12;
 
-/// The kernel's parameters, laid out as `struct Params` in `shaders/merge_score.wgsl`.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Default, bytemuck::Pod, bytemuck::Zeroable)]
-struct SParams {
-    width: u32,
-    height: u32,
-    stride: u32,
-    band_y0: u32,
-    band_h: u32,
-    n_points: u32,
-    groups_x: u32,
-    frac_bits: u32,
+kernel_params! {
+    /// The kernel's parameters, laid out as `struct Params` in `shaders/merge_score.wgsl`.
+    #[repr(C)]
+    #[derive(Clone, Copy, Debug, Default, bytemuck::Pod, bytemuck::Zeroable)]
+    pub(super) struct SParams {
+        width: u32,
+        height: u32,
+        stride: u32,
+        band_y0: u32,
+        band_h: u32,
+        n_points: u32,
+        groups_x: u32,
+        frac_bits: u32,
+    }
 }
 
 const _: () = assert!(

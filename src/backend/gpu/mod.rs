@@ -14,6 +14,7 @@ mod device_map;
 mod merge_score;
 mod ogm;
 mod ogm_call;
+mod params;
 mod profile;
 mod scan;
 mod select;

@@ -4,6 +4,7 @@
 //! exactly that many 8-byte keypoints. This file holds the kernels' parameters, pipelines and buffers;
 //! `ogm_call.rs` runs a call.
 
+use super::params::kernel_params;
 use super::scan::{scan_binds, MAX_LEVELS, PARAM_ALIGN};
 use super::*;
 
@@ -28,33 +29,35 @@ pub(super) const PARAMS_BYTES: u64 = PARAM_ALIGN * (MAX_LEVELS as u64 + 1);
 /// Tiles whose kernels are timed per call at most (two timestamps each, within wgpu's query-set limit).
 pub(super) const MAX_TIMED_TILES: usize = 2048;
 
-/// The detector's parameters, laid out as `struct Params` in ogm_corners.wgsl.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Default, bytemuck::Pod, bytemuck::Zeroable)]
-pub(super) struct OgmParams {
-    pub(super) buf_w: u32,
-    pub(super) buf_h: u32,
-    pub(super) row_bytes: u32,
-    pub(super) lanes_x: u32,
-    pub(super) groups_x: u32,
-    pub(super) core_x0: u32,
-    pub(super) core_y0: u32,
-    pub(super) core_x1: u32,
-    pub(super) core_y1: u32,
-    pub(super) x_base: u32,
-    pub(super) y_base: u32,
-    pub(super) strip: u32,
-    pub(super) free_lo: u32,
-    pub(super) free_span: u32,
-    pub(super) blk_lo: u32,
-    pub(super) blk_span: u32,
-    pub(super) min_bits: u32,
-    pub(super) scratch: u32,
-    pub(super) out_start: u32,
-    pub(super) out_end: u32,
-    pub(super) n_counts: u32,
-    pub(super) first_byte: u32,
-    pub(super) _pad: [u32; 2],
+kernel_params! {
+    /// The detector's parameters, laid out as `struct Params` in ogm_corners.wgsl.
+    #[repr(C)]
+    #[derive(Clone, Copy, Debug, Default, bytemuck::Pod, bytemuck::Zeroable)]
+    pub(super) struct OgmParams {
+        pub(super) buf_w: u32,
+        pub(super) buf_h: u32,
+        pub(super) row_bytes: u32,
+        pub(super) lanes_x: u32,
+        pub(super) groups_x: u32,
+        pub(super) core_x0: u32,
+        pub(super) core_y0: u32,
+        pub(super) core_x1: u32,
+        pub(super) core_y1: u32,
+        pub(super) x_base: u32,
+        pub(super) y_base: u32,
+        pub(super) strip: u32,
+        pub(super) free_lo: u32,
+        pub(super) free_span: u32,
+        pub(super) blk_lo: u32,
+        pub(super) blk_span: u32,
+        pub(super) min_bits: u32,
+        pub(super) scratch: u32,
+        pub(super) out_start: u32,
+        pub(super) out_end: u32,
+        pub(super) n_counts: u32,
+        pub(super) first_byte: u32,
+        pub(super) _pad: [u32; 2],
+    }
 }
 
 /// How the detect kernel classifies a call's values, fixed when its pipeline is built (the override

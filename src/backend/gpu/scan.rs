@@ -1,6 +1,7 @@
 //! The device-side exclusive scan (`shaders/scan.wgsl`): per-workgroup counts become list positions in the
 //! same submission as the kernels that produced them, so no count crosses to the host.
 
+use super::params::kernel_params;
 use super::*;
 
 /// Entries one `scan_blocks` workgroup scans.
@@ -10,14 +11,16 @@ pub(super) const MAX_LEVELS: usize = 4;
 /// Bytes between the levels' parameter blocks (the uniform offset alignment WebGPU guarantees).
 pub(super) const PARAM_ALIGN: u64 = 256;
 
-/// One level's parameters, laid out as `struct Params` in scan.wgsl.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Default, bytemuck::Pod, bytemuck::Zeroable)]
-pub(super) struct ScanParams {
-    n: u32,
-    off: u32,
-    next: u32,
-    groups_x: u32,
+kernel_params! {
+    /// One level's parameters, laid out as `struct Params` in scan.wgsl.
+    #[repr(C)]
+    #[derive(Clone, Copy, Debug, Default, bytemuck::Pod, bytemuck::Zeroable)]
+    pub(super) struct ScanParams {
+        n: u32,
+        off: u32,
+        next: u32,
+        groups_x: u32,
+    }
 }
 
 /// The levels of a scan of `n` entries at offset 0 of the counts buffer: each level's blocks' totals are

@@ -3,6 +3,7 @@
 //! one maximum per tile come back, and the host applies the thresholds
 //! ([`crate::backend::baselines::select_candidates`]).
 
+use super::params::kernel_params;
 use super::scan::{scan_binds, ScanPlan, MAX_LEVELS, PARAM_ALIGN};
 use super::*;
 
@@ -12,26 +13,28 @@ pub type Candidates = Vec<(u32, u32, i64)>;
 /// Bytes of a candidate in the device list: x, y, the score's low and high words.
 const CANDIDATE_BYTES: u64 = 16;
 
-/// The selection's parameters, laid out as `struct Params` in select_maxima.wgsl.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Default, bytemuck::Pod, bytemuck::Zeroable)]
-struct SelParams {
-    region_x0: u32,
-    region_y0: u32,
-    region_w: u32,
-    region_h: u32,
-    core_x0: u32,
-    core_y0: u32,
-    core_w: u32,
-    core_h: u32,
-    map_w: u32,
-    map_h: u32,
-    groups_x: u32,
-    n_items: u32,
-    out_start: u32,
-    out_end: u32,
-    n_groups: u32,
-    _pad: u32,
+kernel_params! {
+    /// The selection's parameters, laid out as `struct Params` in select_maxima.wgsl.
+    #[repr(C)]
+    #[derive(Clone, Copy, Debug, Default, bytemuck::Pod, bytemuck::Zeroable)]
+    pub(super) struct SelParams {
+        region_x0: u32,
+        region_y0: u32,
+        region_w: u32,
+        region_h: u32,
+        core_x0: u32,
+        core_y0: u32,
+        core_w: u32,
+        core_h: u32,
+        map_w: u32,
+        map_h: u32,
+        groups_x: u32,
+        n_items: u32,
+        out_start: u32,
+        out_end: u32,
+        n_groups: u32,
+        _pad: u32,
+    }
 }
 
 /// Pipelines and buffers of the selection, made on first use.
