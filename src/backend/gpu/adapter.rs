@@ -25,8 +25,8 @@ pub struct AdapterReport {
     pub shader_int64: bool,
     /// Smallest and largest subgroup the adapter may run (the kernels assume neither).
     pub subgroup_sizes: (u32, u32),
-    /// Whether shaders can use subgroup operations (`Features::SUBGROUP`): the OGM kernel then takes
-    /// the pixels beside its run from its neighbours' registers.
+    /// Whether shaders can use subgroup operations (`Features::SUBGROUP`; reported, not used: the OGM
+    /// kernel loads the pixels beside its run itself).
     pub subgroups: bool,
 }
 

@@ -60,6 +60,9 @@ impl DeviceMap<'_> {
                 self.bytes_per_row, self.width
             ));
         }
+        if self.width > u32::MAX - 64 {
+            return bad(format!("a width of {} cells is over 2^32 - 65", self.width));
+        }
         if self.bytes_per_row > u64::from(u32::MAX) {
             return bad(format!(
                 "bytes_per_row {} is over 2^32 - 1",

@@ -221,8 +221,9 @@ impl GpuBackend {
 
     fn from_adapter(adapter: &wgpu::Adapter, options: GpuOptions) -> Result<Self> {
         let report = report(adapter);
-        // Timestamps, 64-bit integers where the adapter has them, and buffers in host memory that the
-        // GPU copies from (bench's transfer floor, profile.rs, alone makes them; detection never does).
+        // Timestamps, 64-bit integers where the adapter has them, and buffers the host maps that kernels
+        // may also read (the OGM kernel reads its staged bands in place) and that the GPU copies from
+        // (bench's transfer floor, profile.rs).
         let features = adapter.features()
             & (wgpu::Features::TIMESTAMP_QUERY
                 | wgpu::Features::SHADER_INT64

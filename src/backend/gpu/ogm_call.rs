@@ -46,6 +46,24 @@ fn strip_rows(groups_x: u32, core_rows: u32, max_groups: u32, max_scratch: u64) 
     s
 }
 
+/// The strip height `want` asks for, raised (up to [`STRIP`], which the plan fits) until the tile's
+/// strips stay within `max_groups` and their scratch regions within `max_scratch`.
+fn strip_within(
+    want: u32,
+    groups_x: u32,
+    core_rows: u32,
+    max_groups: u32,
+    max_scratch: u64,
+) -> u32 {
+    let fits = |s: u32| {
+        let strips = core_rows.div_ceil(s);
+        strips <= max_groups && u64::from(groups_x) * u64::from(strips) <= max_scratch
+    };
+    (want.clamp(1, STRIP)..STRIP)
+        .find(|&s| fits(s))
+        .unwrap_or(STRIP)
+}
+
 /// What stays the same over a call: the classification (its form and each state's lo and span) and the
 /// rules.
 struct Call {
@@ -113,7 +131,9 @@ impl GpuBackend {
         let bindable = self.max_binding.min(u64::from(u32::MAX) - 64);
         let rows = bindable.saturating_sub(self.storage_align() + 16) / map.bytes_per_row.max(1);
         let padded_row = u64::from((w + 2).div_ceil(RUN) * RUN);
-        let forced = (w, self.options.tile.map_or(h, |t| t.1));
+        // Bands of as many rows as bind, however few (the tile planner would square tiles below 16).
+        let bindable_rows = rows.saturating_sub(2).clamp(1, u64::from(h)) as u32;
+        let forced = (w, self.options.tile.map_or(h, |t| t.1).min(bindable_rows));
         let plan = self.ogm_plan_within(w, h, y0, y1, rows * padded_row, forced)?;
         if plan.iter().any(|t| t.core[2] - t.core[0] < w) {
             return Err(Error::Unavailable(format!(
@@ -166,19 +186,15 @@ impl GpuBackend {
     /// Rows a detect invocation walks down in a tile of `core_rows` rows and `groups_x` workgroup
     /// columns ([`strip_rows`]); a software adapter, whose few threads are full anyway, keeps [`STRIP`].
     fn strip_rows(&self, groups_x: u32, core_rows: u32) -> u32 {
+        let per_group = u64::from(self.ogm_bufs.scratch) * KEYPOINT_BYTES;
+        let max_scratch = self.max_binding / per_group.max(1);
         if let Some(s) = self.options.strip_rows {
-            return s.clamp(1, STRIP);
+            return strip_within(s, groups_x, core_rows, self.max_groups, max_scratch);
         }
         if self.adapter.device_type == "Cpu" {
             return STRIP;
         }
-        let per_group = u64::from(self.ogm_bufs.scratch) * KEYPOINT_BYTES;
-        strip_rows(
-            groups_x,
-            core_rows,
-            self.max_groups,
-            self.max_binding / per_group.max(1),
-        )
+        strip_rows(groups_x, core_rows, self.max_groups, max_scratch)
     }
 
     /// Rows of one slab of a map `w` pixels wide: at most [`SLAB_ROWS`] (the keypoint's row field) and
@@ -603,7 +619,7 @@ impl GpuBackend {
 
 #[cfg(test)]
 mod tests {
-    use super::{state_form, strip_rows};
+    use super::{state_form, strip_rows, strip_within};
     use crate::backend::fast::bitplanes::ValueSet;
 
     const H: u32 = 0x8080_8080;
@@ -645,6 +661,12 @@ mod tests {
         assert_eq!(strip_rows(2, 4096, 300, u64::MAX), 16);
         assert_eq!(strip_rows(2, 4096, 65535, 1100), 8);
         assert_eq!(strip_rows(1, 10, 65535, u64::MAX), 4);
+        // A height asked for is kept where it fits, raised where it would not.
+        assert_eq!(strip_within(1, 2, 4096, 65535, u64::MAX), 1);
+        assert_eq!(strip_within(1, 1, 100_000, 65535, u64::MAX), 2);
+        assert_eq!(strip_within(3, 2, 4096, 65535, 1100), 8);
+        assert_eq!(strip_within(40, 2, 4096, 65535, u64::MAX), 16);
+        assert_eq!(strip_within(1, 2, 4096, 10, 10), 16);
     }
 
     #[test]
