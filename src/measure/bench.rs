@@ -293,13 +293,15 @@ fn device_map_stage(
             first_difference(&got, want)
         )));
     }
-    // The timed runs' (the warm-up's is first).
-    let most = |f: fn(&(usize, usize)) -> usize| launches.iter().skip(1).map(f).max();
-    Ok(Some((
-        ms,
-        most(|l| l.0).unwrap_or(0),
-        most(|l| l.1).unwrap_or(0),
-    )))
+    let (passes, dispatches) = most_launches(&launches);
+    Ok(Some((ms, passes.unwrap_or(0), dispatches.unwrap_or(0))))
+}
+
+/// The most write passes and dispatches the timed runs took (`launches` has the warm-up's first, which
+/// may grow the buffers and so take more).
+fn most_launches(launches: &[(usize, usize)]) -> (Option<usize>, Option<usize>) {
+    let timed = || launches.iter().skip(1);
+    (timed().map(|l| l.0).max(), timed().map(|l| l.1).max())
 }
 
 /// A stage's record of detector `kind` on `engine` (`adapter`, the CPU model or the GPU) for map `m`,
@@ -729,10 +731,7 @@ impl Runner {
                         launches.push((s.write_passes, s.dispatches));
                         Ok(kps)
                     })?;
-                    // The timed runs' (the warm-up's is first): the warm-up may grow the buffers.
-                    let most =
-                        |f: fn(&(usize, usize)) -> usize| launches.iter().skip(1).map(f).max();
-                    let (passes, dispatches) = (most(|l| l.0), most(|l| l.1));
+                    let (passes, dispatches) = most_launches(&launches);
                     let gpu_record = |stage, ms| {
                         let mut r = record(stage, ms, None, kps.len());
                         (r.write_passes, r.dispatches) = (passes, dispatches);

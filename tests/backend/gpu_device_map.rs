@@ -43,17 +43,22 @@ fn device_buffer(
     buffer
 }
 
-/// Asserts the device map of `img` at `offset` and `pitch` gives the reference's keypoints for every
-/// rule reading; returns the reference's count.
-fn assert_same(gpu: &mut GpuBackend, img: &MapImage, offset: u64, pitch: u64) -> usize {
-    let buffer = device_buffer(gpu.device(), gpu.queue(), img, offset, pitch);
-    let map = DeviceMap {
-        buffer: &buffer,
+/// `img` as `device_buffer` holds it.
+fn map_in<'a>(buffer: &'a wgpu::Buffer, img: &MapImage, offset: u64, pitch: u64) -> DeviceMap<'a> {
+    DeviceMap {
+        buffer,
         offset,
         width: img.width(),
         height: img.height(),
         bytes_per_row: pitch,
-    };
+    }
+}
+
+/// Asserts the device map of `img` at `offset` and `pitch` gives the reference's keypoints for every
+/// rule reading; returns the reference's count.
+fn assert_same(gpu: &mut GpuBackend, img: &MapImage, offset: u64, pitch: u64) -> usize {
+    let buffer = device_buffer(gpu.device(), gpu.queue(), img, offset, pitch);
+    let map = map_in(&buffer, img, offset, pitch);
     let classes = ClassTable::default();
     let mut n = 0;
     for (set, uao) in VARIANTS {
@@ -143,13 +148,7 @@ fn device_maps_run_band_by_band_and_slab_by_slab() {
         };
         for (offset, pitch) in layouts(img.width()) {
             let buffer = device_buffer(gpu.device(), gpu.queue(), &img, offset, pitch);
-            let map = DeviceMap {
-                buffer: &buffer,
-                offset,
-                width: img.width(),
-                height: img.height(),
-                bytes_per_row: pitch,
-            };
+            let map = map_in(&buffer, &img, offset, pitch);
             let got = gpu
                 .detect_device_map(&map, &classes, &rules, false)
                 .unwrap();

@@ -145,19 +145,13 @@ impl GpuBackend {
         unknown_as_occupied: bool,
     ) -> Result<Vec<Keypoint>> {
         map.validate()?;
-        self.start_call()?;
-        if map.width == 0 || map.height == 0 {
-            return Ok(Vec::new());
-        }
         let core = (0, map.height as usize);
-        let out = self.ogm_detect(
+        self.ogm_call(
             Source::Device(map),
             core,
             classes,
             rules,
             unknown_as_occupied,
-        )?;
-        self.check()?;
-        Ok(out)
+        )
     }
 }

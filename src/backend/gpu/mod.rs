@@ -618,16 +618,8 @@ impl Backend for GpuBackend {
         rules: &RuleTable,
         unknown_as_occupied: bool,
     ) -> Result<Vec<Keypoint>> {
-        self.start_call()?;
-        let out = self.ogm_detect(
-            device_map::Source::Host(rows),
-            core,
-            classes,
-            rules,
-            unknown_as_occupied,
-        )?;
-        self.check()?;
-        Ok(out)
+        let src = device_map::Source::Host(rows);
+        self.ogm_call(src, core, classes, rules, unknown_as_occupied)
     }
 
     /// The device's candidates of the core's rows ([`GpuBackend::baseline_candidates_rows`]): only the

@@ -38,12 +38,21 @@ fn state_form(set: &ValueSet) -> Option<(u32, u32, u32)> {
 /// workgroups' scratch regions.
 fn strip_rows(groups_x: u32, core_rows: u32, max_groups: u32, max_scratch: u64) -> u32 {
     let groups = |s: u32| u64::from(groups_x) * u64::from(core_rows.div_ceil(s));
-    let fits = |s: u32| core_rows.div_ceil(s) <= max_groups && groups(s) <= max_scratch;
     let mut s = STRIP;
-    while s > 4 && groups(s) < ENOUGH_GROUPS && fits(s / 2) {
+    while s > 4
+        && groups(s) < ENOUGH_GROUPS
+        && strip_fits(s / 2, groups_x, core_rows, max_groups, max_scratch)
+    {
         s /= 2;
     }
     s
+}
+
+/// Whether strips of `s` rows keep a tile's strips within `max_groups` and their workgroups' scratch
+/// regions within `max_scratch`.
+fn strip_fits(s: u32, groups_x: u32, core_rows: u32, max_groups: u32, max_scratch: u64) -> bool {
+    let strips = core_rows.div_ceil(s);
+    strips <= max_groups && u64::from(groups_x) * u64::from(strips) <= max_scratch
 }
 
 /// The strip height `want` asks for, raised (up to [`STRIP`], which the plan fits) until the tile's
@@ -55,12 +64,8 @@ fn strip_within(
     max_groups: u32,
     max_scratch: u64,
 ) -> u32 {
-    let fits = |s: u32| {
-        let strips = core_rows.div_ceil(s);
-        strips <= max_groups && u64::from(groups_x) * u64::from(strips) <= max_scratch
-    };
     (want.clamp(1, STRIP)..STRIP)
-        .find(|&s| fits(s))
+        .find(|&s| strip_fits(s, groups_x, core_rows, max_groups, max_scratch))
         .unwrap_or(STRIP)
 }
 
@@ -582,6 +587,22 @@ impl GpuBackend {
             // Tiles side by side interleave rows; restore (y, x) order.
             out.sort_unstable();
         }
+        Ok(out)
+    }
+
+    /// One detection call: [`Self::ogm_detect`] between the call's start (a device error left from
+    /// before fails it, the statistics cleared) and its end (a device error from it fails it).
+    pub(super) fn ogm_call(
+        &mut self,
+        src: Source,
+        core: (usize, usize),
+        classes: &ClassTable,
+        rules: &RuleTable,
+        unknown_as_occupied: bool,
+    ) -> Result<Vec<Keypoint>> {
+        self.start_call()?;
+        let out = self.ogm_detect(src, core, classes, rules, unknown_as_occupied)?;
+        self.check()?;
         Ok(out)
     }
 
