@@ -172,21 +172,17 @@ pub trait Backend: Send {
             .collect())
     }
 
-    /// The OGM keypoints of rows `core` of a window of a map, sorted by (y, x); `rows` holds the rows around
-    /// the core the map has (at least one for the OGM detector, [`crate::map::stream::HALO`] for the baselines).
-    /// By default the window is detected as an image of its own ([`Backend::detect`]) and the core's rows
-    /// kept.
-    fn detect_rows(
-        &mut self,
-        rows: Rows,
-        core: (usize, usize),
-        classes: &ClassTable,
-        rules: &RuleTable,
-        unknown_as_occupied: bool,
-    ) -> Result<Vec<Keypoint>> {
-        let image = rows.image()?;
-        let found = self.detect(&image, classes, rules, unknown_as_occupied)?;
-        Ok(in_core(found, rows.first(), core))
+    /// The OGM keypoints of a window's core rows ([`OgmWindow`]), sorted by (y, x). By default the window
+    /// is detected as an image of its own ([`Backend::detect`]) and the core's rows kept.
+    fn detect_rows(&mut self, window: OgmWindow) -> Result<Vec<Keypoint>> {
+        let image = window.rows.image()?;
+        let found = self.detect(
+            &image,
+            window.classes,
+            window.rules,
+            window.unknown_as_occupied,
+        )?;
+        Ok(in_core(found, window.rows.first(), window.core))
     }
 
     /// The candidates of a baseline in rows `core` of a window, in (y, x) order: its positive 3x3 local
@@ -249,6 +245,22 @@ pub trait Backend: Send {
     fn working_bytes(&self, options: &DetectOptions, width: u32, height: u32) -> u64 {
         reference_working_bytes(options, width, height)
     }
+}
+
+/// A window of a map for the OGM detector ([`Backend::detect_rows`]): the rows held, the core rows whose
+/// keypoints are wanted, and how the map is read.
+#[derive(Clone, Copy, Debug)]
+pub struct OgmWindow<'a> {
+    /// The rows held: the core and the rows around it the map has (at least one each side).
+    pub rows: Rows<'a>,
+    /// Map rows `core.0..core.1` whose keypoints are wanted.
+    pub core: (usize, usize),
+    /// Each pixel value's state.
+    pub classes: &'a ClassTable,
+    /// The codes accepted as corners.
+    pub rules: &'a RuleTable,
+    /// Unknown neighbours count as occupied.
+    pub unknown_as_occupied: bool,
 }
 
 /// Keypoints of a window detected as an image of its own, kept when their map row (`first` + their row) is

@@ -4,6 +4,7 @@ use crate::backend::baselines::streamed::CandidateList;
 use crate::backend::baselines::Candidate;
 use crate::backend::fast::FastCpuBackend;
 use crate::backend::rules::RuleTable;
+use crate::backend::OgmWindow;
 pub use crate::backend::{Backend, DetectOptions, DetectorKind, Keypoint};
 use crate::detect::robust::RobustInfo;
 use crate::map::states::ClassTable;
@@ -323,13 +324,13 @@ impl Detector {
             DetectorKind::Ogm => {
                 let mut held = Vec::new();
                 let warnings = windows(&mut |win| {
-                    let found = backend.detect_rows(
-                        win.rows,
-                        win.core,
+                    let found = backend.detect_rows(OgmWindow {
+                        rows: win.rows,
+                        core: win.core,
                         classes,
                         rules,
-                        options.unknown_as_occupied,
-                    )?;
+                        unknown_as_occupied: options.unknown_as_occupied,
+                    })?;
                     match max_corners {
                         None => sink(&found),
                         Some(_) => {

@@ -19,7 +19,7 @@ use crate::backend::reference::coarsen::CellRule;
 use crate::backend::rules::RuleTable;
 use crate::backend::{
     maxima_of_window_scores, reference_working_bytes, Backend, DetectOptions, DetectorKind,
-    Keypoint,
+    Keypoint, OgmWindow,
 };
 use crate::map::grid::RotatedGrid;
 use crate::map::states::ClassTable;
@@ -66,20 +66,13 @@ impl Backend for FastCpuBackend {
         Ok(baselines::scores(kind, image, params))
     }
 
-    fn detect_rows(
-        &mut self,
-        rows: Rows,
-        core: (usize, usize),
-        classes: &ClassTable,
-        rules: &RuleTable,
-        unknown_as_occupied: bool,
-    ) -> Result<Vec<Keypoint>> {
+    fn detect_rows(&mut self, w: OgmWindow) -> Result<Vec<Keypoint>> {
         Ok(ogm::ogm_corners_rows(
-            rows,
-            core,
-            classes,
-            rules,
-            unknown_as_occupied,
+            w.rows,
+            w.core,
+            w.classes,
+            w.rules,
+            w.unknown_as_occupied,
         ))
     }
 

@@ -35,7 +35,7 @@ use wgpu::util::DeviceExt;
 use crate::backend::baselines::{Baseline, ExactParams};
 use crate::backend::reference::merge_score::{FixedRigid, ScoreTarget};
 use crate::backend::rules::RuleTable;
-use crate::backend::{Backend, DetectOptions, DetectorKind, Keypoint};
+use crate::backend::{Backend, DetectOptions, DetectorKind, Keypoint, OgmWindow};
 use crate::map::states::ClassTable;
 use crate::map::stream::Rows;
 use crate::map::MapImage;
@@ -607,19 +607,18 @@ impl Backend for GpuBackend {
         unknown_as_occupied: bool,
     ) -> Result<Vec<Keypoint>> {
         let core = (0, image.height() as usize);
-        self.detect_rows(Rows::of(image), core, classes, rules, unknown_as_occupied)
+        self.detect_rows(OgmWindow {
+            rows: Rows::of(image),
+            core,
+            classes,
+            rules,
+            unknown_as_occupied,
+        })
     }
 
-    fn detect_rows(
-        &mut self,
-        rows: Rows,
-        core: (usize, usize),
-        classes: &ClassTable,
-        rules: &RuleTable,
-        unknown_as_occupied: bool,
-    ) -> Result<Vec<Keypoint>> {
-        let src = device_map::Source::Host(rows);
-        self.ogm_call(src, core, classes, rules, unknown_as_occupied)
+    fn detect_rows(&mut self, w: OgmWindow) -> Result<Vec<Keypoint>> {
+        let src = device_map::Source::Host(w.rows);
+        self.ogm_call(src, w.core, w.classes, w.rules, w.unknown_as_occupied)
     }
 
     /// The device's candidates of the core's rows ([`GpuBackend::baseline_candidates_rows`]): only the
