@@ -15,6 +15,7 @@
 #   OGM_PEAK_BANDWIDTH    the GPU's peak memory bandwidth, GB/s, when bench does not know the adapter
 #   OGM_BIG               set to 0 to leave out the 65536^2 map (4 GiB of host memory, 4 GiB on the GPU)
 #   OGM_SIZES             the other synthetic sizes (default "4096x4096 16384x16384")
+#   OGM_TUNE              set to 0 to leave out the tuning runs (strips of 4, 8 and 16 rows; bands copied)
 set -uo pipefail
 cd "$(dirname "$0")/.."
 out=${1:-target/gpu-bench}
@@ -87,6 +88,16 @@ for s in ${OGM_SIZES:-4096x4096 16384x16384}; do sizes+=(--size "$s"); done
 run synthetic-ogm bench --backend cpu,gpu --detector ogm --repeat 10 "${peak[@]}" "${sizes[@]}"
 run synthetic-baselines bench --backend cpu,gpu --detector harris,shi-tomasi,trajkovic --repeat 3 \
     "${peak[@]}" "${sizes[@]}"
+# Tuning, each against the defaults above: the strip height (the backend takes 16 rows, or 8 or 4 where a
+# small map would leave the GPU short of workgroups) and reading staged bands in place against copying
+# them into device buffers first. The adapter's label in each file says what was set.
+if [ "${OGM_TUNE:-1}" != 0 ]; then
+    for rows in 4 8 16; do
+        run "tune-strip-$rows" bench --backend gpu --detector ogm --repeat 5 --gpu-strip-rows "$rows" \
+            "${peak[@]}" "${sizes[@]}"
+    done
+    run tune-copy-bands bench --backend gpu --detector ogm --repeat 5 --gpu-copy-bands "${peak[@]}" "${sizes[@]}"
+fi
 if [ "${OGM_BIG:-1}" != 0 ]; then
     run synthetic-65536 bench --backend cpu,gpu --detector ogm --repeat 3 "${peak[@]}" --size 65536x65536
 fi
@@ -104,6 +115,10 @@ if [ -n "${OGM_CONFORMANCE_BIN:-}" ]; then
     fi
 fi
 # The figures in one place: every GPU row and the CPU rows beside them.
-grep -hE '^# (backends|gpu)|^map |  gpu  |  cpu  ' "$out"/synthetic-*.txt >"$out/figures.txt" 2>/dev/null || true
+for f in "$out"/synthetic-*.txt "$out"/tune-*.txt; do
+    [ -f "$f" ] || continue
+    echo "## $(basename "$f" .txt)"
+    grep -hE '^# (backends|gpu)|^map |  gpu  |  cpu  ' "$f"
+done >"$out/figures.txt" 2>/dev/null || true
 log "done: $out (status $status)"
 exit $status

@@ -6,6 +6,7 @@ use std::path::{Path, PathBuf};
 
 use clap::{Args, ValueEnum};
 
+use ogm_corners::backend::gpu::GpuOptions;
 use ogm_corners::backend::reference_working_bytes;
 use ogm_corners::map::synthetic;
 use ogm_corners::support::files::{self, Inputs};
@@ -70,6 +71,13 @@ pub(super) struct BenchArgs {
     /// how close a detector comes to the speed of memory.
     #[arg(long)]
     bandwidth: bool,
+    /// GPU tuning: rows each OGM invocation walks down (1 to 16) instead of the backend's choice.
+    #[arg(long, value_name = "ROWS", value_parser = clap::value_parser!(u32).range(1..=16))]
+    gpu_strip_rows: Option<u32>,
+    /// GPU tuning: copy each staged band into a device buffer before the kernel reads it, even where the
+    /// kernel could read the staging buffer in place.
+    #[arg(long)]
+    gpu_copy_bands: bool,
     #[command(flatten)]
     baseline: BaselineArgs,
     /// Output format.
@@ -241,6 +249,11 @@ pub(super) fn bench(a: BenchArgs, budget: &Budget) -> Result<()> {
         a.baseline.params(),
     )?;
     runner.set_peak_bandwidth(a.peak_bandwidth);
+    runner.set_gpu_options(GpuOptions {
+        strip_rows: a.gpu_strip_rows,
+        copy_bands: a.gpu_copy_bands,
+        ..GpuOptions::default()
+    })?;
     let label_w = sources
         .iter()
         .map(|s| match s {

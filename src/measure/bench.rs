@@ -420,6 +420,18 @@ fn first_difference(a: &[Keypoint], b: &[Keypoint]) -> String {
     )
 }
 
+/// What `options` sets that the defaults leave to the backend, in words ("" for the defaults).
+fn gpu_tuning(options: &GpuOptions) -> String {
+    let mut said = Vec::new();
+    if let Some(s) = options.strip_rows {
+        said.push(format!("strips of {s} rows"));
+    }
+    if options.copy_bands {
+        said.push("bands copied to device buffers".to_string());
+    }
+    said.join(", ")
+}
+
 /// Times detectors on maps on the chosen backends, checking that the backends agree.
 pub struct Runner {
     cmd: &'static str,
@@ -430,6 +442,8 @@ pub struct Runner {
     /// The GPU's peak memory bandwidth, GB/s, when known: `kernel_resident` is reported against it.
     peak_gbs: Option<f64>,
     gpu: Option<GpuBackend>,
+    /// The options the GPU backend is opened with.
+    gpu_options: GpuOptions,
     repeat: u32,
     rule_set: RuleSet,
     params: BaselineParams,
@@ -489,6 +503,7 @@ impl Runner {
             gpu_info,
             peak_gbs,
             gpu,
+            gpu_options: GpuOptions::default(),
             repeat,
             rule_set,
             params,
@@ -502,6 +517,21 @@ impl Runner {
         if gbs.is_some() {
             self.peak_gbs = gbs;
         }
+    }
+
+    /// Opens the GPU backend with `options` from here on (the GPU's tuning choices, such as the strip
+    /// height, measured against the defaults); the adapter's label in the records names what differs from
+    /// the defaults.
+    pub fn set_gpu_options(&mut self, options: GpuOptions) -> Result<()> {
+        let tuned = gpu_tuning(&options);
+        if let Some(info) = self.gpu_info.as_mut().filter(|_| !tuned.is_empty()) {
+            info.label = format!("{}; {tuned}", info.label);
+        }
+        if self.gpu.is_some() {
+            self.gpu = Some(GpuBackend::new(options)?);
+        }
+        self.gpu_options = options;
+        Ok(())
     }
 
     /// Times `repeat` plain reads of the map's bytes on all threads ([`crate::backend::fast::read::read_all`]), after
@@ -616,7 +646,7 @@ impl Runner {
         }
         for engine in engines {
             if engine == Engine::Gpu && self.gpu.is_none() {
-                self.gpu = Some(GpuBackend::new(GpuOptions::default())?);
+                self.gpu = Some(GpuBackend::new(self.gpu_options)?);
             }
             for (i, o) in out.iter_mut().enumerate() {
                 if self.too_slow(engine, o.kind, pixels) {
@@ -874,11 +904,30 @@ mod tests {
             }),
             peak_gbs: None,
             gpu: None,
+            gpu_options: GpuOptions::default(),
             repeat: 1,
             rule_set: RuleSet::Paper,
             params: BaselineParams::default(),
             progress: false,
         }
+    }
+
+    #[test]
+    fn tuned_gpu_options_are_named_in_the_adapter_label() {
+        let mut r = runner(Want::No, Want::No, Want::Named, false);
+        r.set_gpu_options(GpuOptions::default()).unwrap();
+        assert_eq!(r.gpu_info.as_ref().unwrap().label, "test");
+        let tuned = GpuOptions {
+            strip_rows: Some(8),
+            copy_bands: true,
+            ..GpuOptions::default()
+        };
+        r.set_gpu_options(tuned).unwrap();
+        assert_eq!(
+            r.gpu_info.as_ref().unwrap().label,
+            "test; strips of 8 rows, bands copied to device buffers"
+        );
+        assert_eq!(r.gpu_options, tuned);
     }
 
     #[test]

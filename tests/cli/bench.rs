@@ -349,6 +349,50 @@ fn bench_usage_errors() {
     assert_eq!(run(&["bench", "--detector", "fast"]).status.code(), Some(2));
     assert_eq!(run(&["bench", "--backend", "tpu"]).status.code(), Some(2));
     assert_eq!(run(&["bench", "--size", "0x5"]).status.code(), Some(2));
+    for rows in ["0", "17", "four"] {
+        assert_eq!(
+            run(&["bench", "--gpu-strip-rows", rows]).status.code(),
+            Some(2)
+        );
+    }
+}
+
+/// The GPU's tuning choices: the records carry them in the adapter's label, and the keypoints still agree
+/// with the CPU's (bench fails when they differ): strips of 4 rows, bands copied.
+#[test]
+fn bench_gpu_tuning_is_named_and_keeps_the_keypoints() {
+    if !gpu_available() {
+        return;
+    }
+    let plain = bench_json(&["--size", "300x200", "--repeat", "1", "--backend", "cpu,gpu"]);
+    let v = bench_json(&[
+        "--size",
+        "300x200",
+        "--repeat",
+        "1",
+        "--backend",
+        "cpu,gpu",
+        "--gpu-strip-rows",
+        "4",
+        "--gpu-copy-bands",
+    ]);
+    let label = v["gpu"].as_str().unwrap();
+    assert!(
+        label.ends_with("; strips of 4 rows, bands copied to device buffers"),
+        "{label}"
+    );
+    assert!(!plain["gpu"].as_str().unwrap().contains("strips of"));
+    let gpu = |v: &serde_json::Value| -> Vec<u64> {
+        v["records"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter(|r| r["backend"] == "gpu")
+            .map(|r| r["keypoints"].as_u64().unwrap())
+            .collect()
+    };
+    assert!(!gpu(&v).is_empty());
+    assert_eq!(gpu(&v), gpu(&plain));
 }
 
 /// `bench --bandwidth`: one `read` record per map (its GB/s), and every CPU record's share of it, which is
