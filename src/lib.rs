@@ -20,10 +20,58 @@
 //! assert_eq!(corners, vec![(1, 1), (6, 1), (1, 6), (6, 6)]);
 //! ```
 //!
+//! ## Using the library
+//!
+//! ```no_run
+//! use ogm_corners::backend::gpu::{GpuBackend, GpuOptions};
+//! use ogm_corners::detect::robust::RobustParams;
+//! use ogm_corners::{DetectOptions, Detector, DetectorKind, OccupancyMap, RuleSet};
+//!
+//! // The paper's detector on a ROS map (its yaml, the image beside it).
+//! let map = OccupancyMap::load("map.yaml")?;
+//! let mut detector = Detector::new(DetectOptions { rules: RuleSet::Paper, ..DetectOptions::default() });
+//! for k in detector.detect(&map)?.keypoints {
+//!     println!("{} {} rule {}", k.x, k.y, k.rule);
+//! }
+//!
+//! // The robust detector, its strongest 50 corners.
+//! let mut robust = Detector::new(DetectOptions {
+//!     detector: DetectorKind::OgmRobust,
+//!     robust: RobustParams { min_strength: 12, ..RobustParams::default() },
+//!     max_corners: Some(50),
+//!     ..DetectOptions::default()
+//! });
+//! let found = robust.detect(&map)?; // found.robust: the grid angle; k.score: strength in pixels
+//!
+//! // The GPU backend: device, pipelines and buffers are created once and reused.
+//! let gpu = GpuBackend::new(GpuOptions::default())?; // or GpuBackend::open(true, ..) for hardware only
+//! let mut on_gpu = Detector::with_backend(DetectOptions::default(), Box::new(gpu));
+//! # Ok::<(), ogm_corners::Error>(())
+//! ```
+//!
+//! Keep the [`Detector`] and reuse it: backends keep their set-up between calls. Backends implement the
+//! [`Backend`] trait; the CPU reference is `backend::reference::ReferenceBackend`, the GPU one
+//! `backend::gpu::GpuBackend`, and [`Detector::with_backend`] runs any of them.
+//!
+//! A map a GPU mapping pipeline already keeps in a `wgpu::Buffer` (one byte a cell, any offset, any row
+//! pitch) is detected where it lies, with only the corners crossing to the host: open the backend on the
+//! pipeline's own device with `GpuBackend::from_device(&adapter, device, queue, options)` (or make the
+//! buffer on `gpu.device()`), then `gpu.detect_device_map(&DeviceMap { buffer: &grid, offset, width,
+//! height, bytes_per_row }, &classes, &rules, false)`. Same keypoints, same order as the map in memory; a
+//! map its buffer cannot hold (a pitch under the width, a buffer too small or without `STORAGE`) is an
+//! input error.
+//!
+//! Merging: `merge::align(&a, &b, &MergeOptions) -> Result<Alignment>`, `merge::pair::merge_pair`,
+//! `merge::many::run` and `merge::many::merge_maps` (the method: `docs/merging.md`).
+//!
+//! Runnable examples in `examples/`: `detect_map`, `merge_two`, `merge_folder`, and `device_map`, a map
+//! on the GPU detected where it lies, end to end (`cargo run --release --example detect_map -- MAP.yaml`).
+//!
 //! ## The layers, bottom to top
 //!
 //! A file imports only its own layer and the layers below it, and no file imports one that imports it
-//! back: `tests/house/layering.rs` checks both on the source.
+//! back: `tests/house/layering.rs` checks both on the source. Within a module, `mod.rs` and its children
+//! may use each other: a parent declares the types its children share and re-exports what they build.
 //!
 //! 1. **Services** ([`support`]): errors, stopping on a signal, the worker pool, the memory budget, files
 //!    written whole, the marks the tool's own outputs carry, drawing, HTML pages.

@@ -1,5 +1,6 @@
 //! Memory of the fast CPU path: beyond the map itself, detection allocates only a few rows of bit-planes
-//! per thread and the keypoints. Counted by a global allocator, so the check is exact and not timing-bound.
+//! per thread and the keypoints. Counted by a global allocator, so the check is exact and not timing-bound;
+//! a binary of its own, as a counting allocator counts the whole binary.
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicUsize, Ordering::Relaxed};

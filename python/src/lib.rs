@@ -1,6 +1,14 @@
 //! `ogm_corners._core`: the compiled half of the Python package. The pure-Python package around it
 //! (`python/ogm_corners/`) shapes the API; this module converts between numpy and the Rust library and
 //! releases the interpreter's lock while the library works.
+//!
+//! The package, `python/`, is a workspace member:
+//! - `src/`: this pyo3 extension: maps and numpy (`map.rs`), detection (`detect.rs`), merging
+//!   (`merge.rs`), work done elsewhere (`distributed.rs`), errors (`errors.rs`);
+//! - `ogm_corners/`: the pure-Python package around it (`_map.py`, `_detect.py`, `_keypoints.py`,
+//!   `_merge.py`, `synthetic.py`, `_core.pyi`); `ros/`: the ROS 2 `map_merge` node, `node.py` on rclpy
+//!   over `live.py`, its logic with no ROS import, and `replay.py`, a bag through it;
+//! - `tests/` (pytest), `examples/merge_rosbag.py`, `benches/overhead.py`.
 
 mod detect;
 mod distributed;

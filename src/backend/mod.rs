@@ -1,13 +1,30 @@
-//! The backends: what every backend implements and shares (keypoints, detection options, the [`Backend`]
-//! trait, the rule table, the baselines' parameters and selection), and the three that implement it: the
-//! CPU reference ([`reference`](mod@reference)), the fast CPU path ([`fast`]) and the GPU ([`gpu`]).
+//! The backends: what every backend implements and shares, and the three that implement it;
 //! [`crate::detect::detector`] picks among them.
+//!
+//! - `mod.rs`: keypoints, detection options, working-memory estimates and the [`Backend`] trait;
+//! - [`robust_params`]: the robust detector's options (every backend is given them, so they cannot live
+//!   with the detector a layer up);
+//! - [`rules`]: the rule table, derived from the paper's formulas;
+//! - [`baselines`]: the baselines' parameters and the keypoint selection shared by every backend, in
+//!   memory and over a stream;
+//! - [`reference`](mod@reference): the plain single-threaded CPU reference ([`ReferenceBackend`],
+//!   `--backend reference`), one twin per GPU kernel, the oracle every other backend is tested against;
+//! - [`fast`] (the fast CPU path, `--backend cpu`, the default) and [`gpu`] (`--backend gpu`), a layer
+//!   above the rest: both implement `Backend` and give the reference's keypoints bit for bit.
 //!
 //! The interface is this module: what the detectors and the merger use of a backend is named here (the
 //! trait, the reference's [`ReferenceBackend`] that the merger scores with by default, and the data the
 //! kernels take and give: the coarse [`Mosaic`] and its [`CellRule`], the scoring kernel's
 //! [`ScoreTarget`] and [`FixedRigid`]). Only the detector's choice of backend names an implementation
-//! directly (`tests/house/layering.rs` checks it).
+//! directly (`tests/house/layering.rs` checks it, and lists the one reach left: the robust detector's
+//! wall-direction histogram uses the fast path's bit-planes).
+//!
+//! A new backend is a type implementing `Backend` in its own folder beside `reference/`, `fast/` and
+//! `gpu/`. `name`, `detect` and `baseline_scores` are the minimum: the trait's default methods route
+//! windows and candidate lists through them, and coarsen and score transforms with the reference's
+//! twins; a backend overrides the rest where it can do better. Choose it in `BackendChoice`
+//! (`src/detect/detector.rs`), and test it bit for bit against the reference as
+//! `tests/backend/fast_ogm.rs` and `tests/backend/gpu_conformance.rs` do.
 
 pub mod baselines;
 pub mod fast;

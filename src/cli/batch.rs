@@ -1,5 +1,7 @@
-//! `detect` over many maps: the detector (and its GPU set-up) is made once, the next map is read and
-//! decoded on another thread while the current one is detected, and a progress bar runs on standard error.
+//! `detect` over many maps: the folders are searched (`map::find_maps`) and every output is checked
+//! against the inputs before the first map is read; the detector (and its GPU set-up) is made once, the
+//! next map is read and decoded on another thread while the current one is detected, and a progress bar
+//! runs on standard error.
 
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};

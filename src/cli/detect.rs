@@ -1,4 +1,15 @@
 //! `ogm-corners detect`: keypoints of one map to a file or standard output, or of many maps to a folder.
+//!
+//! It picks one of three routes:
+//! - **Many maps or a folder** go to `batch.rs`.
+//! - **One map** is streamed (`ogm_corners::detect::streamed`, whose doc gives the steps). The robust
+//!   detector takes this route only when the map does not fit in memory whole: `robust::tiles`, tiles of
+//!   its turned grid over a temporary copy of the rows.
+//! - **The robust detector** otherwise needs the whole map: `OccupancyMap::load_within` loads it within
+//!   the budget, `Detector::detect` runs `robust::detect` (orientation, the turned grid, `Backend::coarsen`
+//!   at each scale, every grid phase as a tile of one coarse map, the rule table on the coarse maps at the
+//!   cells of a lattice laid out from the grid's anchor, the map's world origin or its centre, strength,
+//!   placement and selection in host code), and the keypoints and overlay are written atomically.
 
 use std::io::Write;
 use std::path::PathBuf;

@@ -1,6 +1,14 @@
 //! `ogm-corners merge A B`: align map B onto map A with no initial pose, and write the merged map when the
 //! alignment is confident (see [`ogm_corners::merge`]). With more maps, a folder, or `--poses` /
 //! `--init-poses`: every map placed at once (`merge_many.rs`).
+//!
+//! Two maps: both images are read within the budget; `merge::footprint::pair` counts B brought to A's
+//! cells and both maps' preparations before anything is allocated; then `merge::pair::merge_pair` aligns
+//! them (its stages: `ogm_corners::merge::pair`). The verdict (`merge::pair::Verdict`) is printed; when
+//! accepted, the canvas is counted (`merge::footprint::canvas`), and the merged map
+//! (`merge::pair::compose_pair`, via `merge::compose`) and the picture (`merge::pair::overlay_pair`) are
+//! staged and renamed into place together (`support::files::Staged`). A declined merge writes nothing
+//! and exits 3.
 
 use std::path::PathBuf;
 use std::time::Instant;

@@ -1,6 +1,6 @@
 //! `ogm-corners merge A B C ... | DIR`: every map placed at once (see [`ogm_corners::merge::many`]): each
 //! group's merged map and picture, each map's pose (`--poses`), the multirobot_map_merge parameters
-//! (`--init-poses`).
+//! (`--init-poses`), and the HTML page (`--html`). All outputs are staged and renamed into place together.
 
 use std::path::{Path, PathBuf};
 

@@ -1,5 +1,13 @@
 //! The `ogm-corners` command line: argument parsing and the options shared by the subcommands, one file
 //! per subcommand beside this one. The work itself (detection, pictures, tables) is library code.
+//!
+//! The files: `detect.rs` (with `batch.rs`, `detect` over many maps), `demo.rs` (with `demo_merge.rs`,
+//! the demo's whole job), `rules.rs`, `info.rs`, `bench.rs`, `eval.rs`, `compare.rs`, `merge.rs` (with its
+//! many-map mode in `merge_many.rs`) and `merge_eval.rs`.
+//!
+//! A new command: one file here with its arguments struct (as `detect.rs`'s `DetectArgs`) and its `run`,
+//! a variant of the `Command` enum below, and its tests in `tests/cli/`; the work itself belongs in the
+//! library layer of its concern, the command only parses and calls.
 
 mod batch;
 mod bench;

@@ -1,6 +1,17 @@
 //! A map detected from its file in constant memory: rows streamed through the detector
 //! ([`Detector::detect_streamed`]), keypoints written as they come, and the overlay drawn downsampled on
 //! the way.
+//!
+//! Step by step: `OccupancyMap::open_rows` reads the yaml and the image header only;
+//! `check_streamed_budget` counts the windows, the backend's buffers, the decoder's and the overlay's
+//! against the memory budget (shrinking the windows if that is enough); then `detect_to` calls
+//! `Detector::detect_streamed`, which cuts the rows into windows (`map::stream::for_each_window`: a core
+//! and a halo, the next window read while one is detected) and hands each to the backend
+//! (`Backend::detect_rows` for the OGM detector, `Backend::baseline_rows` for the baselines). OGM
+//! keypoints go to the output (`output::KeypointWriter`) window by window; the baselines' candidates are
+//! collected in a `baselines::streamed::CandidateList` and selected once the map's maximum is known. The
+//! overlay (`overlay::OverlayCanvas`) is drawn downsampled as the rows pass. The command line writes the
+//! keypoint file to a temporary file (`support::files::AtomicFile`), renamed into place only when complete.
 
 use std::io::Write;
 

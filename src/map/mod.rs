@@ -1,15 +1,22 @@
 //! Maps: what a robot's map is and how it is read, below everything that detects or merges.
 //!
-//! - [`decode`]: PGM and PNG decoders, within a memory budget;
-//! - `image` and `occupancy`: [`MapImage`] (8-bit grey pixels) and [`OccupancyMap`] (a map as loaded:
-//!   the image, its [`Thresholds`] and [`GeoRef`]), with the loaders ([`OccupancyMap::load`],
-//!   [`load_image`]);
-//! - `yaml`, `find`, `save`, `rows`, `ros_grid`: ROS `map_server` yaml files, a folder's maps, the
-//!   files the tool writes, a map's rows read straight from its file, ROS `OccupancyGrid` values;
-//! - [`stream`]: maps as rows, for maps larger than memory;
-//! - [`states`]: the three cell states (free, occupied, unknown);
-//! - [`grid`]: a map resampled on a grid turned to its walls (the robust detector's);
-//! - [`synthetic`]: the seeded synthetic office and the PRNG the tests and measurements use.
+//! - `image.rs`: [`MapImage`], a map's pixels (8-bit grey);
+//! - `occupancy.rs`: [`OccupancyMap`], a map as loaded, header first and bounded: the image, its
+//!   [`Thresholds`] and [`GeoRef`], with the loaders ([`OccupancyMap::load`], [`load_image`]);
+//! - `yaml.rs`: ROS `map_server` yaml files; `find.rs`: folder search, a folder's maps; `rows.rs`: a map
+//!   opened to be read row by row, its rows read straight from its file; `ros_grid.rs`: ROS
+//!   `nav_msgs/OccupancyGrid` cells to and from map images (as `map_saver` and `map_server` do);
+//!   `save.rs`: the files the tool writes, a map as yaml + PGM;
+//! - [`decode`] (`decode/`): the strict row-by-row PGM (`pgm.rs`) and PNG (`png.rs`) decoders, within a
+//!   memory budget;
+//! - [`states`] (`states.rs`): the three cell states (free, occupied, unknown) and the pixel-value table,
+//!   `ClassTable`;
+//! - [`stream`] (`stream/`): maps as rows and windows of rows, with their reader thread, for maps larger
+//!   than memory;
+//! - [`grid`] (`grid.rs`): the rotated sampling grid, in integer arithmetic, that every backend samples
+//!   through: a map resampled on a grid turned to its walls (the robust detector's);
+//! - [`synthetic`] (`synthetic.rs`): the seeded synthetic office used by `demo`, tests and benchmarks (the
+//!   project ships no real maps), and the PRNG the tests and measurements use.
 
 pub mod decode;
 mod find;

@@ -4,7 +4,8 @@
 //! - [`detection`]: the detectors' repeatability and annotated-corner recall, with its table, plots and
 //!   page (`eval`);
 //! - [`compare`]: the detectors side by side, the paper's Table I and contact sheets (`compare`);
-//! - [`bench`](mod@bench): median times, peak memory, backends agreeing (`bench`);
+//! - [`bench`](mod@bench): the measurement behind `bench` and `compare`: median times, peak memory,
+//!   backends agreeing;
 //! - [`pairs`]: pair sets with ground truth and their success test;
 //! - [`synthetic`]: synthetic pairs, sets and the hard families, cut with exact truth from any map, and
 //!   robots exploring a synthetic building (the demo's);

@@ -1,4 +1,5 @@
-//! The command line: every subcommand, folders and reruns, batch detection, hostile input.
+//! The command line: every subcommand, folders and reruns, batch detection, and one test per defect of
+//! the hostile-input review.
 //!
 //! One binary a layer: linking one test binary, not one a file, is most of the build. Run one
 //! file's tests with a filter: `cargo test --test cli -- batch::`.

@@ -1,4 +1,5 @@
-//! The detectors: the robust form, real maps, annotated corners, repeatability, stopping.
+//! The detectors: the robust form on turned jagged rooms, its tiles, real maps, annotated-corner recall
+//! pinned, repeatability, stopping early.
 //!
 //! One binary a layer: linking one test binary, not one a file, is most of the build. Run one
 //! file's tests with a filter: `cargo test --test detect -- annotations::`.

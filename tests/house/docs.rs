@@ -1,7 +1,8 @@
 //! The documentation's own checks: every measured block between figure markers is one that
 //! `scripts/figures.py` writes (so it can be measured again on the revision that states it), every link
-//! between the pages reaches a file and a heading that exist, and the product never names the tracker's
-//! issue numbers.
+//! between the pages reaches a file and a heading that exist, the files and module paths the pages name
+//! exist, no chapter carries dated history (that goes to docs/design/ or the CHANGELOG), and the product
+//! never names the tracker's issue numbers.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
@@ -10,17 +11,23 @@ fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
 }
 
-/// README, CHANGELOG, CONTRIBUTING and every chapter under docs/, as (path relative to the root, text).
+/// README, CHANGELOG, CONTRIBUTING, every chapter under docs/ and every design note under docs/design/, as
+/// (path relative to the root, text).
 fn pages() -> Vec<(String, String)> {
     let mut names = vec![
         "README.md".to_string(),
         "CHANGELOG.md".to_string(),
         "CONTRIBUTING.md".to_string(),
     ];
-    for e in std::fs::read_dir(root().join("docs")).unwrap() {
-        let p = e.unwrap().path();
-        if p.extension().is_some_and(|x| x == "md") {
-            names.push(format!("docs/{}", p.file_name().unwrap().to_string_lossy()));
+    for dir in ["docs", "docs/design"] {
+        for e in std::fs::read_dir(root().join(dir)).unwrap() {
+            let p = e.unwrap().path();
+            if p.extension().is_some_and(|x| x == "md") {
+                names.push(format!(
+                    "{dir}/{}",
+                    p.file_name().unwrap().to_string_lossy()
+                ));
+            }
         }
     }
     names.sort();
@@ -210,6 +217,71 @@ fn links_between_the_pages_reach_their_files_and_headings() {
         }
     }
     assert!(bad.is_empty(), "{bad:#?}");
+}
+
+/// Whether `line` holds a date, `20YY-MM-DD`.
+fn has_date(line: &str) -> bool {
+    let b = line.as_bytes();
+    let digits = |r: std::ops::Range<usize>| b[r].iter().all(u8::is_ascii_digit);
+    (0..b.len().saturating_sub(9)).any(|i| {
+        b[i..].starts_with(b"20")
+            && digits(i..i + 4)
+            && b[i + 4] == b'-'
+            && digits(i + 5..i + 7)
+            && b[i + 7] == b'-'
+            && digits(i + 8..i + 10)
+    })
+}
+
+/// Whether `line` names a commit: `commit ` and at least 7 hexadecimal digits.
+fn names_commit(line: &str) -> bool {
+    line.match_indices("commit ").any(|(i, m)| {
+        line[i + m.len()..]
+            .chars()
+            .take_while(char::is_ascii_hexdigit)
+            .count()
+            >= 7
+    })
+}
+
+/// The lines of a page, numbered from 1, that carry a date outside a figure block without naming the
+/// commit measured on the same line: dated history, not a measurement's stamp.
+fn dated_history(text: &str) -> Vec<(usize, &str)> {
+    let mut in_figure = false;
+    let mut out = Vec::new();
+    for (n, line) in text.lines().enumerate() {
+        let l = line.trim();
+        if l.starts_with("<!-- figure:") {
+            in_figure = true;
+        } else if l.starts_with("<!-- /figure:") {
+            in_figure = false;
+        } else if !in_figure && has_date(line) && !names_commit(line) {
+            out.push((n + 1, line));
+        }
+    }
+    out
+}
+
+/// The chapters say what is, not how it came to be: a date in a chapter is a figure's stamp (inside a
+/// figure block, or on the line naming the commit measured). Experiments, dead ends and dated
+/// investigations go to docs/design/, changes to the CHANGELOG.
+#[test]
+fn the_chapters_carry_no_dated_history() {
+    let mut bad = Vec::new();
+    for (page, text) in pages() {
+        if page == "CHANGELOG.md" || page.starts_with("docs/design/") {
+            continue;
+        }
+        for (n, line) in dated_history(&text) {
+            bad.push(format!("{page}:{n}: {line}"));
+        }
+    }
+    assert!(
+        bad.is_empty(),
+        "dated lines outside figure stamps (move the history to docs/design/ or name the commit \
+         measured on the date's line):\n{}",
+        bad.join("\n")
+    );
 }
 
 #[test]
@@ -463,4 +535,14 @@ fn the_checks_see_what_they_look_for() {
     assert!(module_path_exists("merge::align::align_with").is_ok());
     assert!(module_path_exists("merge::global::merged::merge_maps").is_err());
     assert!(module_path_exists("merge::compose::resample").is_err());
+    let page = "a\nrun on 2026-12-03, before the fix\n(2026-12-04, commit b00f143, H200)\n\
+                <!-- figure:f -->\n<sub>Measured on 2026-12-07</sub>\n<!-- /figure:f -->\n\
+                2026-12-05 commit 12ab\nversion 2026-1-02\n";
+    assert_eq!(
+        dated_history(page),
+        [
+            (2, "run on 2026-12-03, before the fix"),
+            (7, "2026-12-05 commit 12ab")
+        ]
+    );
 }

@@ -3,6 +3,9 @@
 //! Every backend computes a per-pixel integer score map (exact, see the CPU twins in `src/backend/reference/`); the
 //! selection of keypoints from a score map is host code shared by all backends, so the backends agree
 //! bit for bit by construction once their score maps do.
+//!
+//! This file holds the baselines' options, their exact parameters and the shared keypoint selection;
+//! [`streamed`], the candidates over a stream of windows, pruned against the running maximum.
 
 pub mod streamed;
 

@@ -1,9 +1,18 @@
-//! The fast CPU backend: the same results as the reference in [`crate::backend::reference`], bit for bit, computed with
-//! bit-planes, SIMD compares and every core (rayon), streaming the map in bands of rows so that memory
-//! beyond the map stays small.
+//! The fast CPU backend (`--backend cpu`, the default): the same results as the reference in
+//! [`crate::backend::reference`], bit for bit, computed with bit-planes, SIMD compares and every core
+//! (rayon), streaming the map in bands of rows so that memory beyond the map stays small.
 //!
 //! The reference stays the oracle: the conformance tests compare this backend with it on every map they
 //! cover.
+//!
+//! - [`simd`]: the instruction set picked at run time (`Isa`: AVX-512, AVX2, portable;
+//!   `OGM_CORNERS_ISA` caps it) and `Lanes`, bit vectors of 64-bit words over each, so that the OGM
+//!   kernel ([`ogm`]) is written once and compiled three times, each tested against the reference;
+//! - [`bitplanes`]: classification into bit-planes, the fast twin of the reference's `classify`;
+//! - [`coarsen`]: the fast twin of the coarsening kernel, of the same name;
+//! - [`baselines`] (with `baseline_tensor.rs` and `baseline_trajkovic.rs`): the baselines' scores and
+//!   keypoints in bands of rows;
+//! - [`read`]: the plain read that `bench --bandwidth` measures the detectors against.
 
 mod baseline_tensor;
 mod baseline_trajkovic;

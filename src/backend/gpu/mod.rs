@@ -1,10 +1,24 @@
-//! The GPU backend: the WGSL kernels in `shaders/` run through wgpu, headless.
+//! The GPU backend (`--backend gpu`): the WGSL kernels in `shaders/` run through wgpu, headless.
 //!
 //! The device, pipelines and buffers live in [`GpuBackend`] and are reused across calls. A map streams
 //! through the device in bands (tiles with a halo, see [`tiles`]) staged in a ring of persistent buffers;
 //! the OGM detector is one fused pass per band whose counts are scanned and scattered on the device in the
 //! same submission, so the list is ordered, exactly sized and never truncated, and the host waits only at
 //! the end of the call. The baselines' scores stay on the device and only their candidates come back.
+//!
+//! - `mod.rs`: the backend and its `Backend` impl; `adapter.rs`: adapter choice; `buffers.rs`: growing
+//!   buffers and the staging ring; `tiles.rs`: the tile planner; `params.rs`: the kernels' parameter
+//!   blocks; `profile.rs`: the bench stages;
+//! - `ogm.rs` and `ogm_call.rs`: the OGM pipeline and one call of it; `device_map.rs`: maps already in a
+//!   device buffer; `scan.rs`: the device scan;
+//! - `baselines.rs` and `select.rs`: the baselines' scores and selection;
+//! - `coarsen.rs` (the robust detector's coarsening) and `merge_score.rs` (the merger's scoring).
+//!
+//! A kernel's host code bears the kernel's name where it has a file of its own (`coarsen.rs`,
+//! `merge_score.rs`, `scan.rs`). `shaders/lib/` holds what the host prepends to kernels, which are not
+//! kernels and have no CPU twins: `baseline_common.wgsl`, and `int64_native.wgsl` or
+//! `int64_emulated.wgsl` (the same 64-bit functions, native or emulated), before the baseline kernels;
+//! `ogm_fetch_runs.wgsl` or `ogm_fetch_bytes.wgsl`, the pixel readers, before `ogm_corners.wgsl`.
 
 mod adapter;
 mod baselines;

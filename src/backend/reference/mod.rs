@@ -1,6 +1,18 @@
 //! The CPU reference: one plain Rust twin per GPU kernel, named after its shader in `shaders/`.
 //!
-//! These are the oracle the other backends are tested against, so they favour obviousness over speed.
+//! These are the oracle the other backends are tested against, so they favour obviousness over speed;
+//! `ReferenceBackend` runs them as a backend (`--backend reference`).
+//!
+//! Each twin computes the same integers as its kernel: `ogm_corners.rs` beside
+//! `shaders/ogm_corners.wgsl`, and likewise `scan`, `select_maxima`, `coarsen`, `merge_score`,
+//! `gaussian_blur`, `structure_tensor`, `harris`, `shi_tomasi` and `trajkovic`.
+//! `tests/backend/shaders.rs` (`every_kernel_has_a_cpu_twin_of_the_same_name`) enforces the pairing and
+//! validates every kernel with naga without a GPU; `tests/backend/gpu_conformance.rs` checks that each
+//! pair gives the same result on lavapipe. `classify.rs` is the reference's classification, which the GPU
+//! does inside `ogm_corners`. What the GPU host prepends to kernels (`shaders/lib/`, see
+//! [`crate::backend::gpu`]) is not a kernel and has no twin. The GPU's host code has the same names again
+//! under `src/backend/gpu/` where it has its own file (`coarsen.rs`, `merge_score.rs`, `scan.rs`), and the
+//! fast path's under `src/backend/fast/` (`coarsen.rs`).
 
 pub mod classify;
 pub mod coarsen;

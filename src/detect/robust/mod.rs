@@ -19,6 +19,8 @@
 //! Steps 2-4 run in a [`Window`] of the turned grid: the whole grid for a map in memory, or the tiles of a
 //! map of any size ([`tiles`]), whose suppression ([`mod@suppress`]) decides in each window what it can and
 //! leaves the rest to the whole map's, with the same keypoints.
+//!
+//! The pipeline is this file; each step's own work is in the module it names.
 
 pub mod corners;
 pub mod orientation;

@@ -8,6 +8,10 @@
 //! - [`for_each_window`] cuts a source into [`Window`]s: a core of rows whose results a detector reports, and
 //!   [`HALO`] rows around it that only feed the core's neighbourhoods. A reader thread fills the next window
 //!   while the caller works on the current one, so disk reads overlap the kernels.
+//! - `write_pgm` writes a source's rows as a binary PGM.
+//! - [`direct`] (`direct.rs`): a raw PGM raster read straight into page-aligned window buffers, with
+//!   `O_DIRECT` where the page cache does not hold the window (`mincore` to ask), and never through a
+//!   memory map.
 //!
 //! A map in memory is one window (no copy): the in-memory detection is the streamed one over a slice.
 

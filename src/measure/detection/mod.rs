@@ -3,6 +3,9 @@
 //! Detect on a map and on a transformed copy, map the first set through the known transform, and count the
 //! keypoints within `tolerance` pixels of a keypoint of the second set, over the region both maps see,
 //! divided by the smaller of the two counts in that region.
+//!
+//! This file holds repeatability, its table and plots; `annotations.rs`, the recall of annotated corners;
+//! `page.rs`, the `eval` page.
 
 pub mod annotations;
 pub mod page;

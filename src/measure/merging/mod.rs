@@ -1,6 +1,7 @@
 //! `merge-eval`: the merger over a pair set with ground truth, per pair and summed per building; the hard
 //! synthetic families (`families.rs`); leave-one-building-out cross-validation (`crossval.rs`); what was
-//! measured kept on disk (`cache.rs`).
+//! measured kept on disk (`cache.rs`); many maps at once, `merge-eval --global` (`many.rs`); and its
+//! page (`page.rs`).
 
 pub mod cache;
 pub mod crossval;

@@ -7,6 +7,9 @@
 //! overlap)`, so the band both keep is `overlap` of each part's extent along `u`. A is cropped to its
 //! known area; B is turned about its centre by a random angle into a square canvas with a random margin.
 //! Both are written with map_server's values (0 occupied, 254 free, 205 unknown).
+//!
+//! Beside this file: the repetitive layouts (`layouts.rs`), the small windows (`crops.rs`), the symmetric
+//! halls (`symmetric.rs`) and robots exploring a building (`explore.rs`).
 
 mod crops;
 mod explore;

@@ -20,6 +20,20 @@
 //!    or several pairs do, when the pair test on the two groups' mosaics agrees), no other placement
 //!    comes close, and no overlapping pair of maps it puts together contradicts itself densely.
 //! 4. A weighted pose-graph least squares over the edges consistent with the placement ([`posegraph`]).
+//!
+//! How many maps flow: `merge_maps` (`merged.rs`) brings every map to one resolution and calls `run`
+//! (`run.rs`): every pair aligned by the two-map aligner on every core (`pairs.rs`, `align_all`), or, in a
+//! set of more than 12 maps (by default), the pairs the pre-screen chooses (`prescreen.rs`: each map's
+//! signature and their similarities, the pairs that close cycles and join components; `rounds.rs`: the
+//! rounds of alignments); each pair kept as a record (`record.rs`); the work done by an engine
+//! (`engine.rs`: this process's threads, or a Python executor over Ray through `codec.rs`, a preparation
+//! and a signature as checked bytes); an earlier run's pairs taken up from its `--poses` file
+//! (`previous.rs`). Then where every map lands (`place.rs`): the evidence of every candidate around
+//! triangles and the groups grown by agglomeration (`graph.rs`), with the set's own level of conflict
+//! (`calibrate.rs`), and a pose graph per group (`posegraph.rs`). Each group's merged map and picture come
+//! from `mosaic.rs`, the `--poses` and `--init-poses` documents from `poses.rs`, the many-map `merge` page
+//! from `page.rs`. This file holds the options and results they share; `cache.rs`, what one placement
+//! hands the next; `verify.rs`, a pair's record checked against the maps before a placement uses it.
 
 mod cache;
 pub mod calibrate;

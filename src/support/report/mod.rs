@@ -1,6 +1,8 @@
 //! Static HTML reports (`--html DIR` of `compare`, `eval`, `merge-eval` and `merge` of many maps): one
 //! self-contained page, `DIR/index.html`, with inline CSS and a little vanilla JavaScript (tables sorted by
 //! a click on a column), and PNG pictures beside it. No server, no network: it opens from `file://`.
+//! This file holds the page's parts (tables, figures, legends); `html.rs`, the markup, its CSS and the
+//! table sorter.
 //!
 //! Pictures are written as they are made (so a report of hundreds of pairs holds one picture at a time),
 //! into a hidden staging folder inside the report's folder; the page is written last, and only then are
