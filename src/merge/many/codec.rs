@@ -20,7 +20,7 @@ use crate::support::error::{Error, Result};
 const PREPARED_MAGIC: &[u8; 8] = b"OGMPREP\0";
 const SIGNATURE_MAGIC: &[u8; 8] = b"OGMSIGN\0";
 /// Bumped whenever the layout or the preparation's content changes.
-const VERSION: u32 = 2;
+const VERSION: u32 = 3;
 
 /// What [`encode_prepared`] writes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -386,6 +386,41 @@ pub struct Features {
     /// chosen pose's ([`MAX_UNCONTRADICTED_ALIAS`]; 0 without one).
     #[serde(default)]
     pub alias_uncontradicted: f64,
+    /// Building-independent (reported, not yet decided on): the chosen pose's consistent evidence over
+    /// the best distinct alternative's, both counted the same way: the wall pixels of both maps
+    /// (sampled, each into the other) within 1.5 px of the other map's walls after their 48 px tile's
+    /// best shift of up to 6 px, less those left over 3 px deep in its free space. The alternatives are
+    /// the search's candidates more than 40 px apart (10 px a degree; all measured before the polish,
+    /// the chosen one too) and, where the alternative-pose test ran, the poses the maps' symmetries and
+    /// the turned candidates offer (against the polished pose). The lower of the two ratios, at most 10
+    /// (also with no alternative); 0 when the chosen pose's own count is not positive, or in a record
+    /// measured before it existed. A ratio of two counts of the same pair's walls at the same tolerance:
+    /// no pixel count or building scale enters it.
+    #[serde(default)]
+    pub evidence_ratio: f64,
+    /// Building-independent (reported): the chosen pose's agreeing wall pixels (as
+    /// [`Features::evidence_ratio`] counts them, before the deep ones are taken off) over the wall pixels
+    /// of both maps that land on the other map's known area at all: a share of what the overlap could
+    /// show at most, whatever its size (where [`MIN_SUPPORT`] is a pixel count).
+    #[serde(default)]
+    pub support_share: f64,
+    /// Map A's own noise level, from A alone: the share of its wall pixels that are clutter (occupied
+    /// components at most 16 px a side: speckle, a chair, a person), which a second robot need not
+    /// see and whose walls may then lie in its free space at the right pose.
+    #[serde(default)]
+    pub noise_a: f64,
+    /// Map B's, as [`Features::noise_a`].
+    #[serde(default)]
+    pub noise_b: f64,
+    /// The same in the overlap: the share of the wall pixels the chosen pose's local fit measured
+    /// (both ways) that are their own map's clutter, in the units of [`Features::residual`].
+    #[serde(default)]
+    pub noise: f64,
+    /// Building-independent (reported): the chosen pose's contradiction beyond what the maps' own
+    /// noise explains: the share of the measured wall pixels over 3 px deep in the other map's free
+    /// space after the local shifts ([`Features::residual`]) that are not their own map's clutter.
+    #[serde(default)]
+    pub excess_conflict: f64,
 }
 
 #[cfg(test)]

@@ -116,6 +116,7 @@ pub(in crate::merge) fn alias(
         uncontradicted: 0.0,
         uncontradicted_pose: None,
         repeats_listed,
+        consistent: None,
     };
     if poses.len() < 2 && turned.is_empty() {
         return Ok(none);
@@ -144,6 +145,16 @@ pub(in crate::merge) fn alias(
             .map(|&i| local_both(src, dst, &crops[i]))
             .collect()
     };
+    // The building-independent measure's count, apart from the test below: each pose's consistent
+    // evidence (agreeing walls less those left deep in free space), the chosen pose's and the best
+    // rival's, every rival counted whatever its contradictions (they are subtracted).
+    let consistent = |(share, residual, n): (f64, f64, f64)| (share - residual) * n;
+    let best_rival = fits[1..]
+        .iter()
+        .chain(turned.iter().map(|(_, fit)| fit))
+        .map(|&fit| consistent(fit))
+        .fold(f64::NEG_INFINITY, f64::max);
+    let consistent = Some((consistent(fits[0]), best_rival));
     let rivals = screened
         .iter()
         .map(|&i| poses[i])
@@ -166,6 +177,7 @@ pub(in crate::merge) fn alias(
         uncontradicted: 0.0,
         uncontradicted_pose: None,
         repeats_listed,
+        consistent,
     };
     for (t, fit) in rivals {
         // As consistent: once each tile of the overlap has had its few px of shift (bending), hardly
@@ -334,6 +346,11 @@ pub(in crate::merge) struct Alias {
     /// pose by pose ([`lattice_poses`]): then nothing of the self-match needs holding whatever the
     /// alternatives show.
     pub(in crate::merge) repeats_listed: bool,
+    /// The chosen pose's consistent evidence (wall pixels agreeing after the local shifts, less those
+    /// left deep in free space, both ways) and the best alternative's, counted the same way whatever
+    /// its contradictions; `None` where no alternative was measured. What
+    /// [`Features::evidence_ratio`](crate::merge::pair::accept::Features::evidence_ratio) weighs.
+    pub(in crate::merge) consistent: Option<(f64, f64)>,
 }
 
 /// Every step of the maps' repeats that could misplace the pair: the shifts among each map's

@@ -36,6 +36,7 @@ use crate::merge::pair::choose::{
     choose, distinct_ratios, refine_all, screened_distinct, Chosen, REFINED, STRICT,
 };
 use crate::merge::pair::coarse::{coarse_hypotheses, CoarseSet};
+use crate::merge::pair::evidence;
 pub use crate::merge::pair::fft::FINE_FFT;
 use crate::merge::pair::hypotheses::Hypotheses;
 use crate::merge::pair::local::local_fit;
@@ -188,15 +189,28 @@ pub fn align_prepared_with(
     // Only for what could be merged (down to the operating curve's lowest offset): each map's
     // self-match costs an alignment (cached in the map).
     let could = score >= SYMMETRY_FROM && accepts(&features, score);
-    let (alternative, unrefuted) = if options.check_symmetry && (could || options.always_verify) {
-        let found = order
-            .iter()
-            .map(|&i| (crop_to_map(src, dst, &found.crops[i]), found.locals[i]))
-            .collect::<Vec<_>>();
-        other_poses(src, dst, &best, &mut features, score, &found, backend)?
-    } else {
-        (None, None)
-    };
+    let (alternative, unrefuted, symmetry) =
+        if options.check_symmetry && (could || options.always_verify) {
+            let found = order
+                .iter()
+                .map(|&i| (crop_to_map(src, dst, &found.crops[i]), found.locals[i]))
+                .collect::<Vec<_>>();
+            other_poses(src, dst, &best, &mut features, score, &found, backend)?
+        } else {
+            (None, None, None)
+        };
+    // Reported beside the decision, not read by it.
+    let rivals = (1..refined.len())
+        .filter(|&j| transform_distance(&refined[j].1, &best) > DISTINCT_PX)
+        .map(|j| found.counts[order[j]]);
+    evidence::fill(
+        &mut features,
+        src,
+        dst,
+        &found.counts[order[0]],
+        rivals,
+        symmetry,
+    );
     let accepted = accepts(&features, score);
     let reason = decline(&features, score).map(|why| {
         why_declined(
@@ -222,7 +236,8 @@ pub fn align_prepared_with(
 /// self-match and the poses its symmetry offers, and the search's own candidates turned from the chosen
 /// pose (`found`, between the maps, with their local measures, in the choice's order). Fills in
 /// `features`' self-match and alternative-pose measures; returns the best other pose and the best one
-/// nothing contradicts, when measured.
+/// nothing contradicts, when measured, and the chosen pose's and the best other pose's consistent
+/// evidence ([`Features::evidence_ratio`]).
 fn other_poses(
     src: &Prepared,
     dst: &Prepared,
@@ -231,7 +246,7 @@ fn other_poses(
     score: f64,
     found: &[(Rigid, (f64, f64, f64))],
     backend: &mut dyn Backend,
-) -> Result<(Option<Rigid>, Option<Rigid>)> {
+) -> Result<OtherPoses> {
     // A is the reference (dst), B the moved map (src).
     let (sa, sb) = (
         self_symmetry_with(dst, backend)?,
@@ -268,8 +283,12 @@ fn other_poses(
         // Every step of the repeat measured: nothing of it needs holding.
         features.self_match_held = 0.0;
     }
-    Ok((alt.pose, alt.uncontradicted_pose))
+    Ok((alt.pose, alt.uncontradicted_pose, alt.consistent))
 }
+
+/// What [`other_poses`] returns: the best other pose, the best one nothing contradicts, and the
+/// consistent evidence of the chosen pose and of the best other one.
+type OtherPoses = (Option<Rigid>, Option<Rigid>, Option<(f64, f64)>);
 
 /// Every candidate as the alignment lists it, the chosen one first (with `features` and rule value
 /// `score`): each other one with its ratios over the best candidate distinct from it, and its rule value.
@@ -337,15 +356,33 @@ impl Alignment {
             )
         } else {
             format!(
-                "best candidate {:.1} deg, ({:.0}, {:.0}) px, rule value {:.2}: {}; {runner}",
+                "best candidate {:.1} deg, ({:.0}, {:.0}) px, rule value {:.2}: {}; {runner}{}",
                 t.theta_deg,
                 t.tx,
                 t.ty,
                 self.score,
-                self.reason.as_deref().unwrap_or("not confident")
+                self.reason.as_deref().unwrap_or("not confident"),
+                independent(f)
             )
         }
     }
+}
+
+/// The building-independent measures of a declined pose ([`Features::evidence_ratio`],
+/// [`Features::support_share`], [`Features::excess_conflict`]) as a clause of its explanation: reported
+/// beside the decision, which does not read them; empty where they were not measured.
+fn independent(f: &Features) -> String {
+    if f.evidence_ratio <= 0.0 && f.support_share <= 0.0 {
+        return String::new();
+    }
+    format!(
+        " (in units of the pair's own walls: its consistent evidence stands {:.2}x the best distinct \
+         alternative's, {:.0}% of the walls that fall in the other map's known area agree, and {:.1}% \
+         lie on its free space beyond the maps' own clutter)",
+        f.evidence_ratio,
+        100.0 * f.support_share,
+        100.0 * f.excess_conflict
+    )
 }
 
 /// A declined alignment with no candidate.

@@ -6,7 +6,7 @@
 use crate::backend::Backend;
 use crate::merge::pair::accept::Features;
 use crate::merge::pair::coarse::{screen, Crop};
-use crate::merge::pair::local::local_both;
+use crate::merge::pair::local::{local_both_counts, LocalCounts};
 use crate::merge::pair::prepare::Prepared;
 use crate::merge::pair::refine::{crop_to_map, icp, polish, verify};
 use crate::merge::transform::{transform_distance, Rigid, DISTINCT_PX};
@@ -58,8 +58,11 @@ pub(in crate::merge) fn screened_distinct(
 pub(in crate::merge) struct Refined {
     /// Each candidate's transform between the crops.
     pub(in crate::merge) crops: Vec<Rigid>,
-    /// Each one's local agreement, residual conflict and wall pixels measured ([`local_both`]).
+    /// Each one's local agreement, residual conflict and wall pixels measured
+    /// ([`local_both`](crate::merge::pair::local::local_both)).
     pub(in crate::merge) locals: Vec<(f64, f64, f64)>,
+    /// The same fits' counts, both ways summed (the building-independent measures').
+    pub(in crate::merge) counts: Vec<LocalCounts>,
     /// Each one's coarse score, transform between the maps and features, in the coarse order.
     pub(in crate::merge) candidates: Vec<(f64, Rigid, Features)>,
 }
@@ -78,7 +81,10 @@ pub(in crate::merge) fn refine_all(
         .collect();
     let verified = verify(src, dst, &crops, backend)?;
     crate::support::stop::check()?;
-    let locals: Vec<(f64, f64, f64)> = crops.par_iter().map(|t| local_both(src, dst, t)).collect();
+    let (locals, counts): (Vec<(f64, f64, f64)>, Vec<LocalCounts>) = crops
+        .par_iter()
+        .map(|t| local_both_counts(src, dst, t))
+        .unzip();
     let candidates = picked
         .iter()
         .zip(&crops)
@@ -95,6 +101,7 @@ pub(in crate::merge) fn refine_all(
     Ok(Refined {
         crops,
         locals,
+        counts,
         candidates,
     })
 }

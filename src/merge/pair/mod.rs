@@ -22,7 +22,9 @@
 //! - `local.rs`: the drift-tolerant local fit;
 //! - `alias.rs` and [`symmetry`] (`symmetry.rs`): the alternative poses a symmetric or repeating building
 //!   also offers, and the map's turns onto itself;
-//! - `accept.rs`: the acceptance test;
+//! - `accept.rs`: the acceptance test; `evidence.rs`: the building-independent measures reported beside
+//!   it (the consistent evidence against the best distinct alternative's, the walls' agreement as a share
+//!   of what the overlap could show, each map's clutter and the conflict beyond it);
 //! - `merged.rs`: two maps merged end to end ([`merge_pair`], [`compose_pair`], [`overlay_pair`]).
 //!
 //! A new merge stage goes in the file of its concern (hypotheses in `coarse.rs` or `hypotheses.rs`,
@@ -36,6 +38,7 @@ pub mod align;
 pub(in crate::merge) mod choose;
 pub(in crate::merge) mod coarse;
 pub(in crate::merge) mod distance;
+pub(in crate::merge) mod evidence;
 pub(in crate::merge) mod fft;
 pub mod hypotheses;
 pub(in crate::merge) mod local;

@@ -60,6 +60,98 @@ pub fn kept_bytes(width: u32, height: u32) -> u64 {
 /// landing on a wall). The scoring kernel reads only the three lower bits, so it rides along in a byte
 /// the preparation keeps anyway, instead of a distance map of 4 bytes a pixel.
 pub(in crate::merge) const FLAG_TOUCH: u8 = 8;
+/// Flag bit of [`Prepared::flags_fine`] on a map's own occupied pixels: clutter, an occupied 8-connected
+/// component whose bounding box is at most [`CLUTTER_PX`] a side (speckle, a chair, a person, a box):
+/// what a second robot, another day, need not see, so its walls on the other map's free space are
+/// the map's own noise, not a contradiction of the pose. Read by the local fit for the
+/// building-independent measures only (`merge::pair::evidence`); the scoring kernel does not read it.
+pub(in crate::merge) const FLAG_NOISE: u8 = 16;
+/// An occupied component at most this many pixels a side is clutter ([`FLAG_NOISE`]): 0.8 m at the usual
+/// 0.05 m a cell, what a person, a chair or a bin spans, and any speckle; a wall or a room's furniture
+/// along it spans more. (Measured, the share of the walls it marks: the Halmstad sensor maps 0-8%, the
+/// drawn floor plans 0%, their furnished copies up to 40% in an overlap; at 48 px it marks 2-16% of
+/// the Halmstad maps' walls and excuses hardly more of their right poses' conflicts.)
+pub const CLUTTER_PX: usize = 16;
+
+/// Marks [`FLAG_NOISE`] in `flags` (a `w` x `h` crop's fine flags) on every pixel of each occupied
+/// 8-connected component of `occ` whose bounding box is at most [`CLUTTER_PX`] a side. Each fill
+/// stops as soon as it spans more or reaches a pixel settled before (a small component touches none),
+/// so it holds at most a [`CLUTTER_PX`]-square's pixels, and the pass is linear in the crop.
+fn mark_clutter(occ: Vec<bool>, w: usize, h: usize, flags: &mut [u8]) {
+    // Each pixel: not occupied (0), occupied and not yet reached, in the current fill, settled.
+    let mut state: Vec<u8> = occ.into_iter().map(u8::from).collect();
+    let (mut stack, mut fill) = (Vec::new(), Vec::new());
+    for start in 0..w * h {
+        if state[start] != OPEN {
+            continue;
+        }
+        stack.clear();
+        fill.clear();
+        state[start] = FILLING;
+        stack.push(start);
+        let small = fill_small(&mut state, w, h, &mut stack, &mut fill);
+        for &i in fill.iter().chain(&stack) {
+            state[i] = SETTLED;
+            if small {
+                flags[i] |= FLAG_NOISE;
+            }
+        }
+    }
+}
+
+/// [`mark_clutter`]'s states of an occupied pixel: not yet reached, in the current fill, settled.
+const OPEN: u8 = 1;
+const FILLING: u8 = 2;
+const SETTLED: u8 = 3;
+
+/// Grows the fill from `stack` (its pixels moved into `fill` as they are reached) over the occupied
+/// 8-neighbours: whether the whole component was reached within [`CLUTTER_PX`] a side (clutter); false
+/// as soon as it spans more or touches a pixel settled before (then it is part of a larger one).
+fn fill_small(
+    state: &mut [u8],
+    w: usize,
+    h: usize,
+    stack: &mut Vec<usize>,
+    fill: &mut Vec<usize>,
+) -> bool {
+    let (mut x0, mut y0, mut x1, mut y1) = (usize::MAX, usize::MAX, 0, 0);
+    while let Some(i) = stack.pop() {
+        fill.push(i);
+        let (x, y) = (i % w, i / w);
+        (x0, y0, x1, y1) = (x0.min(x), y0.min(y), x1.max(x), y1.max(y));
+        if (x1 - x0).max(y1 - y0) >= CLUTTER_PX {
+            return false;
+        }
+        for yy in y.saturating_sub(1)..(y + 2).min(h) {
+            for xx in x.saturating_sub(1)..(x + 2).min(w) {
+                let j = yy * w + xx;
+                match state[j] {
+                    OPEN => {
+                        state[j] = FILLING;
+                        stack.push(j);
+                    }
+                    SETTLED => return false,
+                    _ => {}
+                }
+            }
+        }
+    }
+    true
+}
+
+/// The share of a prepared map's wall pixels that are clutter ([`FLAG_NOISE`]): its own noise level,
+/// from the map alone.
+pub(in crate::merge) fn clutter_share(p: &Prepared) -> f64 {
+    if p.flags_fine.flags.len() != p.w * p.h {
+        return 0.0;
+    }
+    let noisy = p
+        .walls
+        .iter()
+        .filter(|&&(x, y)| p.flags_fine.flags[y as usize * p.w + x as usize] & FLAG_NOISE != 0)
+        .count();
+    noisy as f64 / p.walls.len().max(1) as f64
+}
 
 /// The part of `map` a preparation holds: its known area's bounding box plus [`PAD`] px, within the map
 /// (the whole map when nothing is known), as (x0, y0, x1, y1), ends exclusive.
@@ -106,7 +198,8 @@ pub struct Prepared {
     /// (known, or within 5 px of a wall), near a wall (within 5 px), deep in free space (over 20 px).
     pub(in crate::merge) flags: ScoreTarget,
     /// The same at a finer tolerance: near = on an occupied pixel (the sub-pixel polish), deep over 3 px
-    /// (the contradiction veto); and [`FLAG_TOUCH`], which the scoring kernel does not read.
+    /// (the contradiction veto); and [`FLAG_TOUCH`] and [`FLAG_NOISE`], which the scoring kernel does
+    /// not read.
     pub(in crate::merge) flags_fine: ScoreTarget,
     /// The screening's target: near within 5 px, deep over 20 px, and (the inside bit) over 8 px deep (a
     /// wall landing in a room's free space away from its walls: what tells a wrong placement in a building
@@ -296,11 +389,12 @@ impl Prepared {
             },
             || coarse_levels(&occ, &free, w, h),
         );
-        let Ok([flags, flags_fine, flags_screen, flags_free]) =
+        let Ok([flags, mut flags_fine, flags_screen, flags_free]) =
             <[ScoreTarget; 4]>::try_from(targets)
         else {
             unreachable!("four specs make four targets");
         };
+        mark_clutter(occ, w, h, &mut flags_fine.flags);
         let n_free = free.iter().filter(|&&f| f).count();
         let free_points = (0..w * h)
             .filter(|&i| free[i])
