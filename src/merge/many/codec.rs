@@ -101,7 +101,7 @@ pub fn decode_prepared(bytes: &[u8]) -> Result<(Prepared, Form)> {
     if !(off.0.is_finite() && off.1.is_finite()) {
         return Err(r.bad("a crop origin that is not finite"));
     }
-    let walls = r.pairs()?;
+    let walls = r.wall_pixels(w, h)?;
     let wall_points = r.points(w, h)?;
     let screen_points = r.points(w, h)?;
     let free_points = r.points(w, h)?;
@@ -361,6 +361,24 @@ impl<'a> Reader<'a> {
         }
         Ok(n)
     }
+    /// Pairs that are pixels of a `w` x `h` crop (whole coordinates inside it): a map's wall pixels,
+    /// at which the aligner reads the map's own flags.
+    fn wall_pixels(&mut self, w: usize, h: usize) -> Result<Vec<(f64, f64)>> {
+        let walls = self.pairs()?;
+        let pixel_of_crop = |&(x, y): &(f64, f64)| {
+            x >= 0.0
+                && y >= 0.0
+                && x < w as f64
+                && y < h as f64
+                && x.fract() == 0.0
+                && y.fract() == 0.0
+        };
+        if !walls.iter().all(pixel_of_crop) {
+            return Err(self.bad("a wall pixel outside the crop"));
+        }
+        Ok(walls)
+    }
+
     fn pairs(&mut self) -> Result<Vec<(f64, f64)>> {
         let n = self.len(16)?;
         (0..n).map(|_| Ok((self.f64()?, self.f64()?))).collect()
@@ -501,6 +519,31 @@ mod tests {
         lie.points(&[[5, 0]]);
         let e = decode_prepared(&lie.finish()).err().unwrap().to_string();
         assert!(e.contains("a point outside the crop"), "{e}");
+        // ... or a wall pixel outside it (or between pixels): refused, as the aligner reads the map's
+        // flags there.
+        for wall in [(2.0, 0.0), (0.0, -1.0), (0.5, 1.0)] {
+            let mut lie = Writer::with_capacity(64);
+            lie.bytes(PREPARED_MAGIC);
+            lie.u32(VERSION);
+            lie.u8(1);
+            lie.f64(0.0);
+            lie.f64(0.0);
+            lie.u64(2);
+            lie.u64(2);
+            lie.pairs(&[wall]);
+            let e = decode_prepared(&lie.finish()).err().unwrap().to_string();
+            assert!(e.contains("a wall pixel outside the crop"), "{wall:?}: {e}");
+        }
+        // Bytes of another version of the format: refused, naming both versions.
+        let mut old = Writer::with_capacity(64);
+        old.bytes(PREPARED_MAGIC);
+        old.u32(VERSION - 1);
+        old.u8(1);
+        let e = decode_prepared(&old.finish()).err().unwrap().to_string();
+        assert!(
+            e.contains(&format!("format version {}", VERSION - 1)),
+            "{e}"
+        );
         // A huge count is refused before anything is allocated.
         let mut huge = Writer::with_capacity(64);
         huge.bytes(SIGNATURE_MAGIC);

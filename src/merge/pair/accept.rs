@@ -394,14 +394,15 @@ pub struct Features {
     /// the chosen one too) and, where the alternative-pose test ran, the poses the maps' symmetries and
     /// the turned candidates offer (against the polished pose). The lower of the two ratios, at most 10
     /// (also with no alternative); 0 when the chosen pose's own count is not positive, or in a record
-    /// measured before it existed. A ratio of two counts of the same pair's walls at the same tolerance:
-    /// no pixel count or building scale enters it.
+    /// measured before it existed. A ratio of two counts of the same pair's walls at the same
+    /// tolerances (fixed in pixels, so they scale with the map's resolution, not its building).
     #[serde(default)]
     pub evidence_ratio: f64,
     /// Building-independent (reported): the chosen pose's agreeing wall pixels (as
     /// [`Features::evidence_ratio`] counts them, before the deep ones are taken off) over the wall pixels
     /// of both maps that land on the other map's known area at all: a share of what the overlap could
-    /// show at most, whatever its size (where [`MIN_SUPPORT`] is a pixel count).
+    /// show at most, whatever its size (where [`MIN_SUPPORT`] is a pixel count). At most 1: the agreeing
+    /// walls are counted after their tile's shift, the known ones before it, so the ratio is clamped.
     #[serde(default)]
     pub support_share: f64,
     /// Map A's own noise level, from A alone: the share of its wall pixels that are clutter (occupied

@@ -375,11 +375,18 @@ fn independent(f: &Features) -> String {
     if f.evidence_ratio <= 0.0 && f.support_share <= 0.0 {
         return String::new();
     }
+    // At the cap, no distinct alternative had any consistent evidence at all.
+    let standing = if f.evidence_ratio >= MAX_RATIO {
+        "no distinct alternative has consistent evidence".to_string()
+    } else {
+        format!(
+            "its consistent evidence stands {:.2}x the best distinct alternative's",
+            f.evidence_ratio
+        )
+    };
     format!(
-        " (in units of the pair's own walls: its consistent evidence stands {:.2}x the best distinct \
-         alternative's, {:.0}% of the walls that fall in the other map's known area agree, and {:.1}% \
-         lie on its free space beyond the maps' own clutter)",
-        f.evidence_ratio,
+        " (in units of the pair's own walls: {standing}, {:.0}% of the walls that fall in the other \
+         map's known area agree, and {:.1}% lie on its free space beyond the maps' own clutter)",
         100.0 * f.support_share,
         100.0 * f.excess_conflict
     )

@@ -4,7 +4,8 @@
 //! the overlap could show ([`Features::support_share`]); each map's own noise level from the map alone
 //! ([`Features::noise_a`], [`Features::noise_b`], [`Features::noise`]); and its contradiction beyond
 //! that noise ([`Features::excess_conflict`]). Every one is a ratio of counts of the same pair's wall
-//! pixels at the same tolerances, so no pixel count or building scale enters it.
+//! pixels at the same tolerances (fixed in pixels: they follow the maps' resolution, not the building),
+//! so no absolute pixel count enters it.
 //!
 //! They cost nothing beyond what the alignment measures anyway: the counts ride along in the local
 //! fits of the candidates ([`LocalCounts`]) and of the alternative poses, and each map's clutter is
