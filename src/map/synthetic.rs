@@ -302,6 +302,37 @@ pub fn office_map(width: u32, height: u32, seed: u64) -> Result<MapImage> {
     MapImage::new(width, height, c.px)
 }
 
+/// [`office_map`] with furniture: occupied boxes of 6-40 px at seeded random free places, so that the
+/// map does not look the same turned by 180 degrees (the bare office's grid of rooms nearly does), and
+/// its top-right corner unexplored, so that its known area has no symmetry either: a map with one right
+/// pose onto a part of itself, as the merger's tests want. The same (size, seed) always gives the same
+/// map.
+pub fn cluttered_office(width: u32, height: u32, seed: u64) -> Result<MapImage> {
+    let mut img = office_map(width, height, seed)?;
+    let mut rng = Rng::new(seed ^ 0x5eed);
+    for _ in 0..(width * height / 4000).max(4) {
+        let (bw, bh) = (rng.range(6, 40), rng.range(6, 40));
+        if bw >= width || bh >= height {
+            continue;
+        }
+        let (x0, y0) = (rng.range(0, width - bw), rng.range(0, height - bh));
+        if img.get(x0, y0) != FREE || img.get(x0 + bw - 1, y0 + bh - 1) != FREE {
+            continue;
+        }
+        for y in y0..y0 + bh {
+            for x in x0..x0 + bw {
+                img.pixels_mut()[(y * width + x) as usize] = OCCUPIED;
+            }
+        }
+    }
+    for y in 0..height * 2 / 5 {
+        for x in width * 3 / 5..width {
+            img.pixels_mut()[(y * width + x) as usize] = UNKNOWN;
+        }
+    }
+    Ok(img)
+}
+
 /// Splits `r` with a wall (or, near the top of the tree, a corridor between two walls) and recurses;
 /// collects the leaves as rooms.
 fn split(c: &mut Canvas, rng: &mut Rng, r: Rect, depth: u32, rooms: &mut Vec<Rect>) {

@@ -236,32 +236,10 @@ pub fn turned_rooms(size: u32, degrees: f64, seed: u64) -> (MapImage, Vec<(f64, 
     (MapImage::new(size, size, px).unwrap(), corners)
 }
 
-/// The synthetic office with furniture: occupied boxes of 6-40 px at seeded random free places, so that
-/// the map does not look the same turned by 180 degrees (the bare office's grid of rooms nearly does), and
-/// its top-right corner unexplored.
+/// The synthetic office with furniture and an unexplored corner
+/// ([`ogm_corners::map::synthetic::cluttered_office`]).
 pub fn cluttered_office(w: u32, h: u32, seed: u64) -> MapImage {
-    let mut img = ogm_corners::map::synthetic::office_map(w, h, seed).unwrap();
-    let mut rng = ogm_corners::map::synthetic::Rng::new(seed ^ 0x5eed);
-    let boxes = (w * h / 4000).max(4);
-    for _ in 0..boxes {
-        let (bw, bh) = (rng.range(6, 40), rng.range(6, 40));
-        let (x0, y0) = (rng.range(0, w - bw), rng.range(0, h - bh));
-        if img.get(x0, y0) != FREE || img.get(x0 + bw - 1, y0 + bh - 1) != FREE {
-            continue;
-        }
-        for y in y0..y0 + bh {
-            for x in x0..x0 + bw {
-                img.pixels_mut()[(y * w + x) as usize] = OCCUPIED;
-            }
-        }
-    }
-    // And an unexplored corner, so the known area has no symmetry either.
-    for y in 0..h * 2 / 5 {
-        for x in w * 3 / 5..w {
-            img.pixels_mut()[(y * w + x) as usize] = UNKNOWN;
-        }
-    }
-    img
+    ogm_corners::map::synthetic::cluttered_office(w, h, seed).unwrap()
 }
 
 /// An aperiodic floor plan: the map split recursively at seeded random places into rooms (walls 3 px,

@@ -1,7 +1,7 @@
 //! The synthetic office map: seeded, deterministic, realistic enough to have every state and corners.
 
 use crate::common;
-use ogm_corners::map::synthetic::{office_map, Rng, FREE, OCCUPIED, UNKNOWN};
+use ogm_corners::map::synthetic::{cluttered_office, office_map, Rng, FREE, OCCUPIED, UNKNOWN};
 use ogm_corners::RuleSet;
 
 #[test]
@@ -34,6 +34,34 @@ fn too_small_is_an_error_not_a_panic() {
     for (w, h) in [(32, 32), (33, 200), (200, 33)] {
         office_map(w, h, 9).unwrap();
     }
+    // The furnished office too: sides smaller than its largest box are no panic, and it is an error
+    // where the office is.
+    assert!(cluttered_office(31, 100, 1).is_err());
+    for (w, h) in [(32, 32), (33, 200), (200, 33)] {
+        for seed in 0..8 {
+            cluttered_office(w, h, seed).unwrap();
+        }
+    }
+}
+
+#[test]
+fn the_furnished_office_is_the_office_with_boxes_and_an_unexplored_corner() {
+    let (plain, furnished) = (
+        office_map(400, 300, 5).unwrap(),
+        cluttered_office(400, 300, 5).unwrap(),
+    );
+    assert_eq!(furnished, cluttered_office(400, 300, 5).unwrap());
+    let mut boxes = 0;
+    for (i, (&p, &f)) in plain.pixels().iter().zip(furnished.pixels()).enumerate() {
+        let (x, y) = (i as u32 % 400, i as u32 / 400);
+        if x >= 240 && y < 120 {
+            assert_eq!(f, UNKNOWN, "({x}, {y}) is in the unexplored corner");
+        } else if f != p {
+            assert_eq!(f, OCCUPIED, "({x}, {y}): {p} -> {f}");
+            boxes += 1;
+        }
+    }
+    assert!(boxes > 100, "furniture drawn: {boxes} pixels");
 }
 
 #[test]

@@ -507,21 +507,8 @@ mod tests {
         let e = decode_prepared(&sb).err().unwrap().to_string();
         assert!(e.contains("not a map's preparation"), "{e}");
         // A well-formed body that lies (a point outside the crop), with a good checksum: refused.
-        let mut lie = Writer::with_capacity(64);
-        lie.bytes(PREPARED_MAGIC);
-        lie.u32(VERSION);
-        lie.u8(1);
-        lie.f64(0.0);
-        lie.f64(0.0);
-        lie.u64(2);
-        lie.u64(2);
-        lie.pairs(&[]);
-        lie.points(&[[5, 0]]);
-        let e = decode_prepared(&lie.finish()).err().unwrap().to_string();
-        assert!(e.contains("a point outside the crop"), "{e}");
-        // ... or a wall pixel outside it (or between pixels): refused, as the aligner reads the map's
-        // flags there.
-        for wall in [(2.0, 0.0), (0.0, -1.0), (0.5, 1.0)] {
+        // Its head: a placement form's 2 x 2 crop at the origin, then its walls.
+        let lie_with_walls = |walls: &[(f64, f64)]| {
             let mut lie = Writer::with_capacity(64);
             lie.bytes(PREPARED_MAGIC);
             lie.u32(VERSION);
@@ -530,8 +517,20 @@ mod tests {
             lie.f64(0.0);
             lie.u64(2);
             lie.u64(2);
-            lie.pairs(&[wall]);
-            let e = decode_prepared(&lie.finish()).err().unwrap().to_string();
+            lie.pairs(walls);
+            lie
+        };
+        let mut lie = lie_with_walls(&[]);
+        lie.points(&[[5, 0]]);
+        let e = decode_prepared(&lie.finish()).err().unwrap().to_string();
+        assert!(e.contains("a point outside the crop"), "{e}");
+        // ... or a wall pixel outside it (or between pixels): refused, as the aligner reads the map's
+        // flags there.
+        for wall in [(2.0, 0.0), (0.0, -1.0), (0.5, 1.0)] {
+            let e = decode_prepared(&lie_with_walls(&[wall]).finish())
+                .err()
+                .unwrap()
+                .to_string();
             assert!(e.contains("a wall pixel outside the crop"), "{wall:?}: {e}");
         }
         // Bytes of another version of the format: refused, naming both versions.

@@ -64,7 +64,6 @@ pub(in crate::merge) fn fill(
 mod tests {
     use super::*;
     use crate::map::states::{FREE, OCCUPIED, UNKNOWN};
-    use crate::map::synthetic::{office_map, Rng};
     use crate::map::{MapImage, OccupancyMap};
     use crate::measure::synthetic::{synthetic_pair, SyntheticSpec};
     use crate::merge::pair::align::{align, MergeOptions};
@@ -72,29 +71,9 @@ mod tests {
     use crate::merge::pair::prepare::{CLUTTER_PX, FLAG_NOISE};
     use crate::merge::transform::Rigid;
 
-    /// A synthetic office with boxes of furniture in its rooms and an unexplored corner (no symmetry),
-    /// as the merge tests' cluttered office.
+    /// The synthetic office with furniture and an unexplored corner.
     fn cluttered_office(w: u32, h: u32, seed: u64) -> MapImage {
-        let mut img = office_map(w, h, seed).unwrap();
-        let mut rng = Rng::new(seed ^ 0x5eed);
-        for _ in 0..(w * h / 4000).max(4) {
-            let (bw, bh) = (rng.range(6, 40), rng.range(6, 40));
-            let (x0, y0) = (rng.range(0, w - bw), rng.range(0, h - bh));
-            if img.get(x0, y0) != FREE || img.get(x0 + bw - 1, y0 + bh - 1) != FREE {
-                continue;
-            }
-            for y in y0..y0 + bh {
-                for x in x0..x0 + bw {
-                    img.pixels_mut()[(y * w + x) as usize] = OCCUPIED;
-                }
-            }
-        }
-        for y in 0..h * 2 / 5 {
-            for x in w * 3 / 5..w {
-                img.pixels_mut()[(y * w + x) as usize] = UNKNOWN;
-            }
-        }
-        img
+        crate::map::synthetic::cluttered_office(w, h, seed).unwrap()
     }
 
     /// Whether the prepared map marks its pixel (x, y) (the map's own pixels) as clutter.
