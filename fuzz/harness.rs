@@ -399,7 +399,7 @@ fn loaded_map(image: MapImage, yaml: Option<&str>) -> Option<OccupancyMap> {
 }
 
 /// The merge options from the bytes: the hypotheses' source and detector, the acceptance rule (the
-/// calibrated one, one that accepts nearly anything, or any numbers), the symmetry check.
+/// calibrated one, one that accepts nearly anything, or any numbers), the symmetry check, the ranking.
 fn merge_options(flags: u8, b: &mut Bytes) -> MergeOptions {
     let kinds = [
         DetectorKind::Ogm,
@@ -439,6 +439,12 @@ fn merge_options(flags: u8, b: &mut Bytes) -> MergeOptions {
         hypotheses,
         check_symmetry: flags & 0x20 == 0,
         always_verify: flags & 0x40 != 0,
+        // The hypotheses' byte's bits above its 15 sources: no byte more read, so saved inputs replay.
+        ranking: if (h / 15) & 1 == 0 {
+            ogm_corners::merge::Ranking::Choice
+        } else {
+            ogm_corners::merge::Ranking::Evidence
+        },
     }
 }
 

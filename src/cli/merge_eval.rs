@@ -10,7 +10,7 @@ use ogm_corners::measure::merging::many as global_eval;
 use ogm_corners::measure::merging::page::PairsPage;
 use ogm_corners::measure::pairs::PairSet;
 use ogm_corners::merge::many::GlobalOptions;
-use ogm_corners::merge::{MergeOptions, Rigid};
+use ogm_corners::merge::{MergeOptions, Ranking, Rigid};
 use ogm_corners::support::memory::Budget;
 use ogm_corners::{Error, OccupancyMap, Result};
 
@@ -110,9 +110,37 @@ pub(super) struct MergeEvalArgs {
     /// Measure every pair again and keep nothing.
     #[arg(long)]
     no_cache: bool,
+    /// What orders each pair's candidates for the choice: the choice key (the default, as `merge`
+    /// ranks them), or their consistent evidence (the wall pixels that agree after a few px of local
+    /// shift, less those left in the other map's free space), measured beside it (pair files,
+    /// --synthetic and --cross-validate).
+    #[arg(long, value_enum, default_value = "choice", conflicts_with_all = ["ablation", "global"])]
+    ranking: RankingArg,
     /// Output: a summary table, or every pair's record as JSON.
     #[arg(long, value_enum, default_value = "md")]
     format: super::TextOrJsonMd,
+}
+
+/// `--ranking`'s values ([`Ranking`]).
+#[derive(Clone, Copy, Debug, clap::ValueEnum)]
+enum RankingArg {
+    /// The choice key, as `merge` ranks them.
+    Choice,
+    /// The consistent evidence.
+    Evidence,
+}
+
+impl MergeEvalArgs {
+    /// The merge options of a run: the defaults with the chosen ranking.
+    fn merge_options(&self) -> MergeOptions {
+        MergeOptions {
+            ranking: match self.ranking {
+                RankingArg::Choice => Ranking::Choice,
+                RankingArg::Evidence => Ranking::Evidence,
+            },
+            ..MergeOptions::default()
+        }
+    }
 }
 
 pub(super) fn run(a: MergeEvalArgs, budget: &Budget) -> Result<()> {
@@ -159,7 +187,7 @@ pub(super) fn run(a: MergeEvalArgs, budget: &Budget) -> Result<()> {
             let done = merging::run_cached(
                 &set,
                 &maps,
-                &MergeOptions::default(),
+                &a.merge_options(),
                 &mut on_pair,
                 cache.as_mut(),
             )?;
@@ -186,7 +214,7 @@ pub(super) fn run(a: MergeEvalArgs, budget: &Budget) -> Result<()> {
                 furnished,
                 save: a.save_pairs.clone(),
             };
-            let options = MergeOptions::default();
+            let options = a.merge_options();
             let (mut rows, mut costs) = if office {
                 merging::run_synthetic_with(&sources, &run, &options, &mut on_pair)?
             } else {
@@ -283,7 +311,7 @@ fn cross_validate(a: &MergeEvalArgs, budget: &Budget) -> Result<()> {
     }
     let options = MergeOptions {
         always_verify: true,
-        ..MergeOptions::default()
+        ..a.merge_options()
     };
     let keep = |n: &str| a.only.is_empty() || a.only.iter().any(|p| n.starts_with(p.as_str()));
     // Every file read and checked before the first pair is run.

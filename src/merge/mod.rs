@@ -24,5 +24,5 @@ pub mod resample;
 pub mod transform;
 
 pub use compose::compose;
-pub use pair::align::{align, Alignment, MergeOptions};
+pub use pair::align::{align, Alignment, MergeOptions, Ranking};
 pub use transform::Rigid;

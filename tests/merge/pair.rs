@@ -424,6 +424,24 @@ fn merge_eval_runs_the_synthetic_suite_on_given_maps() {
     for (x, y) in again.as_array().unwrap().iter().zip(rows) {
         assert_eq!(x["accepted"], y["accepted"]);
     }
+    // The candidates ranked by their consistent evidence instead: the same pairs, none merged wrongly.
+    let o = run(&[
+        "saved/pairs.json",
+        "--maps",
+        "saved",
+        "--ranking",
+        "evidence",
+        "--no-cache",
+        "--format",
+        "json",
+    ]);
+    assert_eq!(o.status.code(), Some(0));
+    let ranked: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let ranked = ranked.as_array().unwrap();
+    assert_eq!(ranked.len(), 2);
+    assert!(ranked
+        .iter()
+        .all(|r| r["accepted"] == false || r["accurate"] == true));
     // It never writes over a map it reads (office's first pair would be saved/a_office-50-0.pgm).
     let o = run(&[
         "--synthetic",
@@ -439,6 +457,8 @@ fn merge_eval_runs_the_synthetic_suite_on_given_maps() {
     for args in [
         vec!["--synthetic", "office.pgm", "--noise", "2"],
         vec!["--synthetic", "missing.pgm"],
+        vec!["--synthetic", "office.pgm", "--ranking", "sideways"],
+        vec!["--global", "--ranking", "evidence"],
         vec![],
     ] {
         assert_eq!(run(&args).status.code(), Some(2), "{args:?}");

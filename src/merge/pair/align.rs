@@ -31,10 +31,10 @@ use crate::merge::pair::alias::add_turns;
 pub(in crate::merge) use crate::merge::pair::alias::{alias, Repeats};
 pub use crate::merge::pair::alias::{ALIAS_EXTRA_CONFLICT, ALIAS_SELF_MATCH};
 pub(in crate::merge) use crate::merge::pair::choose::reference_rms;
-pub use crate::merge::pair::choose::MAX_RATIO;
 use crate::merge::pair::choose::{
     choose, distinct_ratios, refine_all, screened_distinct, Chosen, REFINED, STRICT,
 };
+pub use crate::merge::pair::choose::{Ranking, MAX_RATIO};
 use crate::merge::pair::coarse::{coarse_hypotheses, CoarseSet};
 use crate::merge::pair::evidence;
 pub use crate::merge::pair::fft::FINE_FFT;
@@ -66,6 +66,9 @@ pub struct MergeOptions {
     /// only for what the rule could accept otherwise): what refitting the rule needs
     /// (`merge-eval --cross-validate`).
     pub always_verify: bool,
+    /// What orders the candidates for the choice (the choice key by default; the consistent evidence
+    /// is measured beside it, not yet the default).
+    pub ranking: Ranking,
 }
 
 impl Default for MergeOptions {
@@ -75,6 +78,7 @@ impl Default for MergeOptions {
             hypotheses: Hypotheses::default(),
             check_symmetry: true,
             always_verify: false,
+            ranking: Ranking::default(),
         }
     }
 }
@@ -179,7 +183,7 @@ pub fn align_prepared_with(
         refined,
         keys,
         order,
-    } = choose(src, dst, &found, backend)?;
+    } = choose(src, dst, &found, options.ranking, backend)?;
     let (_, best, mut features) = refined[0];
     // How far it stands out, by the choice's key and by the coarse score: over the best distinct
     // alternative's (both before the polish, as the alternatives are).

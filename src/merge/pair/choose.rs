@@ -106,6 +106,31 @@ pub(in crate::merge) fn refine_all(
     })
 }
 
+/// What orders the refined candidates for the choice ([`choose`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Ranking {
+    /// The choice key ([`Features::choice`]): the local agreement, the fine conflict, the free
+    /// agreement and the coarse score relative to the best candidate's, multiplied.
+    #[default]
+    Choice,
+    /// The consistent evidence, counted as [`Features::evidence_ratio`] counts it: the wall pixels of
+    /// both maps (sampled, each into the other) that agree after their tile's local shift, less those
+    /// left deep in the other map's free space. In units of the pair's own walls, with no weight or
+    /// exponent fitted to any building; ties keep the choice key's order.
+    Evidence,
+}
+
+impl Ranking {
+    /// Its name on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            Ranking::Choice => "choice",
+            Ranking::Evidence => "evidence",
+        }
+    }
+}
+
 /// The candidates in the order of the choice, the chosen one first and polished.
 pub(in crate::merge) struct Chosen {
     /// Coarse score, transform between the maps and features, in the choice's order.
@@ -122,11 +147,13 @@ pub(in crate::merge) struct Chosen {
 /// placement laying one map fully over the other to a true, smaller overlap; the local agreement
 /// alone, small overlaps of a few matching walls; in a building of many like rooms, a wrong placement
 /// matches walls locally but puts others in the other map's rooms. The chosen one is polished to a
-/// fraction of a pixel and verified again.
+/// fraction of a pixel and verified again. With [`Ranking::Evidence`], the candidates are ordered by
+/// their consistent evidence instead, the choice key breaking ties.
 pub(in crate::merge) fn choose(
     src: &Prepared,
     dst: &Prepared,
     found: &Refined,
+    ranking: Ranking,
     backend: &mut dyn Backend,
 ) -> Result<Chosen> {
     let top = found
@@ -139,9 +166,8 @@ pub(in crate::merge) fn choose(
         r.2.local * (1.0 - r.2.conflict_fine).max(0.0).sqrt() * r.2.free_agree.powi(4) * r.0 / top
     };
     let unordered: Vec<f64> = found.candidates.iter().map(key).collect();
-    let mut order: Vec<usize> = (0..found.candidates.len()).collect();
-    // Stable: ties keep the coarse order.
-    order.sort_by(|&x, &y| unordered[y].total_cmp(&unordered[x]));
+    let evidence: Vec<f64> = found.counts.iter().map(LocalCounts::consistent).collect();
+    let order = ranked(&unordered, &evidence, ranking);
     let mut refined: Vec<(f64, Rigid, Features)> =
         order.iter().map(|&i| found.candidates[i]).collect();
     let keys: Vec<f64> = order.iter().map(|&i| unordered[i]).collect();
@@ -161,6 +187,18 @@ pub(in crate::merge) fn choose(
         keys,
         order,
     })
+}
+
+/// The candidates' indices in the order `ranking` puts them: by their choice keys `keys`, or by their
+/// consistent evidence `evidence` with the keys breaking ties; equal ones keep the coarse order.
+fn ranked(keys: &[f64], evidence: &[f64], ranking: Ranking) -> Vec<usize> {
+    let mut order: Vec<usize> = (0..keys.len()).collect();
+    // Stable sorts: ties keep the order before.
+    order.sort_by(|&x, &y| keys[y].total_cmp(&keys[x]));
+    if ranking == Ranking::Evidence {
+        order.sort_by(|&x, &y| evidence[y].total_cmp(&evidence[x]));
+    }
+    order
 }
 
 /// Candidate `i`'s consistent coarse score and choice key (`keys`) over the best of the candidates
@@ -230,4 +268,21 @@ pub(in crate::merge) fn reference_rms(src: &Prepared, x: &Rigid, y: &Rigid) -> f
         })
         .sum();
     (sum / src.reference.len() as f64).sqrt()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{ranked, Ranking};
+
+    #[test]
+    fn candidates_rank_by_their_choice_key_or_by_their_consistent_evidence() {
+        let keys = [0.2, 0.9, 0.5, 0.5];
+        let evidence = [300.0, 100.0, 250.0, 300.0];
+        assert_eq!(ranked(&keys, &evidence, Ranking::Choice), [1, 2, 3, 0]);
+        // Equal evidence: the better choice key first (candidate 3 over 0 despite the coarse order).
+        assert_eq!(ranked(&keys, &evidence, Ranking::Evidence), [3, 0, 2, 1]);
+        // Equal keys keep the coarse order.
+        assert_eq!(ranked(&[0.5, 0.5], &[1.0, 1.0], Ranking::Choice), [0, 1]);
+        assert!(ranked(&[], &[], Ranking::Evidence).is_empty());
+    }
 }
