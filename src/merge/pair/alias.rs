@@ -33,10 +33,13 @@ pub const ALIAS_TOLD_RATIO: f64 = 2.0;
 pub const ALIAS_TOLD_SIGMAS: f64 = 3.0;
 
 /// A map's repeat is listed step by step ([`lattice_poses`]) up to this many poses tried for each map,
-/// from every base pose together: a long corridor of equal rooms is a few dozen, a warehouse's racks
-/// in two directions from several turned poses can be thousands (then the repeat stays held, as it is
-/// without the listing, and a pair costs no more than a few hundred poses scored).
-pub const LATTICE_POSES: usize = 1024;
+/// from every base pose together: a long corridor of equal rooms is a few dozen, but an office whose
+/// rooms repeat in two directions, walked from each of its turns onto itself, is a thousand or two, and
+/// a warehouse's racks in two directions can be more (then the repeat stays held, as it is without the
+/// listing). A cost bound, not a decision's limit: a pair whose lattice outgrows it is declined for the
+/// repeat it could not list, never merged for it; at most this many poses scored (about 3 s of one
+/// warehouse pair on a 2-core VM; the listing runs only for a pair that would be merged otherwise).
+pub const LATTICE_POSES: usize = 4096;
 
 /// Poses composed two ways that land within this of each other are one pose (the distance of
 /// [`transform_distance`]: px, and 10 px a degree).
