@@ -494,6 +494,52 @@ mod tests {
     use crate::merge::pair::accept::Features;
 
     #[test]
+    fn a_grid_of_equal_rooms_walked_from_each_of_its_turns_is_listed_whole() {
+        use super::{lattice_poses, one_of_each, LATTICE_POSES};
+        use crate::backend::ReferenceBackend;
+        use crate::map::OccupancyMap;
+        use crate::merge::pair::align::self_symmetry_with;
+        use crate::merge::pair::prepare::Prepared;
+        use crate::merge::transform::Rigid;
+        // An 8 x 8 grid of equal rooms (a few walls left out, two cabinets).
+        let layout = crate::measure::synthetic::grid_rooms(3).unwrap();
+        let p = Prepared::new(&OccupancyMap::from_image(layout.image.clone()));
+        let mut backend = ReferenceBackend;
+        let sym = self_symmetry_with(&p, &mut backend).unwrap();
+        let best = Rigid::IDENTITY;
+        let bases = one_of_each(
+            std::iter::once(best).chain(
+                sym.transforms
+                    .iter()
+                    .copied()
+                    .filter(|t| super::signed_deg(t.theta_deg).abs() > super::NEAR_IDENTITY_DEG),
+            ),
+        );
+        // The identity and the grid's turns onto itself: each a base its lattice is walked from.
+        assert!(bases.len() >= 2, "{} bases", bases.len());
+        let listed = lattice_poses(&p, &p, &best, &bases, (sym, sym), &mut backend)
+            .unwrap()
+            .expect("the lattice outgrew its bound");
+        // Over a thousand poses (the bound was once 1024, and such a grid was then held unlisted),
+        // among them the grid shifted by any few rooms either way.
+        assert!(listed.len() > 1024 && listed.len() <= LATTICE_POSES);
+        let (px, py) = (layout.lattice[0].0, layout.lattice[1].1);
+        for (i, j) in [(1.0, 0.0), (0.0, -1.0), (3.0, 2.0), (-2.0, 3.0)] {
+            let shift = Rigid {
+                theta_deg: 0.0,
+                tx: i * px,
+                ty: j * py,
+            };
+            assert!(
+                listed
+                    .iter()
+                    .any(|t| crate::merge::transform::transform_distance(t, &shift) < 8.0),
+                "no pose {i} rooms across and {j} down"
+            );
+        }
+    }
+
+    #[test]
     fn a_pose_is_uncontradicted_with_fewer_walls_on_free_space_than_a_detail_needs() {
         // 8 of 10000 sampled walls deep in free space are not told from none; 9 are a detail.
         assert!(walls_uncontradicted((0.9, 0.0008, 10_000.0)));
