@@ -106,7 +106,7 @@ pub(in crate::merge) fn refine_all(
     })
 }
 
-/// What orders the refined candidates for the choice ([`choose`]).
+/// What orders the refined candidates for the choice (the candidate chosen is the first).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum Ranking {
