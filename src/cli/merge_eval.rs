@@ -115,29 +115,17 @@ pub(super) struct MergeEvalArgs {
     /// shift, less those left in the other map's free space), measured beside it (pair files,
     /// --synthetic and --cross-validate).
     #[arg(long, value_enum, default_value = "choice", conflicts_with_all = ["ablation", "global"])]
-    ranking: RankingArg,
+    ranking: Ranking,
     /// Output: a summary table, or every pair's record as JSON.
     #[arg(long, value_enum, default_value = "md")]
     format: super::TextOrJsonMd,
-}
-
-/// `--ranking`'s values ([`Ranking`]).
-#[derive(Clone, Copy, Debug, clap::ValueEnum)]
-enum RankingArg {
-    /// The choice key, as `merge` ranks them.
-    Choice,
-    /// The consistent evidence.
-    Evidence,
 }
 
 impl MergeEvalArgs {
     /// The merge options of a run: the defaults with the chosen ranking.
     fn merge_options(&self) -> MergeOptions {
         MergeOptions {
-            ranking: match self.ranking {
-                RankingArg::Choice => Ranking::Choice,
-                RankingArg::Evidence => Ranking::Evidence,
-            },
+            ranking: self.ranking,
             ..MergeOptions::default()
         }
     }

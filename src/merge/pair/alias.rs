@@ -260,16 +260,7 @@ fn alternative_poses(
         // Every step from the chosen pose and from each of its turns (a turn of a building that
         // repeats is a turn and a step of the repeat away from the truth as often as not), the
         // search's turned candidates among them.
-        // One turn reached through A's symmetry and B's is one base: its lattice walked once.
-        let bases = one_of_each(
-            std::iter::once(*best).chain(
-                poses
-                    .iter()
-                    .copied()
-                    .chain(found.iter().map(|f| f.0))
-                    .filter(|t| signed_deg(t.theta_deg - best.theta_deg).abs() > NEAR_IDENTITY_DEG),
-            ),
-        );
+        let bases = lattice_bases(best, poses.iter().copied().chain(found.iter().map(|f| f.0)));
         if let Some(steps) = lattice_poses(src, dst, best, &bases, (sa, sb), backend)? {
             poses.extend(steps);
             repeats_listed = true;
@@ -354,6 +345,18 @@ pub(in crate::merge) struct Alias {
     /// its contradictions; `None` where no alternative was measured. What
     /// [`Features::evidence_ratio`](crate::merge::pair::accept::Features::evidence_ratio) weighs.
     pub(in crate::merge) consistent: Option<(f64, f64)>,
+}
+
+/// The poses a repeat's lattice is walked from: `best` and those of `poses` turned from it, one turn
+/// reached through A's symmetry and B's being one base, so that its lattice is walked once.
+fn lattice_bases(best: &Rigid, poses: impl IntoIterator<Item = Rigid>) -> Vec<Rigid> {
+    one_of_each(
+        std::iter::once(*best).chain(
+            poses
+                .into_iter()
+                .filter(|t| signed_deg(t.theta_deg - best.theta_deg).abs() > NEAR_IDENTITY_DEG),
+        ),
+    )
 }
 
 /// Every step of the maps' repeats that could misplace the pair: the shifts among each map's
@@ -495,7 +498,7 @@ mod tests {
 
     #[test]
     fn a_grid_of_equal_rooms_walked_from_each_of_its_turns_is_listed_whole() {
-        use super::{lattice_poses, one_of_each, LATTICE_POSES};
+        use super::{lattice_bases, lattice_poses, LATTICE_POSES};
         use crate::backend::ReferenceBackend;
         use crate::map::OccupancyMap;
         use crate::merge::pair::align::self_symmetry_with;
@@ -507,14 +510,7 @@ mod tests {
         let mut backend = ReferenceBackend;
         let sym = self_symmetry_with(&p, &mut backend).unwrap();
         let best = Rigid::IDENTITY;
-        let bases = one_of_each(
-            std::iter::once(best).chain(
-                sym.transforms
-                    .iter()
-                    .copied()
-                    .filter(|t| super::signed_deg(t.theta_deg).abs() > super::NEAR_IDENTITY_DEG),
-            ),
-        );
+        let bases = lattice_bases(&best, sym.transforms.iter().copied());
         // The identity and the grid's turns onto itself: each a base its lattice is walked from.
         assert!(bases.len() >= 2, "{} bases", bases.len());
         let listed = lattice_poses(&p, &p, &best, &bases, (sym, sym), &mut backend)

@@ -106,29 +106,19 @@ pub(in crate::merge) fn refine_all(
     })
 }
 
-/// What orders the refined candidates for the choice (the candidate chosen is the first).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
-#[serde(rename_all = "kebab-case")]
+/// What orders the refined candidates for the choice (the candidate chosen is the first); also
+/// `merge-eval --ranking`'s values.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
 pub enum Ranking {
-    /// The choice key ([`Features::choice`]): the local agreement, the fine conflict, the free
-    /// agreement and the coarse score relative to the best candidate's, multiplied.
+    /// The choice key (`Features::choice`), as `merge` ranks them: the local agreement, the fine
+    /// conflict, the free agreement and the coarse score relative to the best candidate's, multiplied.
     #[default]
     Choice,
-    /// The consistent evidence, counted as [`Features::evidence_ratio`] counts it: the wall pixels of
+    /// The consistent evidence, counted as `Features::evidence_ratio` counts it: the wall pixels of
     /// both maps (sampled, each into the other) that agree after their tile's local shift, less those
     /// left deep in the other map's free space. In units of the pair's own walls, with no weight or
     /// exponent fitted to any building; ties keep the choice key's order.
     Evidence,
-}
-
-impl Ranking {
-    /// Its name on the command line.
-    pub fn name(self) -> &'static str {
-        match self {
-            Ranking::Choice => "choice",
-            Ranking::Evidence => "evidence",
-        }
-    }
 }
 
 /// The candidates in the order of the choice, the chosen one first and polished.
